@@ -1,0 +1,44 @@
+#include "agents/agent_factory.hpp"
+
+#include "agents/controller_agent.hpp"
+#include "agents/vehicle_agent.hpp"
+#include "core/error.hpp"
+
+namespace syndds::agents {
+
+proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& member_id,
+                           const record::RecorderOptions& recorder_options) {
+  for (const auto& v : s.vehicles) {
+    if (member_id == scenario::vehicle_member(v.id)) {
+      return std::make_unique<VehicleAgent>(s, v);
+    }
+    if (member_id == scenario::controller_member(v.id) && v.controller.type == "path_follower") {
+      return std::make_unique<ControllerAgent>(s, v);
+    }
+    if (member_id == scenario::external_member(v.id) && v.controller.type == "external") {
+      throw ConfigError(member_id + " is an external controller: it is the user's own program");
+    }
+  }
+  if (member_id == scenario::kRecorderMember && s.recorder.enabled) {
+    return std::make_unique<record::RecorderAgent>(s, recorder_options);
+  }
+  std::string known;
+  for (const auto& m : s.member_ids()) known += (known.empty() ? "" : ", ") + m;
+  throw ConfigError(s.file + ": scenario declares no member '" + member_id + "' (members: " +
+                    known + ")");
+}
+
+std::vector<proto::AgentPtr> make_all_agents(const scenario::Scenario& s,
+                                             const record::RecorderOptions& recorder_options) {
+  std::vector<proto::AgentPtr> out;
+  for (const auto& m : s.member_ids()) {
+    if (m.rfind("external/", 0) == 0) {
+      throw ConfigError(s.file + ": member " + m +
+                        " is an external program; it cannot run in single-process mode");
+    }
+    out.push_back(make_agent(s, m, recorder_options));
+  }
+  return out;
+}
+
+}  // namespace syndds::agents

@@ -1,0 +1,22 @@
+#pragma once
+// Builds the agents a scenario declares: all of them (single-process runs) or one member
+// (one service process).
+#include <string>
+#include <vector>
+
+#include "protocol/agent.hpp"
+#include "record/recorder_agent.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::agents {
+
+/// The agent for `member_id` ("vehicle/v1", "controller/v1", "recorder").
+/// Throws ConfigError if the scenario declares no such member or it is not built in (external).
+proto::AgentPtr make_agent(const scenario::Scenario& scenario, const std::string& member_id,
+                           const record::RecorderOptions& recorder_options);
+
+/// Every built-in agent of the scenario, in member order.
+std::vector<proto::AgentPtr> make_all_agents(const scenario::Scenario& scenario,
+                                             const record::RecorderOptions& recorder_options);
+
+}  // namespace syndds::agents

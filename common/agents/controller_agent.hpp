@@ -1,0 +1,30 @@
+#pragma once
+// The path-following controller member: reads its vehicle's state stamped k-1 and publishes
+// the DriverCommand stamped k (applied by the vehicle in frame k+1: one frame of latency).
+#include <optional>
+
+#include "control/path_follower.hpp"
+#include "protocol/agent.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::agents {
+
+class ControllerAgent final : public proto::Agent {
+ public:
+  ControllerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);
+
+  const std::string& member_id() const override { return member_id_; }
+  proto::MemberKind kind() const override { return proto::MemberKind::controller; }
+  std::vector<proto::Subscription> subscriptions() const override;
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+            proto::FrameSamples& outputs) override;
+
+  const control::PathFollower& follower() const { return follower_; }
+
+ private:
+  std::string vehicle_id_;
+  std::string member_id_;
+  control::PathFollower follower_;
+};
+
+}  // namespace syndds::agents

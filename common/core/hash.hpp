@@ -1,0 +1,37 @@
+#pragma once
+// Small, stable (platform-independent) hashes used for fingerprints and determinism checks.
+#include <cstdint>
+#include <cstring>
+#include <string_view>
+
+namespace syndds {
+
+/// 64-bit FNV-1a, incremental. Stable across runs and machines.
+class Fnv1a64 {
+ public:
+  void add_bytes(const void* data, std::size_t size) {
+    const auto* bytes = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < size; ++i) {
+      state_ ^= bytes[i];
+      state_ *= 1099511628211ULL;
+    }
+  }
+  void add(std::string_view text) {
+    add_bytes(text.data(), text.size());
+    add_bytes("\0", 1);
+  }
+  void add(double value) { add_bytes(&value, sizeof value); }
+  void add(std::int64_t value) { add_bytes(&value, sizeof value); }
+  std::uint64_t value() const { return state_; }
+
+ private:
+  std::uint64_t state_ = 14695981039346656037ULL;
+};
+
+inline std::uint64_t fnv1a64(std::string_view text) {
+  Fnv1a64 h;
+  h.add_bytes(text.data(), text.size());
+  return h.value();
+}
+
+}  // namespace syndds

@@ -1,0 +1,77 @@
+#pragma once
+// An Agent is one member of the time barrier (a vehicle, a controller, the recorder, a sensor):
+// a deterministic function of the samples stamped frame k-1 that it subscribes to. The same
+// Agent runs as its own process (services/*, over DDS) or with others in one process
+// (LocalRunner): both deliver exactly the same inputs, so both give the same results.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "protocol/messages.hpp"
+
+namespace syndds::proto {
+
+/// What an agent depends on: samples of `topic`, all keys or just `key`.
+struct Subscription {
+  Topic topic;
+  std::string key;  // empty: every key
+  bool matches(Topic t, const std::string& k) const {
+    return t == topic && (key.empty() || key == k);
+  }
+};
+
+/// Samples stamped one frame, sorted by (key, source) so their order never depends on arrival.
+struct FrameSamples {
+  std::vector<VehicleStateMsg> vehicle_states;
+  std::vector<DriverCommandMsg> driver_commands;
+  std::vector<TerrainDeformationMsg> terrain_deformations;
+  std::vector<CollisionEventMsg> collision_events;
+
+  bool empty() const {
+    return vehicle_states.empty() && driver_commands.empty() && terrain_deformations.empty() &&
+           collision_events.empty();
+  }
+  void clear() { *this = FrameSamples{}; }
+  /// Sorts every list by (key, source): the canonical order agents see.
+  void sort();
+  /// Manifest entries describing these samples as written by `writer`.
+  Manifest manifest(const std::string& writer) const;
+  /// Keeps only samples that match one of the subscriptions.
+  FrameSamples filtered(const std::vector<Subscription>& subscriptions) const;
+  void append(const FrameSamples& other);
+};
+
+struct FrameContext {
+  std::int64_t frame = 0;     // the frame being computed
+  double sim_time_s = 0.0;    // t_k = frame * heartbeat_s, the time at the end of this frame
+  double heartbeat_s = 0.0;
+};
+
+/// How a run ended, as told to every agent.
+struct RunEnd {
+  RunControlMsg control;
+};
+
+class Agent {
+ public:
+  virtual ~Agent() = default;
+  virtual const std::string& member_id() const = 0;
+  virtual MemberKind kind() const = 0;
+  virtual std::vector<Subscription> subscriptions() const = 0;
+
+  /// Computes frame `ctx.frame`. `inputs` holds exactly the subscribed samples stamped
+  /// ctx.frame - 1 (none for frame 0). Samples to publish go to `outputs`; the runtime stamps
+  /// nothing itself: each sample must carry frame == ctx.frame and source == member_id().
+  virtual void step(const FrameContext& ctx, const FrameSamples& inputs,
+                    FrameSamples& outputs) = 0;
+
+  /// The run ended: completed after `end.control.final_frame`, or aborted (member lost, missed
+  /// deadline, interrupt; `end.control.reason` says why). `final_inputs` holds the subscribed
+  /// samples stamped with the final frame when they could still be gathered (always after a
+  /// completed run; after an abort only if every member had finished that frame).
+  virtual void finish(const RunEnd& end, const FrameSamples& final_inputs) {}
+};
+
+using AgentPtr = std::unique_ptr<Agent>;
+
+}  // namespace syndds::proto

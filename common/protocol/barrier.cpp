@@ -1,0 +1,248 @@
+#include "protocol/barrier.hpp"
+
+#include <algorithm>
+#include <sstream>
+
+namespace syndds::proto {
+namespace {
+
+std::string join_names(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+}  // namespace
+
+Barrier::Barrier(BarrierConfig config, double now_s) : config_(std::move(config)), created_s_(now_s) {
+  for (const auto& m : config_.members) members_[m];
+}
+
+std::string Barrier::on_join(const std::string& member, double now_s) {
+  auto it = members_.find(member);
+  if (it == members_.end()) {
+    return "ignoring join of '" + member + "': not a member of this scenario";
+  }
+  if (it->second.joined) return "";  // repeated announcement (TRANSIENT_LOCAL) is harmless
+  if (phase_ != Phase::joining) {
+    return "ignoring join of '" + member + "': the run has already started";
+  }
+  it->second.joined = true;
+  return "";
+}
+
+std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
+  auto it = members_.find(done.member_id);
+  if (it == members_.end()) {
+    return "ignoring done from '" + done.member_id + "': not a member of this scenario";
+  }
+  Member& m = it->second;
+  if (m.lost) return "ignoring done from '" + done.member_id + "': member was declared lost";
+  if (done.finished) {
+    m.finished = true;
+    return "";
+  }
+  if (phase_ != Phase::running) return "";
+  if (done.frame != frame_) {
+    if (done.frame < frame_) return "";  // stale duplicate
+    return "ignoring done from '" + done.member_id + "' for frame " + std::to_string(done.frame) +
+           ": frame " + std::to_string(frame_) + " is current";
+  }
+  if (m.done) return "";
+  m.done = true;
+  m.published = done.published;
+  const double response = now_s - grant_s_;
+  m.response_sum_s += response;
+  m.response_max_s = std::max(m.response_max_s, response);
+  m.compute_sum_s += done.compute_s;
+  ++m.responses;
+  last_done_member_ = done.member_id;
+  return "";
+}
+
+void Barrier::on_member_lost(const std::string& member, const std::string& why, double now_s) {
+  auto it = members_.find(member);
+  if (it == members_.end() || it->second.lost) return;
+  if (phase_ == Phase::stopped || phase_ == Phase::aborted) {
+    it->second.lost = true;
+    return;
+  }
+  it->second.lost = true;
+  if (config_.on_member_loss == LossPolicy::abort || phase_ == Phase::joining) {
+    if (!pending_abort_) pending_abort_ = "member " + member + " lost: " + why;
+  }
+}
+
+void Barrier::on_interrupt(const std::string& why, double now_s) {
+  if (!pending_abort_) pending_abort_ = why;
+}
+
+bool Barrier::everyone_done() const {
+  for (const auto& [name, m] : members_) {
+    if (!m.lost && !m.done) return false;
+  }
+  return true;
+}
+
+Manifest Barrier::collect_manifest() const {
+  Manifest out;
+  for (const auto& [name, m] : members_) {
+    if (m.lost) continue;
+    out.insert(out.end(), m.published.begin(), m.published.end());
+  }
+  std::sort(out.begin(), out.end(), [](const TopicCount& a, const TopicCount& b) {
+    return std::tie(a.topic, a.key, a.writer) < std::tie(b.topic, b.key, b.writer);
+  });
+  return out;
+}
+
+Barrier::Action Barrier::abort_with(const std::string& reason, double now_s) {
+  if (phase_ == Phase::running && everyone_done()) last_completed_ = frame_;
+  const bool data_unconsumed = phase_ == Phase::running && last_completed_ == frame_;
+  phase_ = Phase::aborted;
+  end_s_ = now_s;
+  Action a;
+  a.kind = Action::Kind::abort;
+  a.control.status = RunStatus::aborted;
+  a.control.reason = reason;
+  a.control.final_frame = last_completed_;
+  // Samples of the last completed frame have not been consumed by anyone yet: announce them
+  // so the recorder can keep that frame too.
+  if (data_unconsumed) a.control.final_manifest = collect_manifest();
+  a.control.stats = stats(now_s);
+  announced_end_ = true;
+  return a;
+}
+
+Barrier::Action Barrier::poll(double now_s) {
+  Action wait;
+  wait.kind = Action::Kind::wait;
+  if (phase_ == Phase::stopped || phase_ == Phase::aborted) {
+    wait.wake_at_s = now_s + 1.0;
+    return wait;
+  }
+  if (pending_abort_) return abort_with(*pending_abort_, now_s);
+
+  if (phase_ == Phase::joining) {
+    const auto missing = missing_members();
+    if (missing.empty()) {
+      phase_ = Phase::running;
+      frame_ = 0;
+      grant_s_ = first_grant_s_ = now_s;
+      Action a;
+      a.kind = Action::Kind::grant;
+      a.grant.frame = 0;
+      a.grant.sim_time_s = 0.0;
+      return a;
+    }
+    const double deadline = created_s_ + config_.join_timeout_s;
+    if (now_s >= deadline) {
+      std::ostringstream msg;
+      msg << "join timeout after " << config_.join_timeout_s << " s: missing "
+          << join_names(missing);
+      return abort_with(msg.str(), now_s);
+    }
+    wait.wake_at_s = deadline;
+    return wait;
+  }
+
+  // running
+  if (!everyone_done()) {
+    const double deadline = grant_s_ + config_.frame_timeout_s;
+    if (now_s >= deadline) {
+      std::ostringstream msg;
+      msg << "frame " << frame_ << " missed its " << config_.frame_timeout_s
+          << " s deadline; still waiting for " << join_names(pending_members());
+      return abort_with(msg.str(), now_s);
+    }
+    wait.wake_at_s = deadline;
+    return wait;
+  }
+
+  // Everyone is done with frame_: account, then grant the next frame or stop.
+  if (!last_done_member_.empty()) {
+    ++members_[last_done_member_].slowest;
+    last_done_member_.clear();
+  }
+  last_completed_ = frame_;
+  const Manifest manifest = collect_manifest();
+  if (frame_ >= config_.final_frame) {
+    phase_ = Phase::stopped;
+    end_s_ = now_s;
+    Action a;
+    a.kind = Action::Kind::stop;
+    a.control.status = RunStatus::completed;
+    a.control.final_frame = frame_;
+    a.control.final_manifest = manifest;
+    a.control.stats = stats(now_s);
+    announced_end_ = true;
+    return a;
+  }
+  if (config_.realtime) {
+    const double due = first_grant_s_ + static_cast<double>(frame_ + 1) * config_.heartbeat_s;
+    if (now_s < due) {
+      wait.wake_at_s = due;
+      return wait;
+    }
+  }
+  ++frame_;
+  grant_s_ = now_s;
+  for (auto& [name, m] : members_) {
+    m.done = false;
+    m.published.clear();
+  }
+  Action a;
+  a.kind = Action::Kind::grant;
+  a.grant.frame = frame_;
+  a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
+  a.grant.manifest = manifest;
+  return a;
+}
+
+std::vector<std::string> Barrier::missing_members() const {
+  std::vector<std::string> out;
+  for (const auto& [name, m] : members_) {
+    if (!m.joined) out.push_back(name);
+  }
+  return out;
+}
+
+std::vector<std::string> Barrier::pending_members() const {
+  std::vector<std::string> out;
+  for (const auto& [name, m] : members_) {
+    if (!m.lost && !m.done) out.push_back(name);
+  }
+  return out;
+}
+
+bool Barrier::all_finished() const {
+  for (const auto& [name, m] : members_) {
+    if (!m.lost && !m.finished) return false;
+  }
+  return true;
+}
+
+RunStatsMsg Barrier::stats(double now_s) const {
+  RunStatsMsg s;
+  s.frames = static_cast<std::uint64_t>(last_completed_ + 1);
+  s.final_frame = last_completed_;
+  s.sim_time_s = last_completed_ > 0 ? static_cast<double>(last_completed_) * config_.heartbeat_s : 0.0;
+  const double end = (phase_ == Phase::stopped || phase_ == Phase::aborted) ? end_s_ : now_s;
+  s.wall_time_s = phase_ == Phase::joining ? 0.0 : end - first_grant_s_;
+  s.real_time_factor = s.sim_time_s > 0.0 ? s.wall_time_s / s.sim_time_s : 0.0;
+  for (const auto& [name, m] : members_) {
+    MemberStatsMsg ms;
+    ms.member_id = name;
+    if (m.responses > 0) {
+      ms.mean_response_s = m.response_sum_s / static_cast<double>(m.responses);
+      ms.mean_compute_s = m.compute_sum_s / static_cast<double>(m.responses);
+    }
+    ms.max_response_s = m.response_max_s;
+    ms.slowest_count = m.slowest;
+    ms.lost = m.lost;
+    s.members.push_back(ms);
+  }
+  return s;
+}
+
+}  // namespace syndds::proto

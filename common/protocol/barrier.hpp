@@ -1,0 +1,92 @@
+#pragma once
+// The coordinator's barrier as a pure state machine: events in (join, done, member lost,
+// interrupt), decisions out (grant frame k with the manifest of frame k-1, stop, abort).
+// Time is passed in (seconds on any monotonic clock), so every rule is unit-testable without
+// DDS or threads. services/coordinator drives it from DDS callbacks.
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "protocol/messages.hpp"
+
+namespace syndds::proto {
+
+enum class LossPolicy : std::uint8_t { abort, continue_run };
+
+struct BarrierConfig {
+  std::vector<std::string> members;  // declared by the scenario
+  std::int64_t final_frame = 0;      // last frame to grant; frames run 0..final_frame
+  double heartbeat_s = 0.01;
+  double join_timeout_s = 30.0;      // from construction until every member joined
+  double frame_timeout_s = 10.0;     // from a grant until every member reported it done
+  LossPolicy on_member_loss = LossPolicy::abort;
+  bool realtime = false;             // pace grants to the wall clock
+};
+
+class Barrier {
+ public:
+  enum class Phase { joining, running, stopped, aborted };
+
+  struct Action {
+    enum class Kind { wait, grant, stop, abort };
+    Kind kind = Kind::wait;
+    FrameGrantMsg grant;     // Kind::grant
+    RunControlMsg control;   // Kind::stop and Kind::abort
+    double wake_at_s = 0.0;  // Kind::wait: call poll() again by then even without events
+  };
+
+  Barrier(BarrierConfig config, double now_s);
+
+  /// Events. A non-empty return value is a warning: the event was ignored and why.
+  std::string on_join(const std::string& member, double now_s);
+  std::string on_done(const FrameDoneMsg& done, double now_s);
+  void on_member_lost(const std::string& member, const std::string& why, double now_s);
+  void on_interrupt(const std::string& why, double now_s);
+
+  /// The next decision. Grant/stop/abort are returned once; after them poll() says wait.
+  Action poll(double now_s);
+
+  Phase phase() const { return phase_; }
+  std::int64_t current_frame() const { return frame_; }
+  std::vector<std::string> missing_members() const;   // not joined yet
+  std::vector<std::string> pending_members() const;   // active, not done with current frame
+  bool is_member(const std::string& member) const { return members_.contains(member); }
+  /// After stop: true once every member still alive replied `finished`.
+  bool all_finished() const;
+  RunStatsMsg stats(double now_s) const;
+
+ private:
+  struct Member {
+    bool joined = false;
+    bool lost = false;
+    bool done = false;       // done with the current frame
+    bool finished = false;   // replied to stop
+    Manifest published;      // in the current frame
+    double response_sum_s = 0.0;
+    double response_max_s = 0.0;
+    double compute_sum_s = 0.0;
+    std::uint64_t responses = 0;
+    std::uint64_t slowest = 0;
+  };
+
+  Action abort_with(const std::string& reason, double now_s);
+  Manifest collect_manifest() const;
+  bool everyone_done() const;
+
+  BarrierConfig config_;
+  std::map<std::string, Member> members_;
+  Phase phase_ = Phase::joining;
+  double created_s_ = 0.0;
+  double first_grant_s_ = 0.0;
+  double grant_s_ = 0.0;         // when the current frame was granted
+  double end_s_ = 0.0;
+  std::int64_t frame_ = -1;      // current (last granted) frame
+  std::int64_t last_completed_ = -1;  // last frame every live member reported done
+  std::string last_done_member_;
+  std::optional<std::string> pending_abort_;
+  bool announced_end_ = false;
+};
+
+}  // namespace syndds::proto

@@ -1,0 +1,132 @@
+#include "protocol/frame_inbox.hpp"
+
+#include <sstream>
+
+namespace syndds::proto {
+namespace {
+
+template <typename T>
+std::uint32_t count_matching(const std::vector<T>& list, const TopicCount& entry) {
+  std::uint32_t n = 0;
+  for (const auto& s : list) {
+    if (s.vehicle_id == entry.key && s.source == entry.writer) ++n;
+  }
+  return n;
+}
+
+// Moves into `out` the samples of `in` that some entry of `manifest` on `topic` announces,
+// at most as many per entry as announced. Returns how many were left out.
+template <typename T>
+std::uint64_t take_announced(std::vector<T>& in, std::vector<T>& out, Topic topic,
+                             const Manifest& manifest) {
+  std::uint64_t dropped = 0;
+  std::map<std::pair<std::string, std::string>, std::uint32_t> budget;
+  for (const auto& e : manifest) {
+    if (e.topic == topic) budget[{e.key, e.writer}] += e.count;
+  }
+  for (auto& s : in) {
+    auto it = budget.find({s.vehicle_id, s.source});
+    if (it != budget.end() && it->second > 0) {
+      --it->second;
+      out.push_back(std::move(s));
+    } else {
+      ++dropped;
+    }
+  }
+  return dropped;
+}
+
+}  // namespace
+
+FrameInbox::FrameInbox(std::vector<Subscription> subscriptions)
+    : subscriptions_(std::move(subscriptions)) {}
+
+bool FrameInbox::wants(Topic topic, const std::string& key) const {
+  for (const auto& s : subscriptions_) {
+    if (s.matches(topic, key)) return true;
+  }
+  return false;
+}
+
+template <typename T>
+bool FrameInbox::store(Topic topic, T sample, std::vector<T> FrameSamples::*list) {
+  if (!wants(topic, sample.vehicle_id)) return false;
+  if (sample.frame <= last_taken_) return false;  // late duplicate of a frame already consumed
+  (pending_[sample.frame].*list).push_back(std::move(sample));
+  return true;
+}
+
+bool FrameInbox::add(VehicleStateMsg s) {
+  return store(Topic::vehicle_state, std::move(s), &FrameSamples::vehicle_states);
+}
+bool FrameInbox::add(DriverCommandMsg s) {
+  return store(Topic::driver_command, std::move(s), &FrameSamples::driver_commands);
+}
+bool FrameInbox::add(TerrainDeformationMsg s) {
+  return store(Topic::terrain_deformation, std::move(s), &FrameSamples::terrain_deformations);
+}
+bool FrameInbox::add(CollisionEventMsg s) {
+  return store(Topic::collision_event, std::move(s), &FrameSamples::collision_events);
+}
+
+Manifest FrameInbox::needed(const Manifest& manifest) const {
+  Manifest out;
+  for (const auto& e : manifest) {
+    if (e.count > 0 && wants(e.topic, e.key)) out.push_back(e);
+  }
+  return out;
+}
+
+std::uint32_t FrameInbox::held(std::int64_t frame, const TopicCount& e) const {
+  auto it = pending_.find(frame);
+  if (it == pending_.end()) return 0;
+  const FrameSamples& f = it->second;
+  switch (e.topic) {
+    case Topic::vehicle_state: return count_matching(f.vehicle_states, e);
+    case Topic::driver_command: return count_matching(f.driver_commands, e);
+    case Topic::terrain_deformation: return count_matching(f.terrain_deformations, e);
+    case Topic::collision_event: return count_matching(f.collision_events, e);
+  }
+  return 0;
+}
+
+bool FrameInbox::complete(std::int64_t frame, const Manifest& manifest) const {
+  for (const auto& e : needed(manifest)) {
+    if (held(frame, e) < e.count) return false;
+  }
+  return true;
+}
+
+std::string FrameInbox::describe_missing(std::int64_t frame, const Manifest& manifest) const {
+  std::ostringstream out;
+  for (const auto& e : needed(manifest)) {
+    const std::uint32_t have = held(frame, e);
+    if (have >= e.count) continue;
+    if (out.tellp() > 0) out << "; ";
+    out << to_string(e.topic) << " key=" << e.key << " from " << e.writer << ": have " << have
+        << " of " << e.count;
+  }
+  return out.str();
+}
+
+FrameSamples FrameInbox::take(std::int64_t frame, const Manifest& manifest) {
+  FrameSamples out;
+  auto it = pending_.find(frame);
+  if (it != pending_.end()) {
+    FrameSamples& in = it->second;
+    unexpected_ += take_announced(in.vehicle_states, out.vehicle_states, Topic::vehicle_state,
+                                  manifest);
+    unexpected_ += take_announced(in.driver_commands, out.driver_commands,
+                                  Topic::driver_command, manifest);
+    unexpected_ += take_announced(in.terrain_deformations, out.terrain_deformations,
+                                  Topic::terrain_deformation, manifest);
+    unexpected_ += take_announced(in.collision_events, out.collision_events,
+                                  Topic::collision_event, manifest);
+  }
+  pending_.erase(pending_.begin(), pending_.upper_bound(frame));
+  last_taken_ = std::max(last_taken_, frame);
+  out.sort();
+  return out;
+}
+
+}  // namespace syndds::proto

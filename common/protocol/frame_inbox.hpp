@@ -1,0 +1,57 @@
+#pragma once
+// The data barrier on the receiving side. DDS does not order samples across topics or writers,
+// so the arrival of grant k does not prove the arrival of the data stamped k-1. The grant
+// carries a manifest (who wrote how many samples on which topic and key in frame k-1); the
+// inbox says the frame is complete only when it holds every sample of the manifest that it
+// subscribes to, and hands out exactly those samples, in canonical order.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "protocol/agent.hpp"
+
+namespace syndds::proto {
+
+class FrameInbox {
+ public:
+  explicit FrameInbox(std::vector<Subscription> subscriptions);
+
+  const std::vector<Subscription>& subscriptions() const { return subscriptions_; }
+  bool wants(Topic topic, const std::string& key) const;
+
+  /// Stores a sample if it is subscribed and not older than the frames still to be taken.
+  /// Returns false when the sample was not kept.
+  bool add(VehicleStateMsg sample);
+  bool add(DriverCommandMsg sample);
+  bool add(TerrainDeformationMsg sample);
+  bool add(CollisionEventMsg sample);
+
+  /// The entries of `manifest` this inbox depends on.
+  Manifest needed(const Manifest& manifest) const;
+  /// True when every needed entry of `manifest` is held for `frame`.
+  bool complete(std::int64_t frame, const Manifest& manifest) const;
+  /// Human-readable list of what is still missing, e.g.
+  /// "vehicle_state key=v2 from vehicle/v2: have 0 of 1".
+  std::string describe_missing(std::int64_t frame, const Manifest& manifest) const;
+
+  /// Removes and returns the samples of `frame` covered by `manifest` (sorted), and forgets
+  /// everything stamped at or before `frame`. Samples the manifest does not announce are
+  /// dropped and counted in unexpected_samples().
+  FrameSamples take(std::int64_t frame, const Manifest& manifest);
+
+  std::uint64_t unexpected_samples() const { return unexpected_; }
+  std::int64_t last_taken_frame() const { return last_taken_; }
+
+ private:
+  template <typename T>
+  bool store(Topic topic, T sample, std::vector<T> FrameSamples::*list);
+  std::uint32_t held(std::int64_t frame, const TopicCount& entry) const;
+
+  std::vector<Subscription> subscriptions_;
+  std::map<std::int64_t, FrameSamples> pending_;
+  std::int64_t last_taken_ = -1;
+  std::uint64_t unexpected_ = 0;
+};
+
+}  // namespace syndds::proto

@@ -1,0 +1,159 @@
+#pragma once
+// Plain C++ mirrors of the IDL types in idl/syndds.idl. common/ code speaks these; the DDS
+// layer (services/dds) converts them to and from the generated types at the edge.
+//
+// Frame convention (see docs/time-protocol.md): frame k ends at sim time t_k = k * heartbeat_s.
+// Frame 0 is the initial frame (vehicles publish their initial state, nothing steps); in frame
+// k >= 1 vehicles advance from t_{k-1} to t_k. A sample "stamped k" was produced in frame k.
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/math.hpp"
+
+namespace syndds::proto {
+
+inline constexpr std::int32_t kProtocolVersion = 1;
+
+enum class MemberKind : std::uint8_t { vehicle, controller, recorder, sensor, external, coordinator };
+std::string_view to_string(MemberKind kind);
+
+/// Data topics that take part in the frame manifest.
+enum class Topic : std::uint8_t {
+  vehicle_state,
+  driver_command,
+  terrain_deformation,
+  collision_event,
+};
+inline constexpr Topic kAllDataTopics[] = {Topic::vehicle_state, Topic::driver_command,
+                                           Topic::terrain_deformation, Topic::collision_event};
+/// Stable short name used in manifests, logs and DDS topic names ("vehicle_state").
+std::string_view to_string(Topic topic);
+/// Inverse of to_string; returns false for unknown names.
+bool topic_from_string(std::string_view name, Topic& topic);
+
+struct WheelStateMsg {
+  Pose pose;                      // wheel centre and orientation in the world frame
+  double spin_rad_s = 0.0;        // rotation rate about the wheel axle
+  double steer_angle_rad = 0.0;   // steering angle of this wheel
+  double vertical_load_n = 0.0;   // normal force from the ground (0 when airborne)
+};
+
+struct VehicleStateMsg {
+  std::string vehicle_id;
+  std::string source;             // member id of the writer
+  std::int64_t frame = 0;
+  double sim_time_s = 0.0;
+  Pose pose;                      // chassis reference frame in the world
+  Vec3 linear_velocity = Vec3::Zero();        // world frame, m/s
+  Vec3 angular_velocity = Vec3::Zero();       // world frame, rad/s
+  Vec3 linear_acceleration = Vec3::Zero();    // world frame, m/s^2 (no gravity)
+  Vec3 angular_acceleration = Vec3::Zero();   // world frame, rad/s^2
+  std::vector<WheelStateMsg> wheels;
+  double steering = 0.0;          // applied driver inputs
+  double throttle = 0.0;
+  double braking = 0.0;
+  std::int32_t gear = 0;
+  double engine_speed_rpm = 0.0;
+};
+
+struct DriverCommandMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  double steering = 0.0;  // [-1, 1], positive turns left
+  double throttle = 0.0;  // [0, 1]
+  double braking = 0.0;   // [0, 1]
+};
+
+struct TerrainVertexMsg {
+  std::int32_t i = 0;
+  std::int32_t j = 0;
+  double height = 0.0;
+};
+
+struct TerrainDeformationMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  double spacing_m = 0.0;
+  std::vector<TerrainVertexMsg> vertices;
+};
+
+struct CollisionEventMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  double sim_time_s = 0.0;
+  std::string obstacle_id;
+  double impulse_ns = 0.0;
+  Vec3 position = Vec3::Zero();
+};
+
+/// One manifest entry: member `writer` wrote `count` samples on `topic` with key `key`.
+struct TopicCount {
+  Topic topic = Topic::vehicle_state;
+  std::string key;
+  std::string writer;
+  std::uint32_t count = 0;
+  bool operator==(const TopicCount&) const = default;
+};
+using Manifest = std::vector<TopicCount>;
+
+struct MemberAnnounceMsg {
+  std::string member_id;
+  MemberKind kind = MemberKind::vehicle;
+  std::string run_id;
+  std::string participant_guid;
+  std::string host;
+  std::int32_t pid = 0;
+  std::int32_t protocol_version = kProtocolVersion;
+  std::uint64_t config_fingerprint = 0;
+  std::vector<std::string> expected_members;  // filled by the coordinator only
+};
+
+struct FrameGrantMsg {
+  std::int64_t frame = 0;
+  double sim_time_s = 0.0;  // end time of the granted frame
+  Manifest manifest;        // what was published in frame - 1
+};
+
+struct FrameDoneMsg {
+  std::string member_id;
+  std::int64_t frame = 0;
+  Manifest published;
+  double compute_s = 0.0;   // wall time the member spent in its step
+  bool finished = false;    // true: reply to RunControl stop, the member is shutting down
+};
+
+struct MemberStatsMsg {
+  std::string member_id;
+  double mean_response_s = 0.0;  // grant sent -> done received, mean over frames
+  double max_response_s = 0.0;
+  double mean_compute_s = 0.0;   // member-reported step time
+  std::uint64_t slowest_count = 0;  // frames in which this member answered last
+  bool lost = false;
+};
+
+enum class RunStatus : std::uint8_t { completed, aborted };
+std::string_view to_string(RunStatus status);
+
+struct RunStatsMsg {
+  std::uint64_t frames = 0;      // frames granted and completed
+  std::int64_t final_frame = -1;
+  double sim_time_s = 0.0;
+  double wall_time_s = 0.0;
+  double real_time_factor = 0.0;  // wall / sim; lower is faster
+  std::vector<MemberStatsMsg> members;
+};
+
+struct RunControlMsg {
+  RunStatus status = RunStatus::completed;  // completed = stop after final frame
+  std::string reason;
+  std::int64_t final_frame = -1;
+  Manifest final_manifest;  // what was published in final_frame
+  RunStatsMsg stats;
+};
+
+}  // namespace syndds::proto

@@ -1,0 +1,224 @@
+#include "record/recorder_agent.hpp"
+
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+
+namespace syndds::record {
+namespace fs = std::filesystem;
+namespace {
+
+std::FILE* open_csv(const fs::path& file, const char* header) {
+  std::FILE* f = std::fopen(file.c_str(), "w");
+  if (!f) throw ConfigError(file.string() + ": cannot create file");
+  std::fputs(header, f);
+  std::fputc('\n', f);
+  return f;
+}
+
+void write_text_atomically(const fs::path& file, const std::string& text) {
+  const fs::path tmp = file.string() + ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << text;
+  }
+  fs::rename(tmp, file);
+}
+
+// CSV fields must not carry separators or line breaks.
+std::string csv_safe(std::string s) {
+  for (char& c : s) {
+    if (c == ',' || c == '\n' || c == '\r') c = ';';
+  }
+  return s;
+}
+
+}  // namespace
+
+RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions options)
+    : options_(std::move(options)),
+      scenario_name_(scenario.name),
+      scenario_file_(scenario.file),
+      heartbeat_s_(scenario.time.heartbeat_s),
+      members_(scenario.member_ids()) {
+  for (const auto& v : scenario.vehicles) {
+    vehicle_ids_.push_back(v.id);
+    totals_[v.id];
+  }
+  const fs::path dir(options_.output_dir);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw ConfigError(dir.string() + ": cannot create output directory: " + ec.message());
+  vehicles_ = open_csv(dir / "vehicles.csv",
+                       "frame,time_s,vehicle,x,y,z,qw,qx,qy,qz,vx,vy,vz,speed_mps,steering,"
+                       "throttle,braking,gear,engine_speed_rpm");
+  commands_ = open_csv(dir / "commands.csv", "frame,time_s,vehicle,source,steering,throttle,braking");
+  events_ = open_csv(dir / "events.csv", "frame,time_s,kind,vehicle,detail");
+  flush();
+  write_summary(nullptr);
+}
+
+RecorderAgent::~RecorderAgent() {
+  for (std::FILE* f : {vehicles_, commands_, events_}) {
+    if (f) std::fclose(f);
+  }
+}
+
+std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
+  return {{proto::Topic::vehicle_state, ""},
+          {proto::Topic::driver_command, ""},
+          {proto::Topic::collision_event, ""}};
+}
+
+void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                         proto::FrameSamples& outputs) {
+  if (ctx.frame > 0) record(inputs);  // inputs are stamped ctx.frame - 1
+}
+
+void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
+  if (!final_inputs.empty()) record(final_inputs);
+  if (end.control.status == proto::RunStatus::aborted) {
+    note_event(last_frame_, "run_aborted", "", end.control.reason);
+  } else {
+    note_event(last_frame_, "run_completed", "", "");
+  }
+  flush();
+  write_summary(&end.control);
+  finished_ = true;
+}
+
+void RecorderAgent::record(const proto::FrameSamples& samples) {
+  fmt::memory_buffer out;
+  for (const auto& s : samples.vehicle_states) {
+    const double speed = s.linear_velocity.norm();
+    const auto& p = s.pose.position;
+    const auto& q = s.pose.orientation;
+    const auto& v = s.linear_velocity;
+    fmt::format_to(std::back_inserter(out),
+                   "{},{:.9g},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},"
+                   "{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{},{:.9g}\n",
+                   s.frame, s.sim_time_s, s.vehicle_id, p.x(), p.y(), p.z(), q.w(), q.x(), q.y(),
+                   q.z(), v.x(), v.y(), v.z(), speed, s.steering, s.throttle, s.braking, s.gear,
+                   s.engine_speed_rpm);
+    VehicleTotals& t = totals_[s.vehicle_id];
+    if (t.samples > 0) t.distance_m += (p - t.last_position).norm();
+    t.last_position = p;
+    t.speed_sum_mps += speed;
+    t.max_speed_mps = std::max(t.max_speed_mps, speed);
+    ++t.samples;
+    last_frame_ = std::max(last_frame_, s.frame);
+  }
+  std::fwrite(out.data(), 1, out.size(), vehicles_);
+  out.clear();
+  for (const auto& c : samples.driver_commands) {
+    fmt::format_to(std::back_inserter(out), "{},{:.9g},{},{},{:.9g},{:.9g},{:.9g}\n", c.frame,
+                   static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id, c.source, c.steering,
+                   c.throttle, c.braking);
+    last_frame_ = std::max(last_frame_, c.frame);
+  }
+  std::fwrite(out.data(), 1, out.size(), commands_);
+  out.clear();
+  for (const auto& e : samples.collision_events) {
+    fmt::format_to(std::back_inserter(out), "{},{:.9g},collision,{},obstacle={} impulse_ns={:.6g}\n",
+                   e.frame, e.sim_time_s, e.vehicle_id, csv_safe(e.obstacle_id), e.impulse_ns);
+    ++totals_[e.vehicle_id].collisions;
+  }
+  std::fwrite(out.data(), 1, out.size(), events_);
+  flush();
+}
+
+void RecorderAgent::note_event(std::int64_t frame, const std::string& kind,
+                               const std::string& vehicle, const std::string& detail) {
+  const double t = frame >= 0 ? static_cast<double>(frame) * heartbeat_s_ : 0.0;
+  fmt::print(events_, "{},{:.9g},{},{},{}\n", frame, t, kind, csv_safe(vehicle), csv_safe(detail));
+  std::fflush(events_);
+}
+
+void RecorderAgent::flush() {
+  for (std::FILE* f : {vehicles_, commands_, events_}) std::fflush(f);
+}
+
+void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
+  using nlohmann::json;
+  json j;
+  j["scenario"] = scenario_name_;
+  j["scenario_file"] = scenario_file_;
+  j["run_id"] = options_.run_id;
+  j["mode"] = options_.mode;
+  j["heartbeat_s"] = heartbeat_s_;
+  j["recorded_up_to_frame"] = last_frame_;
+  if (!end) {
+    j["status"] = "running";
+  } else {
+    const auto& st = end->stats;
+    j["status"] = std::string(proto::to_string(end->status));
+    j["reason"] = end->reason;
+    j["frames"] = st.frames;
+    j["final_frame"] = st.final_frame;
+    j["sim_time_s"] = st.sim_time_s;
+    j["wall_time_s"] = st.wall_time_s;
+    j["real_time_factor"] = st.real_time_factor;
+    json members = json::array();
+    for (const auto& m : st.members) {
+      members.push_back({{"member", m.member_id},
+                         {"mean_response_s", m.mean_response_s},
+                         {"max_response_s", m.max_response_s},
+                         {"mean_compute_s", m.mean_compute_s},
+                         {"slowest_frames", m.slowest_count},
+                         {"lost", m.lost}});
+    }
+    j["members"] = members;
+  }
+  if (!end) {
+    j["members"] = members_;
+  }
+  json vehicles = json::array();
+  for (const auto& id : vehicle_ids_) {
+    const VehicleTotals& t = totals_.at(id);
+    vehicles.push_back({{"id", id},
+                        {"distance_m", t.distance_m},
+                        {"mean_speed_mps", t.mean_speed_mps()},
+                        {"max_speed_mps", t.max_speed_mps},
+                        {"collisions", t.collisions},
+                        {"final_position", {t.last_position.x(), t.last_position.y(),
+                                            t.last_position.z()}}});
+  }
+  j["vehicles"] = vehicles;
+  const fs::path dir(options_.output_dir);
+  write_text_atomically(dir / "summary.json", j.dump(2) + "\n");
+
+  // The same, for a person.
+  std::string text;
+  if (!end) {
+    text = fmt::format("run '{}' is running (output {})\n", scenario_name_, options_.output_dir);
+  } else {
+    const auto& st = end->stats;
+    text += fmt::format("run '{}' {}{}\n", scenario_name_, proto::to_string(end->status),
+                        end->reason.empty() ? "" : ": " + end->reason);
+    text += fmt::format("  {} frames, {:.2f} s simulated in {:.2f} s wall, real-time factor {:.3f}\n",
+                        st.frames, st.sim_time_s, st.wall_time_s, st.real_time_factor);
+    text += fmt::format("  {:<12} {:>12} {:>15} {:>14} {:>11}\n", "vehicle", "distance_m",
+                        "mean_speed_mps", "max_speed_mps", "collisions");
+    for (const auto& id : vehicle_ids_) {
+      const VehicleTotals& t = totals_.at(id);
+      text += fmt::format("  {:<12} {:>12.1f} {:>15.2f} {:>14.2f} {:>11}\n", id, t.distance_m,
+                          t.mean_speed_mps(), t.max_speed_mps, t.collisions);
+    }
+    if (!st.members.empty() && options_.mode == "distributed") {
+      text += fmt::format("  {:<22} {:>16} {:>15} {:>13}\n", "member", "mean_response_ms",
+                          "max_response_ms", "slowest_frames");
+      for (const auto& m : st.members) {
+        text += fmt::format("  {:<22} {:>16.3f} {:>15.3f} {:>13}{}\n", m.member_id,
+                            m.mean_response_s * 1e3, m.max_response_s * 1e3, m.slowest_count,
+                            m.lost ? "  (lost)" : "");
+      }
+    }
+  }
+  write_text_atomically(dir / "summary.txt", text);
+}
+
+}  // namespace syndds::record

@@ -1,0 +1,73 @@
+#pragma once
+// The recorder member: writes the run directory as the run goes. Every frame is appended and
+// flushed as soon as it is complete, so a failure anywhere else loses nothing that was
+// complete. Files (docs/outputs.md): vehicles.csv, commands.csv, events.csv, summary.json,
+// summary.txt.
+#include <cstdio>
+#include <map>
+#include <string>
+
+#include "protocol/agent.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::record {
+
+struct RecorderOptions {
+  std::string output_dir;
+  std::string run_id;
+  std::string mode = "distributed";  // or "single-process"
+};
+
+/// Per-vehicle totals accumulated from the recorded states.
+struct VehicleTotals {
+  double distance_m = 0.0;
+  double speed_sum_mps = 0.0;
+  double max_speed_mps = 0.0;
+  std::uint64_t samples = 0;
+  std::uint64_t collisions = 0;
+  Vec3 last_position = Vec3::Zero();
+  double mean_speed_mps() const { return samples ? speed_sum_mps / samples : 0.0; }
+};
+
+class RecorderAgent final : public proto::Agent {
+ public:
+  RecorderAgent(const scenario::Scenario& scenario, RecorderOptions options);
+  ~RecorderAgent() override;
+  RecorderAgent(const RecorderAgent&) = delete;
+  RecorderAgent& operator=(const RecorderAgent&) = delete;
+
+  const std::string& member_id() const override { return member_id_; }
+  proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
+  std::vector<proto::Subscription> subscriptions() const override;
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+            proto::FrameSamples& outputs) override;
+  void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
+
+  /// Records an event that does not travel as a sample (e.g. a lost member seen locally).
+  void note_event(std::int64_t frame, const std::string& kind, const std::string& vehicle,
+                  const std::string& detail);
+
+  const std::map<std::string, VehicleTotals>& totals() const { return totals_; }
+  std::int64_t last_recorded_frame() const { return last_frame_; }
+
+ private:
+  void record(const proto::FrameSamples& samples);
+  void write_summary(const proto::RunControlMsg* end);
+  void flush();
+
+  std::string member_id_ = scenario::kRecorderMember;
+  RecorderOptions options_;
+  std::string scenario_name_;
+  std::string scenario_file_;
+  double heartbeat_s_;
+  std::vector<std::string> vehicle_ids_;
+  std::vector<std::string> members_;
+  std::FILE* vehicles_ = nullptr;
+  std::FILE* commands_ = nullptr;
+  std::FILE* events_ = nullptr;
+  std::map<std::string, VehicleTotals> totals_;
+  std::int64_t last_frame_ = -1;
+  bool finished_ = false;
+};
+
+}  // namespace syndds::record

@@ -1,0 +1,276 @@
+#include "scenario/scenario.hpp"
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "core/hash.hpp"
+
+#ifndef SYNDDS_DEFAULT_CONFIG_DIR
+#define SYNDDS_DEFAULT_CONFIG_DIR "config"
+#endif
+
+namespace syndds::scenario {
+namespace fs = std::filesystem;
+namespace {
+
+TimeConfig parse_time(const YamlNode& node) {
+  MapReader m(node);
+  TimeConfig t;
+  auto step = m.optional("step_s");
+  t.step_s = m.positive("step_s", t.step_s);
+  auto hb = m.optional("heartbeat_s");
+  t.heartbeat_s = m.positive("heartbeat_s", t.heartbeat_s);
+  t.end_time_s = m.positive("end_time_s", std::nullopt);
+  t.realtime = m.get_or("realtime", false);
+  m.finish();
+  const double ratio = t.heartbeat_s / t.step_s;
+  const double n = std::round(ratio);
+  if (n < 1.0 || std::abs(ratio - n) > 1e-9 * ratio) {
+    std::ostringstream msg;
+    msg << "heartbeat_s (" << t.heartbeat_s << ") must be a whole multiple of step_s ("
+        << t.step_s << ")";
+    (hb ? *hb : (step ? *step : node)).fail(msg.str());
+  }
+  return t;
+}
+
+CoordinatorConfig parse_coordinator(const YamlNode& node) {
+  MapReader m(node);
+  CoordinatorConfig c;
+  c.join_timeout_s = m.positive("join_timeout_s", c.join_timeout_s);
+  c.frame_timeout_s = m.positive("frame_timeout_s", c.frame_timeout_s);
+  const std::string policy = m.choice("on_member_loss", "abort", {"abort", "continue"});
+  c.on_member_loss = policy == "abort" ? proto::LossPolicy::abort : proto::LossPolicy::continue_run;
+  m.finish();
+  return c;
+}
+
+DdsConfig parse_dds(const YamlNode& node) {
+  MapReader m(node);
+  DdsConfig d;
+  d.domain_id = static_cast<int>(m.number("domain_id", 0, 0, 232));
+  d.transport = m.choice("transport", "default", {"default", "udp"});
+  d.discovery_server = m.get_or<std::string>("discovery_server", "");
+  if (!d.discovery_server.empty() &&
+      !std::regex_match(d.discovery_server, std::regex(R"([0-9.]+:[0-9]+)"))) {
+    m.required("discovery_server").fail("expected IPv4ADDR:PORT, e.g. 10.0.0.1:11811");
+  }
+  m.finish();
+  return d;
+}
+
+TerrainConfig parse_terrain(const YamlNode& node) {
+  MapReader m(node);
+  TerrainConfig t;
+  t.type = m.choice("type", "rigid", {"rigid"});
+  t.friction = m.number("friction", 0.8, 0.01, 2.0);
+  t.height_m = m.number("height_m", 0.0, -1e4, 1e4);
+  m.finish();
+  return t;
+}
+
+control::PidGains parse_pid(const YamlNode& node, control::PidGains g) {
+  MapReader m(node);
+  g.kp = m.number("kp", g.kp, -1e3, 1e3);
+  g.ki = m.number("ki", g.ki, -1e3, 1e3);
+  g.kd = m.number("kd", g.kd, -1e3, 1e3);
+  m.finish();
+  return g;
+}
+
+control::SpeedProfile parse_speed(const YamlNode& node) {
+  MapReader m(node);
+  control::SpeedProfile s;
+  const std::string kind = m.choice("profile", "constant", {"constant", "ramp"});
+  s.kind = kind == "ramp" ? control::SpeedProfile::Kind::ramp : control::SpeedProfile::Kind::constant;
+  s.target_mps = m.number("target_mps", std::nullopt, 0, 100);
+  if (s.kind == control::SpeedProfile::Kind::ramp) {
+    s.accel_mps2 = m.positive("accel_mps2", std::nullopt);
+    s.start_mps = m.number("start_mps", 0.0, 0, 100);
+  }
+  m.finish();
+  return s;
+}
+
+ControllerConfig parse_controller(const YamlNode& node) {
+  MapReader m(node);
+  ControllerConfig c;
+  c.type = m.choice("type", std::nullopt, {"path_follower", "external", "none"});
+  if (c.type == "path_follower") {
+    MapReader p(m.required("path"));
+    auto wp = p.required("waypoints");
+    for (const auto& row : wp.elements()) {
+      const auto v = row.as_doubles(2);
+      c.waypoints.emplace_back(v[0], v[1]);
+    }
+    if (c.waypoints.size() < 2) wp.fail("needs at least two [x, y] waypoints");
+    c.closed = p.get_or("closed", false);
+    p.finish();
+    try {
+      control::Path check(c.waypoints, c.closed);
+    } catch (const std::exception& e) {
+      wp.fail(e.what());
+    }
+    c.follower.speed_profile = parse_speed(m.required("speed"));
+    c.follower.lookahead_m = m.number("lookahead_m", 5.0, 0.1, 100);
+    if (auto n = m.optional("steering_pid")) c.follower.steering = parse_pid(*n, c.follower.steering);
+    if (auto n = m.optional("speed_pid")) c.follower.speed = parse_pid(*n, c.follower.speed);
+  }
+  m.finish();
+  return c;
+}
+
+Pose parse_start(const YamlNode& node) {
+  MapReader m(node);
+  Pose p;
+  const double x = m.number("x", std::nullopt, -1e6, 1e6);
+  const double y = m.number("y", std::nullopt, -1e6, 1e6);
+  const double z = m.number("z", 0.0, -1e4, 1e4);
+  const double yaw = m.number("yaw_deg", 0.0, -360, 360);
+  m.finish();
+  p.position = Vec3(x, y, z);
+  p.orientation = quat_from_yaw(deg_to_rad(yaw));
+  return p;
+}
+
+std::string resolve_model_file(const YamlNode& node, const std::string& model,
+                               const std::string& config_dir) {
+  fs::path file;
+  if (model.find('/') != std::string::npos || model.ends_with(".yaml")) {
+    file = fs::path(node.file()).parent_path() / model;
+  } else {
+    file = fs::path(config_dir) / "vehicles" / (model + ".yaml");
+  }
+  if (!fs::exists(file)) node.fail("vehicle model file not found: " + file.string());
+  return file.string();
+}
+
+VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir) {
+  MapReader m(node);
+  VehicleConfig v;
+  auto id_node = m.required("id");
+  v.id = id_node.as_string();
+  if (!std::regex_match(v.id, std::regex("[A-Za-z0-9_-]{1,32}"))) {
+    id_node.fail("vehicle id must be 1-32 characters of [A-Za-z0-9_-], got '" + v.id + "'");
+  }
+  auto model_node = m.required("model");
+  v.model = model_node.as_string();
+  v.params = vehicle::load_vehicle_params(resolve_model_file(model_node, v.model, config_dir));
+  v.dynamics = m.choice("dynamics", "reduced", {"reduced"});
+  auto start = m.optional("start");
+  if (auto c = m.optional("controller")) {
+    v.controller = parse_controller(*c);
+  } else {
+    v.controller.type = "none";
+  }
+  if (start) {
+    v.start = parse_start(*start);
+  } else if (v.controller.type == "path_follower") {
+    const control::Path path(v.controller.waypoints, v.controller.closed);
+    const auto p0 = path.at(0.0);
+    v.start.position = Vec3(p0.position.x(), p0.position.y(), 0.0);
+    v.start.orientation = quat_from_yaw(std::atan2(p0.tangent.y(), p0.tangent.x()));
+  } else {
+    m.required("start");  // throws: needed when there is no path to start from
+  }
+  m.finish();
+  return v;
+}
+
+}  // namespace
+
+std::int64_t TimeConfig::steps_per_frame() const {
+  return static_cast<std::int64_t>(std::llround(heartbeat_s / step_s));
+}
+
+std::int64_t TimeConfig::final_frame() const {
+  return static_cast<std::int64_t>(std::ceil(end_time_s / heartbeat_s - 1e-9));
+}
+
+const VehicleConfig* Scenario::find_vehicle(const std::string& id) const {
+  for (const auto& v : vehicles) {
+    if (v.id == id) return &v;
+  }
+  return nullptr;
+}
+
+std::vector<std::string> Scenario::member_ids() const {
+  std::vector<std::string> out;
+  for (const auto& v : vehicles) out.push_back(vehicle_member(v.id));
+  for (const auto& v : vehicles) {
+    if (v.controller.type == "path_follower") out.push_back(controller_member(v.id));
+    if (v.controller.type == "external") out.push_back(external_member(v.id));
+  }
+  if (recorder.enabled) out.push_back(kRecorderMember);
+  return out;
+}
+
+std::string vehicle_member(const std::string& id) { return "vehicle/" + id; }
+std::string controller_member(const std::string& id) { return "controller/" + id; }
+std::string external_member(const std::string& id) { return "external/" + id; }
+
+std::string default_config_dir() {
+  if (const char* env = std::getenv("SYNDDS_CONFIG_DIR"); env && *env) return env;
+  return SYNDDS_DEFAULT_CONFIG_DIR;
+}
+
+Scenario parse_scenario(const YamlNode& root, const std::string& text, const Overrides& overrides,
+                        const std::string& config_dir) {
+  Scenario s;
+  s.file = root.file();
+  MapReader m(root);
+  s.name = m.get_or<std::string>("name", fs::path(s.file).stem().string());
+  s.seed = static_cast<std::uint64_t>(m.number("seed", 1, 0, 9.0e15));
+  s.time = parse_time(m.required("time"));
+  if (auto n = m.optional("coordinator")) s.coordinator = parse_coordinator(*n);
+  if (auto n = m.optional("dds")) s.dds = parse_dds(*n);
+  if (auto n = m.optional("terrain")) s.terrain = parse_terrain(*n);
+  auto vehicles = m.required("vehicles");
+  std::set<std::string> ids;
+  for (const auto& v : vehicles.elements()) {
+    s.vehicles.push_back(parse_vehicle(v, config_dir));
+    if (!ids.insert(s.vehicles.back().id).second) {
+      v.fail("duplicate vehicle id '" + s.vehicles.back().id + "'");
+    }
+  }
+  if (s.vehicles.empty()) vehicles.fail("needs at least one vehicle");
+  if (auto n = m.optional("recorder")) {
+    MapReader r(*n);
+    s.recorder.enabled = r.get_or("enabled", true);
+    r.finish();
+  }
+  m.finish();
+
+  if (overrides.duration_s) {
+    if (!(*overrides.duration_s > 0.0) || !std::isfinite(*overrides.duration_s)) {
+      throw ConfigError("--duration must be a positive number of seconds");
+    }
+    s.time.end_time_s = *overrides.duration_s;
+  }
+  if (overrides.realtime) s.time.realtime = *overrides.realtime;
+  if (overrides.domain_id) s.dds.domain_id = *overrides.domain_id;
+
+  Fnv1a64 h;
+  h.add(text);
+  h.add(s.time.end_time_s);
+  h.add(static_cast<std::int64_t>(s.time.realtime));
+  s.fingerprint = h.value();
+  return s;
+}
+
+Scenario load_scenario(const std::string& file, const Overrides& overrides,
+                       const std::string& config_dir) {
+  std::ifstream in(file);
+  if (!in) throw ConfigError(file + ": cannot open scenario file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string text = buffer.str();
+  return parse_scenario(YamlNode::load_string(text, file), text, overrides, config_dir);
+}
+
+}  // namespace syndds::scenario

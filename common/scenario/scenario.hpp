@@ -1,0 +1,101 @@
+#pragma once
+// Scenario files (config/scenarios/*.yaml): strict schema, documented in docs/scenario.md.
+// Loading validates everything a process needs before any DDS traffic: time contract,
+// vehicles and their definition files, controllers, member list.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "control/path_follower.hpp"
+#include "protocol/barrier.hpp"
+#include "vehicle/vehicle_params.hpp"
+
+namespace syndds::scenario {
+
+struct TimeConfig {
+  double step_s = 0.002;        // dynamics step
+  double heartbeat_s = 0.01;    // frame length; an integer multiple of step_s
+  double end_time_s = 10.0;
+  bool realtime = false;
+  std::int64_t steps_per_frame() const;
+  std::int64_t final_frame() const;  // frames run 0..final_frame; t_final = final_frame * hb
+};
+
+struct CoordinatorConfig {
+  double join_timeout_s = 30.0;
+  double frame_timeout_s = 10.0;
+  proto::LossPolicy on_member_loss = proto::LossPolicy::abort;
+};
+
+struct DdsConfig {
+  int domain_id = 0;
+  std::string transport = "default";  // default (shared memory + UDP) | udp
+  std::string discovery_server;       // "ADDR:PORT"; empty: multicast discovery
+};
+
+struct TerrainConfig {
+  std::string type = "rigid";
+  double friction = 0.8;
+  double height_m = 0.0;
+};
+
+struct ControllerConfig {
+  std::string type = "path_follower";  // path_follower | external | none
+  std::vector<Vec2> waypoints;
+  bool closed = false;
+  control::PathFollowerConfig follower;
+};
+
+struct VehicleConfig {
+  std::string id;
+  std::string model;                   // as written in the scenario
+  std::string dynamics = "reduced";    // reduced | full
+  vehicle::VehicleParams params;
+  Pose start;
+  ControllerConfig controller;
+};
+
+struct RecorderConfig {
+  bool enabled = true;
+};
+
+struct Scenario {
+  std::string name;
+  std::string file;
+  std::uint64_t seed = 1;
+  TimeConfig time;
+  CoordinatorConfig coordinator;
+  DdsConfig dds;
+  TerrainConfig terrain;
+  std::vector<VehicleConfig> vehicles;
+  RecorderConfig recorder;
+  std::uint64_t fingerprint = 0;  // hash of the file and the overrides: every member must agree
+
+  const VehicleConfig* find_vehicle(const std::string& id) const;
+  /// Every barrier member the scenario declares, in a fixed order.
+  std::vector<std::string> member_ids() const;
+};
+
+/// Command-line overrides applied on top of the file (they change the fingerprint too).
+struct Overrides {
+  std::optional<double> duration_s;
+  std::optional<bool> realtime;
+  std::optional<int> domain_id;
+};
+
+/// Where vehicle model names are looked up: $SYNDDS_CONFIG_DIR, else the source tree's config/.
+std::string default_config_dir();
+
+Scenario load_scenario(const std::string& file, const Overrides& overrides = {},
+                       const std::string& config_dir = default_config_dir());
+Scenario parse_scenario(const YamlNode& root, const std::string& text, const Overrides& overrides,
+                        const std::string& config_dir);
+
+// Member ids: "vehicle/<id>", "controller/<id>", "external/<id>", "recorder".
+std::string vehicle_member(const std::string& vehicle_id);
+std::string controller_member(const std::string& vehicle_id);
+std::string external_member(const std::string& vehicle_id);
+inline constexpr const char* kRecorderMember = "recorder";
+
+}  // namespace syndds::scenario

@@ -1,0 +1,119 @@
+#include "vehicle/bicycle_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace syndds::vehicle {
+namespace {
+constexpr double kAirDensity = 1.2;  // kg/m^3
+}
+
+DriverInputs clamp_inputs(const DriverInputs& in) {
+  return DriverInputs{clamp(in.steering, -1.0, 1.0), clamp(in.throttle, 0.0, 1.0),
+                      clamp(in.braking, 0.0, 1.0)};
+}
+
+BicycleModel::BicycleModel(const VehicleParams& params, const Pose& initial_pose,
+                           std::shared_ptr<const terrain::TerrainSurface> terrain)
+    : params_(params), terrain_(std::move(terrain)) {
+  x_ = initial_pose.position.x();
+  y_ = initial_pose.position.y();
+  yaw_ = yaw_of(initial_pose.orientation);
+}
+
+void BicycleModel::set_inputs(const DriverInputs& inputs) { inputs_ = clamp_inputs(inputs); }
+
+void BicycleModel::advance(double dt) {
+  const ReducedParams& r = params_.reduced;
+  const double mass = params_.total_mass_kg();
+  const double wheelbase = params_.wheelbase_m();
+  const double mu = terrain_->friction(x_, y_) * params_.tire.friction_scale;
+
+  // Steering: first-order lag toward the commanded road-wheel angle.
+  const double target = inputs_.steering * deg_to_rad(params_.steering.max_angle_deg);
+  const double tau = r.steering_time_constant_s;
+  steer_angle_ += (tau > 0.0 ? std::min(1.0, dt / tau) : 1.0) * (target - steer_angle_);
+
+  // Longitudinal forces. Drive is limited by engine power, by a force cap and by traction.
+  const double drive_cap = std::min(r.max_drive_force_n, r.max_power_w / std::max(speed_, 0.5));
+  const double drive = std::min(inputs_.throttle * drive_cap, mu * mass * kGravity);
+  const double brake = inputs_.braking * mass * std::min(r.max_brake_decel_mps2, mu * kGravity);
+  const double resist = params_.tire.rolling_resistance * mass * kGravity +
+                        0.5 * kAirDensity * r.drag_area_m2 * speed_ * speed_;
+  double accel = drive / mass;
+  // Brakes and resistance only oppose motion: they cannot push the vehicle backwards.
+  const double opposing = (brake + resist) / mass;
+  double new_speed = speed_ + (accel - opposing) * dt;
+  if (speed_ + accel * dt <= opposing * dt) new_speed = 0.0;
+  new_speed = std::clamp(new_speed, 0.0, r.max_speed_mps);
+  accel = (new_speed - speed_) / dt;
+
+  // Kinematic bicycle about the reference point at distance lr ahead of the rear axle.
+  const double lr = -params_.rear.x_m;
+  const double beta = std::atan(lr * std::tan(steer_angle_) / wheelbase);
+  double yaw_rate = new_speed * std::cos(beta) * std::tan(steer_angle_) / wheelbase;
+  // Yaw rate limited by lateral friction: v * r <= mu g (the vehicle understeers beyond it).
+  const double max_yaw_rate = mu * kGravity / std::max(new_speed, 0.1);
+  yaw_rate = std::clamp(yaw_rate, -max_yaw_rate, max_yaw_rate);
+
+  const Vec3 old_velocity(speed_ * std::cos(yaw_ + beta), speed_ * std::sin(yaw_ + beta), 0.0);
+  x_ += new_speed * std::cos(yaw_ + beta) * dt;
+  y_ += new_speed * std::sin(yaw_ + beta) * dt;
+  yaw_ = wrap_angle(yaw_ + yaw_rate * dt);
+  const Vec3 new_velocity(new_speed * std::cos(yaw_ + beta), new_speed * std::sin(yaw_ + beta),
+                          0.0);
+  acceleration_ = (new_velocity - old_velocity) / dt;
+  angular_acceleration_ = Vec3(0.0, 0.0, (yaw_rate - yaw_rate_) / dt);
+  (void)accel;
+  yaw_rate_ = yaw_rate;
+  speed_ = new_speed;
+  wheel_spin_angle_ = std::fmod(wheel_spin_angle_ + speed_ / params_.wheels.radius_m * dt,
+                                2.0 * std::numbers::pi);
+  time_s_ += dt;
+}
+
+VehicleSnapshot BicycleModel::snapshot() const {
+  VehicleSnapshot s;
+  s.time_s = time_s_;
+  const double z = terrain_->height(x_, y_) + params_.wheels.radius_m;
+  s.pose.position = Vec3(x_, y_, z);
+  s.pose.orientation = quat_from_yaw(yaw_);
+  const double lr = -params_.rear.x_m;
+  const double beta = std::atan(lr * std::tan(steer_angle_) / params_.wheelbase_m());
+  s.linear_velocity = Vec3(speed_ * std::cos(yaw_ + beta), speed_ * std::sin(yaw_ + beta), 0.0);
+  s.angular_velocity = Vec3(0.0, 0.0, yaw_rate_);
+  s.linear_acceleration = acceleration_;
+  s.angular_acceleration = angular_acceleration_;
+  s.inputs = inputs_;
+  s.gear = speed_ > 0.0 || inputs_.throttle > 0.0 ? 1 : 0;
+  s.engine_speed_rpm = params_.engine.idle_rpm;
+
+  // Wheels at the four corners, front ones steered with Ackermann geometry.
+  const double wheelbase = params_.wheelbase_m();
+  const double spin = speed_ / params_.wheels.radius_m;
+  const struct {
+    const AxleParams* axle;
+    double side;
+  } corners[4] = {{&params_.front, 1.0}, {&params_.front, -1.0}, {&params_.rear, 1.0},
+                  {&params_.rear, -1.0}};
+  for (const auto& c : corners) {
+    WheelSnapshot w;
+    const Vec3 local(c.axle->x_m, c.side * c.axle->half_track_m, 0.0);
+    w.pose.position = s.pose.position + s.pose.orientation * local;
+    double steer = 0.0;
+    if (c.axle->steered && std::abs(steer_angle_) > 1e-9) {
+      // Ackermann: each wheel points perpendicular to the line to the turn centre.
+      const double radius = wheelbase / std::tan(steer_angle_);  // signed, from rear axle
+      steer = std::atan(wheelbase / (radius - c.side * c.axle->half_track_m));
+    }
+    w.steer_angle_rad = steer;
+    w.pose.orientation = s.pose.orientation * quat_from_yaw(steer) *
+                         Quat(Eigen::AngleAxisd(wheel_spin_angle_, Vec3::UnitY()));
+    w.spin_rad_s = spin;
+    w.vertical_load_n = params_.total_mass_kg() * kGravity / 4.0;
+    s.wheels.push_back(w);
+  }
+  return s;
+}
+
+}  // namespace syndds::vehicle

@@ -1,0 +1,66 @@
+#pragma once
+// The interface every vehicle dynamics model implements (reduced-order bicycle, full ODE
+// multibody). A model owns its state, takes driver inputs, advances by one step, and reports
+// a snapshot; it knows nothing of DDS or frames.
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/math.hpp"
+#include "terrain/terrain.hpp"
+#include "vehicle/vehicle_params.hpp"
+
+namespace syndds::vehicle {
+
+struct DriverInputs {
+  double steering = 0.0;  // [-1, 1], positive turns left
+  double throttle = 0.0;  // [0, 1]
+  double braking = 0.0;   // [0, 1]
+};
+
+struct WheelSnapshot {
+  Pose pose;
+  double spin_rad_s = 0.0;
+  double steer_angle_rad = 0.0;
+  double vertical_load_n = 0.0;
+};
+
+struct VehicleSnapshot {
+  double time_s = 0.0;
+  Pose pose;                                   // chassis reference frame
+  Vec3 linear_velocity = Vec3::Zero();         // world frame
+  Vec3 angular_velocity = Vec3::Zero();        // world frame
+  Vec3 linear_acceleration = Vec3::Zero();     // world frame, over the last step
+  Vec3 angular_acceleration = Vec3::Zero();
+  std::vector<WheelSnapshot> wheels;           // FL, FR, RL, RR
+  DriverInputs inputs;                         // as applied (after clamping and rate limits)
+  int gear = 0;                                // 0 neutral, 1.. forward, -1 reverse
+  double engine_speed_rpm = 0.0;
+  double speed_mps() const { return linear_velocity.norm(); }
+};
+
+/// A contact between the vehicle and a static obstacle during the last step.
+struct CollisionContact {
+  std::string obstacle_id;
+  double impulse_ns = 0.0;
+  Vec3 position = Vec3::Zero();
+};
+
+class VehicleModel {
+ public:
+  virtual ~VehicleModel() = default;
+  virtual std::string_view kind() const = 0;
+  /// Inputs for the following steps; values are clamped to their ranges.
+  virtual void set_inputs(const DriverInputs& inputs) = 0;
+  /// Advances the model by dt seconds (one dynamics step).
+  virtual void advance(double dt) = 0;
+  virtual VehicleSnapshot snapshot() const = 0;
+  /// Collisions that started since the last call (each contact episode reported once).
+  virtual std::vector<CollisionContact> take_collisions() { return {}; }
+};
+
+/// Clamps driver inputs to their ranges (steering [-1,1], throttle and braking [0,1]).
+DriverInputs clamp_inputs(const DriverInputs& in);
+
+}  // namespace syndds::vehicle

@@ -1,0 +1,157 @@
+#include "vehicle/vehicle_params.hpp"
+
+#include <algorithm>
+
+namespace syndds::vehicle {
+namespace {
+
+constexpr double kBig = 1e12;
+
+Vec3 vec3(MapReader& m, std::string_view key, std::optional<Vec3> fallback = std::nullopt) {
+  auto n = m.optional(key);
+  if (!n) {
+    if (!fallback) m.required(key);  // throws "missing required key"
+    return *fallback;
+  }
+  const auto v = n->as_doubles(3);
+  return Vec3(v[0], v[1], v[2]);
+}
+
+AxleParams parse_axle(const YamlNode& node, bool steered_default) {
+  MapReader m(node);
+  AxleParams a;
+  a.x_m = m.number("x_m", std::nullopt, -20, 20);
+  a.half_track_m = m.positive("half_track_m", std::nullopt);
+  a.spring_rate_npm = m.positive("spring_rate_npm", std::nullopt);
+  a.damping_nspm = m.positive("damping_nspm", std::nullopt);
+  a.travel_m = m.positive("travel_m", std::nullopt);
+  a.preload_n = m.number("preload_n", -1.0, -1.0, kBig);
+  a.steered = m.get_or("steered", steered_default);
+  a.driven = m.get_or("driven", true);
+  a.brake_torque_nm = m.number("brake_torque_nm", std::nullopt, 0, kBig);
+  m.finish();
+  return a;
+}
+
+}  // namespace
+
+double VehicleParams::engine_torque_nm(double rpm) const {
+  const auto& map = engine.torque_map_rpm_nm;
+  if (map.empty()) return 0.0;
+  if (rpm <= map.front().first) return map.front().second;
+  if (rpm >= map.back().first) return map.back().second;
+  auto hi = std::lower_bound(map.begin(), map.end(), rpm,
+                             [](const auto& p, double r) { return p.first < r; });
+  auto lo = hi - 1;
+  const double t = (rpm - lo->first) / (hi->first - lo->first);
+  return lo->second + t * (hi->second - lo->second);
+}
+
+VehicleParams parse_vehicle_params(const YamlNode& root) {
+  VehicleParams p;
+  p.source_file = root.file();
+  MapReader top(root);
+  p.name = top.get<std::string>("name");
+
+  {
+    MapReader m(top.required("chassis"));
+    p.chassis.mass_kg = m.positive("mass_kg", std::nullopt);
+    p.chassis.inertia_kgm2 = vec3(m, "inertia_kgm2");
+    p.chassis.com_m = vec3(m, "com_m");
+    p.chassis.half_extents_m = vec3(m, "half_extents_m", p.chassis.half_extents_m);
+    p.chassis.box_centre_m = vec3(m, "box_centre_m", p.chassis.box_centre_m);
+    m.finish();
+    if ((p.chassis.inertia_kgm2.array() <= 0).any()) {
+      top.required("chassis").fail("inertia_kgm2 must be positive");
+    }
+  }
+  {
+    MapReader m(top.required("wheels"));
+    p.wheels.radius_m = m.positive("radius_m", std::nullopt);
+    p.wheels.width_m = m.positive("width_m", std::nullopt);
+    p.wheels.mass_kg = m.positive("mass_kg", std::nullopt);
+    p.wheels.spin_inertia_kgm2 = m.positive("spin_inertia_kgm2", std::nullopt);
+    m.finish();
+  }
+  p.front = parse_axle(top.required("front_axle"), true);
+  p.rear = parse_axle(top.required("rear_axle"), false);
+  if (p.wheelbase_m() <= 0) top.required("rear_axle").fail("x_m must be behind front_axle.x_m");
+  {
+    MapReader m(top.required("steering"));
+    p.steering.max_angle_deg = m.number("max_angle_deg", std::nullopt, 1, 60);
+    p.steering.rate_deg_s = m.number("rate_deg_s", 0.0, 0, kBig);
+    m.finish();
+  }
+  {
+    MapReader m(top.required("engine"));
+    auto map_node = m.required("torque_map_rpm_nm");
+    for (const auto& row : map_node.elements()) {
+      const auto v = row.as_doubles(2);
+      if (!p.engine.torque_map_rpm_nm.empty() && v[0] <= p.engine.torque_map_rpm_nm.back().first) {
+        row.fail("rpm values must increase");
+      }
+      p.engine.torque_map_rpm_nm.emplace_back(v[0], v[1]);
+    }
+    if (p.engine.torque_map_rpm_nm.size() < 2) map_node.fail("needs at least two [rpm, Nm] rows");
+    p.engine.idle_rpm = m.positive("idle_rpm", std::nullopt);
+    p.engine.max_rpm = m.positive("max_rpm", std::nullopt);
+    p.engine.inertia_kgm2 = m.positive("inertia_kgm2", std::nullopt);
+    m.finish();
+  }
+  {
+    MapReader m(top.required("transmission"));
+    auto ratios = m.required("forward_ratios");
+    p.transmission.forward_ratios = ratios.as_doubles();
+    if (p.transmission.forward_ratios.empty()) ratios.fail("needs at least one gear");
+    for (std::size_t i = 0; i < p.transmission.forward_ratios.size(); ++i) {
+      if (p.transmission.forward_ratios[i] <= 0) ratios[i].fail("gear ratio must be positive");
+    }
+    p.transmission.reverse_ratio = m.number("reverse_ratio", std::nullopt, -10, 0);
+    p.transmission.upshift_rpm = m.positive("upshift_rpm", std::nullopt);
+    p.transmission.downshift_rpm = m.positive("downshift_rpm", std::nullopt);
+    p.transmission.shift_time_s = m.number("shift_time_s", 0.0, 0, 5);
+    p.transmission.converter_stall_ratio = m.number("converter_stall_ratio", 1.0, 1, 10);
+    p.transmission.converter_coupling_speed_ratio =
+        m.number("converter_coupling_speed_ratio", 0.85, 0.1, 1.0);
+    p.transmission.converter_capacity_factor = m.number("converter_capacity_factor", 0.0, 0, kBig);
+    m.finish();
+    if (p.transmission.downshift_rpm >= p.transmission.upshift_rpm) {
+      top.required("transmission").fail("downshift_rpm must be below upshift_rpm");
+    }
+  }
+  {
+    MapReader m(top.required("driveline"));
+    p.driveline.final_drive_ratio = m.positive("final_drive_ratio", std::nullopt);
+    p.driveline.front_torque_share = m.number("front_torque_share", 0.5, 0, 1);
+    m.finish();
+  }
+  {
+    MapReader m(top.required("tire"));
+    p.tire.friction_scale = m.number("friction_scale", 1.0, 0.01, 3);
+    p.tire.longitudinal_stiffness = m.positive("longitudinal_stiffness", std::nullopt);
+    p.tire.cornering_stiffness = m.positive("cornering_stiffness", std::nullopt);
+    p.tire.nominal_load_n = m.positive("nominal_load_n", std::nullopt);
+    p.tire.vertical_stiffness_npm = m.positive("vertical_stiffness_npm", std::nullopt);
+    p.tire.vertical_damping_nspm = m.positive("vertical_damping_nspm", std::nullopt);
+    p.tire.rolling_resistance = m.number("rolling_resistance", 0.015, 0, 0.5);
+    m.finish();
+  }
+  {
+    MapReader m(top.required("reduced"));
+    p.reduced.max_drive_force_n = m.positive("max_drive_force_n", std::nullopt);
+    p.reduced.max_power_w = m.positive("max_power_w", std::nullopt);
+    p.reduced.max_brake_decel_mps2 = m.positive("max_brake_decel_mps2", std::nullopt);
+    p.reduced.drag_area_m2 = m.number("drag_area_m2", 0.0, 0, 100);
+    p.reduced.steering_time_constant_s = m.number("steering_time_constant_s", 0.1, 0, 5);
+    p.reduced.max_speed_mps = m.positive("max_speed_mps", std::nullopt);
+    m.finish();
+  }
+  top.finish();
+  return p;
+}
+
+VehicleParams load_vehicle_params(const std::string& file) {
+  return parse_vehicle_params(YamlNode::load_file(file));
+}
+
+}  // namespace syndds::vehicle

@@ -1,0 +1,116 @@
+#pragma once
+// Vehicle definition files (config/vehicles/*.yaml) read strictly into plain structs.
+// One file serves both the full multibody model (ODE) and the reduced-order model.
+// Frames: chassis reference frame at the midpoint between the axles at wheel-centre height,
+// x forward, y left, z up. All positions below are in that frame.
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/math.hpp"
+#include "core/yaml.hpp"
+
+namespace syndds::vehicle {
+
+struct ChassisParams {
+  double mass_kg = 0.0;
+  Vec3 inertia_kgm2 = Vec3::Zero();  // principal moments about the COM (Ixx, Iyy, Izz)
+  Vec3 com_m = Vec3::Zero();         // COM in the chassis reference frame
+  Vec3 half_extents_m = Vec3(2.4, 1.1, 0.5);  // collision / render box half sizes
+  Vec3 box_centre_m = Vec3(0.0, 0.0, 0.4);    // box centre in the chassis reference frame
+};
+
+struct AxleParams {
+  double x_m = 0.0;                   // axle position along x
+  double half_track_m = 0.0;          // wheel centre lateral offset
+  double spring_rate_npm = 0.0;       // per wheel
+  double damping_nspm = 0.0;          // per wheel
+  double travel_m = 0.0;              // total travel (bump + rebound) around the design height
+  double preload_n = -1.0;            // spring force at design height; < 0: static load share
+  bool steered = false;
+  bool driven = true;
+  double brake_torque_nm = 0.0;       // per wheel at braking = 1
+};
+
+struct WheelParams {
+  double radius_m = 0.0;
+  double width_m = 0.0;
+  double mass_kg = 0.0;               // wheel + tire (+ unsprung hub) per corner
+  double spin_inertia_kgm2 = 0.0;
+};
+
+struct SteeringParams {
+  double max_angle_deg = 0.0;         // road-wheel angle of the inner wheel at steering = 1
+  double rate_deg_s = 0.0;            // steering actuator rate limit (0: none)
+};
+
+struct EngineParams {
+  std::vector<std::pair<double, double>> torque_map_rpm_nm;  // full-throttle curve
+  double idle_rpm = 800.0;
+  double max_rpm = 2700.0;
+  double inertia_kgm2 = 0.0;
+};
+
+struct TransmissionParams {
+  std::vector<double> forward_ratios;  // output/input speed ratio per gear (Chrono convention)
+  double reverse_ratio = 0.0;
+  double upshift_rpm = 0.0;
+  double downshift_rpm = 0.0;
+  double shift_time_s = 0.0;
+  double converter_stall_ratio = 1.0;  // torque multiplication at stall
+  double converter_coupling_speed_ratio = 0.85;  // speed ratio where multiplication ends
+  double converter_capacity_factor = 0.0;  // K: input speed (rpm) / sqrt(input torque)
+};
+
+struct DrivelineParams {
+  double final_drive_ratio = 0.0;      // output/input (Chrono convention, < 1 reduces speed)
+  double front_torque_share = 0.5;     // central differential split
+};
+
+struct TireParams {
+  double friction_scale = 1.0;         // multiplies terrain friction
+  double longitudinal_stiffness = 0.0; // N per unit slip ratio, at nominal load
+  double cornering_stiffness = 0.0;    // N per rad of slip angle, at nominal load
+  double nominal_load_n = 0.0;
+  double vertical_stiffness_npm = 0.0;
+  double vertical_damping_nspm = 0.0;
+  double rolling_resistance = 0.0;     // coefficient
+};
+
+/// Parameters only the reduced-order (kinematic bicycle) model uses.
+struct ReducedParams {
+  double max_drive_force_n = 0.0;      // at zero speed, full throttle
+  double max_power_w = 0.0;            // drive force limited to P / v
+  double max_brake_decel_mps2 = 0.0;   // at braking = 1 (on high-friction ground)
+  double drag_area_m2 = 0.0;           // Cd * A
+  double steering_time_constant_s = 0.0;
+  double max_speed_mps = 0.0;
+};
+
+struct VehicleParams {
+  std::string name;
+  std::string source_file;
+  ChassisParams chassis;
+  WheelParams wheels;
+  AxleParams front;
+  AxleParams rear;
+  SteeringParams steering;
+  EngineParams engine;
+  TransmissionParams transmission;
+  DrivelineParams driveline;
+  TireParams tire;
+  ReducedParams reduced;
+
+  double wheelbase_m() const { return front.x_m - rear.x_m; }
+  double track_m() const { return 2.0 * front.half_track_m; }
+  /// Mass of the whole vehicle: chassis + four wheels.
+  double total_mass_kg() const { return chassis.mass_kg + 4.0 * wheels.mass_kg; }
+  /// Full-throttle engine torque at `rpm` (linear interpolation, clamped at the map ends).
+  double engine_torque_nm(double rpm) const;
+};
+
+/// Reads and validates a vehicle file; errors name file:line:column and the key.
+VehicleParams load_vehicle_params(const std::string& file);
+VehicleParams parse_vehicle_params(const YamlNode& root);
+
+}  // namespace syndds::vehicle

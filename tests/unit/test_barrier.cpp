@@ -1,0 +1,215 @@
+#include <gtest/gtest.h>
+
+#include "protocol/barrier.hpp"
+
+using namespace syndds::proto;
+using Kind = Barrier::Action::Kind;
+
+namespace {
+
+BarrierConfig config(std::int64_t final_frame = 3) {
+  BarrierConfig c;
+  c.members = {"vehicle/a", "controller/a", "recorder"};
+  c.final_frame = final_frame;
+  c.heartbeat_s = 0.01;
+  c.join_timeout_s = 5.0;
+  c.frame_timeout_s = 2.0;
+  return c;
+}
+
+FrameDoneMsg done(const std::string& member, std::int64_t frame, Manifest published = {}) {
+  FrameDoneMsg d;
+  d.member_id = member;
+  d.frame = frame;
+  d.published = std::move(published);
+  return d;
+}
+
+void join_all(Barrier& b, double t) {
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) EXPECT_EQ(b.on_join(m, t), "");
+}
+
+}  // namespace
+
+TEST(Barrier, GrantsFrameZeroOnlyWhenEveryMemberJoined) {
+  Barrier b(config(), 0.0);
+  EXPECT_EQ(b.poll(0.1).kind, Kind::wait);
+  b.on_join("vehicle/a", 0.1);
+  b.on_join("recorder", 0.1);
+  EXPECT_EQ(b.poll(0.2).kind, Kind::wait);
+  b.on_join("controller/a", 0.3);
+  auto a = b.poll(0.3);
+  ASSERT_EQ(a.kind, Kind::grant);
+  EXPECT_EQ(a.grant.frame, 0);
+  EXPECT_TRUE(a.grant.manifest.empty());
+  EXPECT_EQ(b.poll(0.3).kind, Kind::wait);  // granted once
+}
+
+TEST(Barrier, JoinTimeoutNamesTheMissingMembers) {
+  Barrier b(config(), 0.0);
+  b.on_join("vehicle/a", 0.1);
+  auto w = b.poll(1.0);
+  EXPECT_EQ(w.kind, Kind::wait);
+  EXPECT_DOUBLE_EQ(w.wake_at_s, 5.0);
+  auto a = b.poll(5.0);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_NE(a.control.reason.find("join timeout"), std::string::npos);
+  EXPECT_NE(a.control.reason.find("controller/a, recorder"), std::string::npos) << a.control.reason;
+  EXPECT_EQ(a.control.reason.find("vehicle/a"), std::string::npos);
+}
+
+TEST(Barrier, UnknownMemberIsIgnoredWithAWarning) {
+  Barrier b(config(), 0.0);
+  EXPECT_NE(b.on_join("vehicle/zzz", 0.0).find("not a member"), std::string::npos);
+  EXPECT_EQ(b.missing_members().size(), 3u);
+}
+
+TEST(Barrier, NextFrameWaitsForEveryDoneAndCarriesTheManifest) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  const TopicCount state{Topic::vehicle_state, "a", "vehicle/a", 1};
+  b.on_done(done("vehicle/a", 0, {state}), 0.01);
+  b.on_done(done("controller/a", 0), 0.01);
+  EXPECT_EQ(b.poll(0.02).kind, Kind::wait);
+  EXPECT_EQ(b.pending_members(), std::vector<std::string>{"recorder"});
+  b.on_done(done("recorder", 0), 0.03);
+  auto a = b.poll(0.03);
+  ASSERT_EQ(a.kind, Kind::grant);
+  EXPECT_EQ(a.grant.frame, 1);
+  EXPECT_DOUBLE_EQ(a.grant.sim_time_s, 0.01);
+  ASSERT_EQ(a.grant.manifest.size(), 1u);
+  EXPECT_EQ(a.grant.manifest[0], state);
+}
+
+TEST(Barrier, DoneForAnotherFrameDoesNotCount) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  EXPECT_NE(b.on_done(done("vehicle/a", 5), 0.0).find("frame 0 is current"), std::string::npos);
+  EXPECT_EQ(b.pending_members().size(), 3u);
+}
+
+TEST(Barrier, FrameDeadlineNamesTheSlowMembers) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  b.on_done(done("vehicle/a", 0), 0.1);
+  b.on_done(done("recorder", 0), 0.1);
+  EXPECT_EQ(b.poll(1.9).kind, Kind::wait);
+  auto a = b.poll(2.0);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_NE(a.control.reason.find("frame 0 missed"), std::string::npos) << a.control.reason;
+  EXPECT_NE(a.control.reason.find("controller/a"), std::string::npos) << a.control.reason;
+  EXPECT_EQ(a.control.reason.find("recorder"), std::string::npos) << a.control.reason;
+}
+
+TEST(Barrier, LostMemberAbortsByDefault) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 1
+  b.on_member_lost("vehicle/a", "liveliness lost", 0.5);
+  auto a = b.poll(0.5);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.reason, "member vehicle/a lost: liveliness lost");
+  EXPECT_EQ(a.control.final_frame, 0);  // frame 0 was the last complete frame
+  EXPECT_EQ(a.control.stats.frames, 1u);
+}
+
+TEST(Barrier, AbortAfterACompleteFrameAnnouncesItsSamples) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  const TopicCount state{Topic::vehicle_state, "a", "vehicle/a", 1};
+  b.on_done(done("vehicle/a", 0, {state}), 0.0);
+  b.on_done(done("controller/a", 0), 0.0);
+  b.on_done(done("recorder", 0), 0.0);
+  b.on_interrupt("interrupted", 0.0);
+  auto a = b.poll(0.0);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.final_frame, 0);
+  ASSERT_EQ(a.control.final_manifest.size(), 1u);
+}
+
+TEST(Barrier, ContinuePolicyDropsTheLostMember) {
+  auto c = config();
+  c.on_member_loss = LossPolicy::continue_run;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  b.on_done(done("vehicle/a", 0), 0.0);
+  b.on_done(done("recorder", 0), 0.0);
+  b.on_member_lost("controller/a", "process exited", 0.1);
+  auto a = b.poll(0.1);
+  ASSERT_EQ(a.kind, Kind::grant);
+  EXPECT_EQ(a.grant.frame, 1);
+  const auto stats = b.stats(0.1);
+  bool seen = false;
+  for (const auto& m : stats.members) {
+    if (m.member_id == "controller/a") {
+      EXPECT_TRUE(m.lost);
+      seen = true;
+    }
+  }
+  EXPECT_TRUE(seen);
+}
+
+TEST(Barrier, StopsAfterTheFinalFrameWithItsManifest) {
+  Barrier b(config(1), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  const TopicCount state{Topic::vehicle_state, "a", "vehicle/a", 1};
+  b.on_done(done("vehicle/a", 1, {state}), 0.1);
+  b.on_done(done("controller/a", 1), 0.1);
+  b.on_done(done("recorder", 1), 0.1);
+  auto a = b.poll(0.1);
+  ASSERT_EQ(a.kind, Kind::stop);
+  EXPECT_EQ(a.control.status, RunStatus::completed);
+  EXPECT_EQ(a.control.final_frame, 1);
+  ASSERT_EQ(a.control.final_manifest.size(), 1u);
+  EXPECT_EQ(a.control.stats.frames, 2u);
+  EXPECT_DOUBLE_EQ(a.control.stats.sim_time_s, 0.01);
+  EXPECT_FALSE(b.all_finished());
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) {
+    FrameDoneMsg f = done(m, 1);
+    f.finished = true;
+    b.on_done(f, 0.2);
+  }
+  EXPECT_TRUE(b.all_finished());
+}
+
+TEST(Barrier, RealtimePacesGrantsToTheWallClock) {
+  auto c = config(10);
+  c.realtime = true;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(1.0).kind, Kind::grant);  // frame 0 at t = 1.0
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 1.001);
+  auto w = b.poll(1.001);
+  ASSERT_EQ(w.kind, Kind::wait);
+  EXPECT_NEAR(w.wake_at_s, 1.01, 1e-12);
+  EXPECT_EQ(b.poll(1.01).kind, Kind::grant);
+}
+
+TEST(Barrier, StatsCountResponseTimesAndTheSlowestMember) {
+  Barrier b(config(5), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  b.on_done(done("vehicle/a", 0), 0.001);
+  b.on_done(done("controller/a", 0), 0.002);
+  b.on_done(done("recorder", 0), 0.004);
+  b.poll(0.004);
+  const auto s = b.stats(0.004);
+  for (const auto& m : s.members) {
+    if (m.member_id == "recorder") {
+      EXPECT_NEAR(m.mean_response_s, 0.004, 1e-12);
+      EXPECT_EQ(m.slowest_count, 1u);
+    } else {
+      EXPECT_EQ(m.slowest_count, 0u);
+    }
+  }
+}

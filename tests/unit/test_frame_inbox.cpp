@@ -1,0 +1,67 @@
+#include <gtest/gtest.h>
+
+#include "protocol/frame_inbox.hpp"
+
+using namespace syndds::proto;
+
+namespace {
+VehicleStateMsg state(const std::string& id, std::int64_t frame, double x = 0) {
+  VehicleStateMsg s;
+  s.vehicle_id = id;
+  s.source = "vehicle/" + id;
+  s.frame = frame;
+  s.pose.position.x() = x;
+  return s;
+}
+}  // namespace
+
+// The data barrier: a grant whose manifest announces a sample is not enough; the inbox must
+// hold the sample itself before the frame may start.
+TEST(FrameInbox, IncompleteUntilEveryAnnouncedSampleArrived) {
+  FrameInbox inbox({{Topic::vehicle_state, ""}});
+  const Manifest manifest = {{Topic::vehicle_state, "a", "vehicle/a", 1},
+                             {Topic::vehicle_state, "b", "vehicle/b", 1}};
+  EXPECT_FALSE(inbox.complete(4, manifest));
+  inbox.add(state("b", 4));
+  EXPECT_FALSE(inbox.complete(4, manifest));
+  EXPECT_EQ(inbox.describe_missing(4, manifest), "vehicle_state key=a from vehicle/a: have 0 of 1");
+  inbox.add(state("a", 5));  // a sample of the wrong frame does not count
+  EXPECT_FALSE(inbox.complete(4, manifest));
+  inbox.add(state("a", 4));
+  EXPECT_TRUE(inbox.complete(4, manifest));
+}
+
+TEST(FrameInbox, OnlySubscribedEntriesAreNeeded) {
+  FrameInbox inbox({{Topic::driver_command, "a"}});
+  const Manifest manifest = {{Topic::vehicle_state, "a", "vehicle/a", 1},
+                             {Topic::driver_command, "b", "controller/b", 1}};
+  EXPECT_TRUE(inbox.needed(manifest).empty());
+  EXPECT_TRUE(inbox.complete(0, manifest));
+  EXPECT_FALSE(inbox.add(state("a", 0)));
+}
+
+TEST(FrameInbox, TakeReturnsCanonicalOrderAndForgetsOldFrames) {
+  FrameInbox inbox({{Topic::vehicle_state, ""}});
+  const Manifest manifest = {{Topic::vehicle_state, "a", "vehicle/a", 1},
+                             {Topic::vehicle_state, "b", "vehicle/b", 1}};
+  inbox.add(state("b", 2, 2.0));
+  inbox.add(state("a", 2, 1.0));
+  inbox.add(state("a", 3, 3.0));
+  auto f = inbox.take(2, manifest);
+  ASSERT_EQ(f.vehicle_states.size(), 2u);
+  EXPECT_EQ(f.vehicle_states[0].vehicle_id, "a");
+  EXPECT_EQ(f.vehicle_states[1].vehicle_id, "b");
+  EXPECT_FALSE(inbox.add(state("a", 2)));  // late duplicate of a consumed frame
+  auto g = inbox.take(3, {{Topic::vehicle_state, "a", "vehicle/a", 1}});
+  ASSERT_EQ(g.vehicle_states.size(), 1u);
+  EXPECT_DOUBLE_EQ(g.vehicle_states[0].pose.position.x(), 3.0);
+}
+
+TEST(FrameInbox, UnannouncedSamplesAreDroppedAndCounted) {
+  FrameInbox inbox({{Topic::vehicle_state, ""}});
+  inbox.add(state("a", 1));
+  inbox.add(state("z", 1));
+  auto f = inbox.take(1, {{Topic::vehicle_state, "a", "vehicle/a", 1}});
+  EXPECT_EQ(f.vehicle_states.size(), 1u);
+  EXPECT_EQ(inbox.unexpected_samples(), 1u);
+}

@@ -1,0 +1,135 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "scenario/scenario.hpp"
+
+using namespace syndds;
+using namespace syndds::scenario;
+
+namespace {
+
+const std::string kConfigDir = SYNDDS_TEST_CONFIG_DIR;
+
+Scenario parse(const std::string& text, const Overrides& o = {}) {
+  return parse_scenario(YamlNode::load_string(text, "test.yaml"), text, o, kConfigDir);
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    parse(text);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+const std::string kMinimal = R"(time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}
+vehicles:
+  - id: a
+    model: hmmwv
+    controller:
+      type: path_follower
+      path: {waypoints: [[0, 0], [10, 0]]}
+      speed: {target_mps: 3}
+)";
+
+}  // namespace
+
+TEST(Scenario, DefaultScenarioLoads) {
+  const auto s = load_scenario(kConfigDir + "/scenarios/default.yaml");
+  EXPECT_EQ(s.name, "default");
+  EXPECT_GE(s.vehicles.size(), 3u);
+  EXPECT_EQ(s.time.steps_per_frame(), 5);
+  EXPECT_EQ(s.time.final_frame(), 3000);
+  const auto members = s.member_ids();
+  EXPECT_EQ(members.front(), "vehicle/lead");
+  EXPECT_EQ(members.back(), "recorder");
+}
+
+TEST(Scenario, MinimalScenarioDefaultsAndMembers) {
+  const auto s = parse(kMinimal);
+  ASSERT_EQ(s.vehicles.size(), 1u);
+  EXPECT_EQ(s.vehicles[0].dynamics, "reduced");
+  EXPECT_DOUBLE_EQ(s.vehicles[0].params.wheelbase_m(), 3.378);
+  EXPECT_EQ(s.member_ids(), (std::vector<std::string>{"vehicle/a", "controller/a", "recorder"}));
+  EXPECT_EQ(s.coordinator.on_member_loss, proto::LossPolicy::abort);
+}
+
+TEST(Scenario, OverridesApplyAndChangeTheFingerprint) {
+  const auto a = parse(kMinimal);
+  Overrides o;
+  o.duration_s = 2.5;
+  o.realtime = true;
+  const auto b = parse(kMinimal, o);
+  EXPECT_DOUBLE_EQ(b.time.end_time_s, 2.5);
+  EXPECT_TRUE(b.time.realtime);
+  EXPECT_EQ(b.time.final_frame(), 250);
+  EXPECT_NE(a.fingerprint, b.fingerprint);
+  EXPECT_EQ(a.fingerprint, parse(kMinimal).fingerprint);
+}
+
+TEST(Scenario, UnknownKeyIsAnErrorWithLine) {
+  std::string text = kMinimal + "colour: red\n";
+  const auto err = error_of(text);
+  EXPECT_NE(err.find("test.yaml:9:1: colour: unknown key 'colour'"), std::string::npos) << err;
+}
+
+TEST(Scenario, NegativeStepIsAnError) {
+  std::string text = kMinimal;
+  text.replace(text.find("step_s: 0.002"), 13, "step_s: -0.002");
+  const auto err = error_of(text);
+  EXPECT_NE(err.find("test.yaml:1:"), std::string::npos) << err;
+  EXPECT_NE(err.find("time.step_s: must be positive"), std::string::npos) << err;
+}
+
+TEST(Scenario, HeartbeatMustBeAWholeMultipleOfTheStep) {
+  std::string text = kMinimal;
+  text.replace(text.find("heartbeat_s: 0.01"), 17, "heartbeat_s: 0.005");
+  text.replace(text.find("step_s: 0.002"), 13, "step_s: 0.003");
+  const auto err = error_of(text);
+  EXPECT_NE(err.find("time.heartbeat_s: heartbeat_s (0.005) must be a whole multiple of step_s"),
+            std::string::npos)
+      << err;
+}
+
+TEST(Scenario, BadValuesNameTheirKey) {
+  std::string text = kMinimal;
+  text.replace(text.find("target_mps: 3"), 13, "target_mps: fast");
+  auto err = error_of(text);
+  EXPECT_NE(err.find("test.yaml:8:27: vehicles[0].controller.speed.target_mps: expected a number"),
+            std::string::npos)
+      << err;
+  text = kMinimal;
+  text.replace(text.find("model: hmmwv"), 12, "model: tank");
+  err = error_of(text);
+  EXPECT_NE(err.find("vehicles[0].model: vehicle model file not found"), std::string::npos) << err;
+}
+
+TEST(Scenario, DuplicateVehicleIdsAreRejected) {
+  std::string text = kMinimal + R"(  - id: a
+    model: hmmwv
+    start: {x: 0, y: 5}
+)";
+  const auto err = error_of(text);
+  EXPECT_NE(err.find("duplicate vehicle id 'a'"), std::string::npos) << err;
+}
+
+TEST(Scenario, StartDefaultsToThePathStart) {
+  std::string text = kMinimal;
+  text.replace(text.find("[[0, 0], [10, 0]]"), 17, "[[5, 5], [5, 15]]");
+  const auto s = parse(text);
+  EXPECT_NEAR(s.vehicles[0].start.position.x(), 5.0, 1e-9);
+  EXPECT_NEAR(s.vehicles[0].start.position.y(), 5.0, 1e-9);
+  EXPECT_NEAR(yaw_of(s.vehicles[0].start.orientation), std::numbers::pi / 2, 1e-6);
+}
+
+TEST(Scenario, VehicleFileErrorsNameTheVehicleFile) {
+  const std::string dir = testing::TempDir();
+  std::ofstream(dir + "/bad_vehicle.yaml") << "name: x\nchassis: {mass_kg: -5}\n";
+  std::string text = kMinimal;
+  text.replace(text.find("model: hmmwv"), 12, "model: " + dir + "/bad_vehicle.yaml");
+  const auto err = error_of(text);
+  EXPECT_NE(err.find("bad_vehicle.yaml:2:"), std::string::npos) << err;
+  EXPECT_NE(err.find("chassis.mass_kg: must be positive"), std::string::npos) << err;
+}
