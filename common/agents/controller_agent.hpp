@@ -16,6 +16,7 @@ class ControllerAgent final : public proto::Agent {
   const std::string& member_id() const override { return member_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::controller; }
   std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
 

@@ -26,6 +26,7 @@ class VehicleAgent final : public proto::Agent {
   const std::string& member_id() const override { return member_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::vehicle; }
   std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override { return {proto::Topic::vehicle_state, proto::Topic::collision_event}; }
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
 

@@ -58,6 +58,8 @@ class Agent {
   virtual const std::string& member_id() const = 0;
   virtual MemberKind kind() const = 0;
   virtual std::vector<Subscription> subscriptions() const = 0;
+  /// Topics this agent may write (the DDS runtime creates writers for exactly these).
+  virtual std::vector<Topic> publications() const = 0;
 
   /// Computes frame `ctx.frame`. `inputs` holds exactly the subscribed samples stamped
   /// ctx.frame - 1 (none for frame 0). Samples to publish go to `outputs`; the runtime stamps

@@ -39,6 +39,7 @@ class RecorderAgent final : public proto::Agent {
   const std::string& member_id() const override { return member_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
   std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override { return {}; }
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;

@@ -59,6 +59,7 @@ TEST(LocalRunner, AgentsSeeOnlyThePreviousFrame) {
     std::vector<proto::Subscription> subscriptions() const override {
       return {{proto::Topic::vehicle_state, ""}, {proto::Topic::driver_command, ""}};
     }
+    std::vector<proto::Topic> publications() const override { return {}; }
     void step(const proto::FrameContext& ctx, const proto::FrameSamples& in,
               proto::FrameSamples&) override {
       for (const auto& s : in.vehicle_states) {
@@ -89,6 +90,7 @@ TEST(LocalRunner, RejectsOutputsWithTheWrongStamp) {
     const std::string& member_id() const override { return id; }
     proto::MemberKind kind() const override { return proto::MemberKind::controller; }
     std::vector<proto::Subscription> subscriptions() const override { return {}; }
+    std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
     void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
               proto::FrameSamples& out) override {
       proto::DriverCommandMsg c;

@@ -1,0 +1,134 @@
+#!/usr/bin/env bash
+# Runs a scenario: one process per vehicle, controller and recorder plus the coordinator,
+# watched until the run ends; prints a short summary, or a one-line reason on failure.
+#
+#   launch_scripts/run_scenario.sh SCENARIO.yaml [--output DIR] [--duration S] [--realtime]
+#       [--single-process] [--print-commands] [--domain D] [--run-id ID]
+#       [--transport default|udp] [--discovery-server ADDR:PORT] [--log-level LEVEL]
+#
+# Exit status: 0 completed, 1 bad scenario or command line, 2 run aborted or a process failed,
+# 130 interrupted (Ctrl-C). Logs of every process: OUTPUT/logs/. Programs: build/bin (or
+# $SYNDDS_BUILD_DIR/bin; run launch_scripts/setup.sh first).
+set -u
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
+GRACE_S=${SYNDDS_LAUNCH_GRACE_S:-20}   # after a failure: time for the others to exit cleanly
+
+die() { echo "run_scenario: $*" >&2; exit "${2:-1}"; }
+usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; }
+
+[ $# -ge 1 ] || { usage >&2; exit 1; }
+case "$1" in -h|--help) usage; exit 0 ;; esac
+SCENARIO=$1; shift
+[ -f "$SCENARIO" ] || die "scenario file not found: $SCENARIO"
+for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_recorder syndds_sim; do
+  [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
+done
+
+OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
+    --run-id) [ $# -ge 2 ] || die "--run-id needs a value"; RUN_ID=$2; shift ;;
+    --duration|--domain|--transport|--discovery-server|--log-level)
+      [ $# -ge 2 ] || die "$1 needs a value"; PASS+=("$1" "$2"); shift ;;
+    --realtime) PASS+=("$1") ;;
+    --single-process) SINGLE=1 ;;
+    --print-commands) PRINT=1 ;;
+    -h|--help) usage; exit 0 ;;
+    *) die "unknown option: $1 (see --help)" ;;
+  esac
+  shift
+done
+
+stem=$(basename "$SCENARIO" .yaml)
+stamp=$(date +%Y%m%d-%H%M%S)
+[ -n "$OUTPUT" ] || OUTPUT="runs/$stem-$stamp"
+[ -n "$RUN_ID" ] || RUN_ID="$stem-$stamp-$$"
+
+if [ "$SINGLE" = 1 ]; then
+  [ "$PRINT" = 1 ] && { echo "$BIN/syndds_sim $SCENARIO --output $OUTPUT ${PASS[*]}"; exit 0; }
+  "$BIN/syndds_sim" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" "${PASS[@]}"
+  rc=$?
+  [ $rc -eq 0 ] && echo "output: $OUTPUT"
+  exit $rc
+fi
+
+if [ "$PRINT" = 1 ]; then
+  exec "$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" "${PASS[@]}"
+fi
+
+plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" \
+       --format launcher "${PASS[@]}") || exit 1
+
+mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
+names=(); pids=(); codes=()
+while IFS=$'\t' read -r member cmd; do
+  [ -n "$member" ] || continue
+  log="$OUTPUT/logs/${member//\//_}.log"
+  ( eval "exec $cmd" ) > "$log" 2>&1 &
+  names+=("$member"); pids+=($!); codes+=("")
+done <<< "$plan"
+echo "run_scenario: started ${#pids[@]} processes for run $RUN_ID (logs in $OUTPUT/logs)"
+
+stop_all() {  # $1 = signal
+  for i in "${!pids[@]}"; do
+    [ -z "${codes[$i]}" ] && kill "-$1" "${pids[$i]}" 2>/dev/null
+  done
+}
+interrupted=0
+trap 'interrupted=1' INT TERM
+
+failed=""; deadline=0; killed=0
+while :; do
+  alive=0
+  for i in "${!pids[@]}"; do
+    [ -n "${codes[$i]}" ] && continue
+    if kill -0 "${pids[$i]}" 2>/dev/null; then
+      alive=$((alive + 1))
+    else
+      wait "${pids[$i]}"; codes[$i]=$?
+      if [ "${codes[$i]}" -ne 0 ] && [ -z "$failed" ]; then
+        failed="${names[$i]} exited with status ${codes[$i]}"
+        [ "${codes[$i]}" -gt 128 ] && failed="${names[$i]} was killed by signal $((codes[$i] - 128))"
+        deadline=$((SECONDS + GRACE_S))
+      fi
+    fi
+  done
+  [ $alive -eq 0 ] && break
+  if [ $interrupted = 1 ] && [ $killed = 0 ]; then
+    echo "run_scenario: interrupted; stopping every process" >&2
+    stop_all TERM; killed=1; deadline=$((SECONDS + 5))
+    [ -n "$failed" ] || failed="interrupted"
+  fi
+  if [ -n "$failed" ] && [ $SECONDS -ge $deadline ] && [ $deadline -gt 0 ]; then
+    if [ $killed -lt 2 ]; then
+      echo "run_scenario: processes still running ${GRACE_S} s after a failure; stopping them" >&2
+      stop_all TERM; killed=2; deadline=$((SECONDS + 5))
+    else
+      stop_all KILL; deadline=0
+    fi
+  fi
+  sleep 0.1
+done
+trap - INT TERM
+
+summary="$OUTPUT/summary.txt"
+if [ -z "$failed" ]; then
+  [ -f "$summary" ] && cat "$summary"
+  echo "output: $OUTPUT"
+  exit 0
+fi
+
+# One line saying why: the coordinator's verdict (as recorded), else who failed first.
+reason=""
+if [ -f "$summary" ] && ! head -n1 "$summary" | grep -q " is running"; then
+  reason=$(head -n1 "$summary")
+fi
+if [ -z "$reason" ]; then
+  reason=$(grep -h -E "run aborted: |error: |failed: " "$OUTPUT/logs/coordinator.log" 2>/dev/null | tail -n1 | sed 's/^\[[^]]*\] \[[^]]*\] \[[^]]*\] //')
+fi
+[ -n "$reason" ] || reason="$failed"
+[ $interrupted = 1 ] && { echo "run_scenario: interrupted: $reason (logs: $OUTPUT/logs)" >&2; exit 130; }
+echo "run_scenario: FAILED: $reason [first exit: $failed] (logs: $OUTPUT/logs)" >&2
+exit 2

@@ -1,0 +1,41 @@
+#pragma once
+// main() of a member service: build one agent from the scenario and run it over DDS.
+#include <spdlog/spdlog.h>
+
+#include "agents/agent_factory.hpp"
+#include "common/service_cli.hpp"
+
+namespace syndds::service {
+
+/// `make_member_id(scenario)` names the member this process plays.
+inline int member_main(const char* name, const char* description, int argc, char** argv,
+                       const std::function<void(CLI::App&)>& add_options,
+                       const std::function<std::string(const scenario::Scenario&)>& make_member_id,
+                       const std::function<record::RecorderOptions(const scenario::Scenario&,
+                                                                   const std::string&)>&
+                           recorder_options = {}) {
+  CLI::App app{description};
+  CommonArgs common;
+  DebugArgs debug;
+  add_common_options(app, common);
+  add_debug_options(app, debug);
+  add_options(app);
+  return run_service(name, app, argc, argv, common, [&] {
+    const auto s = load_scenario(common);
+    const std::string member = make_member_id(s);
+    const auto options = member_options(common, debug, s);
+    record::RecorderOptions ro;
+    if (recorder_options) ro = recorder_options(s, options.dds.run_id);
+    auto agent = agents::make_agent(s, member, ro);
+    dds::MemberRuntime runtime(*agent, options);
+    const int code = runtime.run(interrupted());
+    if (code == dds::kExitCompleted) {
+      spdlog::info("{}: run completed", member);
+    } else {
+      spdlog::error("{}: run ended: {}", member, runtime.end_reason());
+    }
+    return code;
+  });
+}
+
+}  // namespace syndds::service

@@ -1,0 +1,122 @@
+#include "common/service_cli.hpp"
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <csignal>
+#include <filesystem>
+#include <iostream>
+
+#include "core/error.hpp"
+
+namespace syndds::service {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+
+extern "C" void on_signal(int) { g_interrupted.store(true); }
+
+}  // namespace
+
+const std::atomic<bool>& interrupted() { return g_interrupted; }
+
+void add_common_options(CLI::App& app, CommonArgs& a) {
+  app.add_option("scenario", a.scenario_file, "Scenario YAML file")->required();
+  app.add_option("--run-id", a.run_id,
+                 "Run id (DDS partition); every process of a run must use the same one");
+  app.add_option("--domain", a.domain_id, "DDS domain id (overrides dds.domain_id)")
+      ->check(CLI::Range(0, 232));
+  app.add_option("--duration", a.duration_s, "Simulated seconds (overrides time.end_time_s)");
+  app.add_flag("--realtime", a.realtime, "Pace frames to the wall clock (overrides time.realtime)");
+  app.add_option("--transport", a.transport, "DDS transport: default (shared memory + UDP) or udp")
+      ->check(CLI::IsMember({"default", "udp"}));
+  app.add_option("--discovery-server", a.discovery_server,
+                 "ADDR:PORT of a Fast DDS discovery server (networks without multicast)");
+  app.add_option("--config-dir", a.config_dir, "Folder with vehicles/ and dds/")->capture_default_str();
+  app.add_option("--dds-profiles", a.dds_profiles,
+                 "Fast DDS QoS profiles XML (default: CONFIG_DIR/dds/profiles.xml)");
+  app.add_option("--log-level", a.log_level, "trace, debug, info, warn, error")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
+      ->capture_default_str();
+}
+
+void add_debug_options(CLI::App& app, DebugArgs& d) {
+  const char* group = "Testing (fault injection; never needed in normal runs)";
+  app.add_option("--debug-frame-delay-ms", d.frame_delay_ms, "Sleep this long in every frame")
+      ->group(group)->check(CLI::Range(0, 60000));
+  app.add_option("--debug-publish-delay-ms", d.publish_delay_ms,
+                 "Report a frame done, then publish its data this much later")
+      ->group(group)->check(CLI::Range(0, 60000));
+  app.add_flag("--debug-skip-data-barrier", d.skip_data_barrier,
+               "Start frames without waiting for announced data (shows why the barrier exists)")
+      ->group(group);
+}
+
+scenario::Scenario load_scenario(const CommonArgs& a) {
+  scenario::Overrides o;
+  o.duration_s = a.duration_s;
+  if (a.realtime) o.realtime = true;
+  o.domain_id = a.domain_id;
+  auto s = scenario::load_scenario(a.scenario_file, o, a.config_dir);
+  if (a.transport) s.dds.transport = *a.transport;
+  if (a.discovery_server) s.dds.discovery_server = *a.discovery_server;
+  return s;
+}
+
+std::string default_run_id(const scenario::Scenario& s) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(s.fingerprint));
+  return s.name + "-" + std::string(hex).substr(0, 8);
+}
+
+dds::DdsOptions dds_options(const CommonArgs& a, const scenario::Scenario& s) {
+  dds::DdsOptions d;
+  d.domain_id = s.dds.domain_id;
+  d.run_id = a.run_id.empty() ? default_run_id(s) : a.run_id;
+  d.transport = s.dds.transport;
+  d.discovery_server = s.dds.discovery_server;
+  d.profiles_file =
+      a.dds_profiles.empty() ? (std::filesystem::path(a.config_dir) / "dds" / "profiles.xml").string()
+                             : a.dds_profiles;
+  return d;
+}
+
+dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d,
+                                         const scenario::Scenario& s) {
+  dds::MemberRuntimeOptions o;
+  o.dds = dds_options(a, s);
+  o.config_fingerprint = s.fingerprint;
+  o.heartbeat_s = s.time.heartbeat_s;
+  o.join_timeout_s = s.coordinator.join_timeout_s + 5.0;
+  o.input_timeout_s = s.coordinator.frame_timeout_s;
+  o.debug_frame_delay_ms = d.frame_delay_ms;
+  o.debug_publish_delay_ms = d.publish_delay_ms;
+  o.debug_skip_data_barrier = d.skip_data_barrier;
+  return o;
+}
+
+int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonArgs& common,
+                const std::function<int()>& body) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  auto logger = spdlog::stderr_color_mt(name);
+  spdlog::set_default_logger(logger);
+  spdlog::set_pattern("[%H:%M:%S.%e] [%n] [%^%l%$] %v");
+  spdlog::set_level(spdlog::level::from_str(common.log_level));
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    return body();
+  } catch (const ConfigError& e) {
+    std::cerr << name << ": error: " << e.what() << std::endl;
+    return dds::kExitConfigError;
+  } catch (const std::exception& e) {
+    std::cerr << name << ": failed: " << e.what() << std::endl;
+    return dds::kExitFailed;
+  }
+}
+
+}  // namespace syndds::service

@@ -1,0 +1,56 @@
+#pragma once
+// What every service's main() shares: command-line options (CLI11), scenario loading with
+// overrides, DDS options, logging, signal handling and the exit-code policy. A service main is
+// then a few lines: parse, build the agent, run, return the exit code.
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "dds/member_runtime.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::service {
+
+struct CommonArgs {
+  std::string scenario_file;
+  std::string run_id;
+  std::optional<int> domain_id;
+  std::optional<double> duration_s;
+  bool realtime = false;
+  std::optional<std::string> transport;
+  std::optional<std::string> discovery_server;
+  std::string config_dir = scenario::default_config_dir();
+  std::string dds_profiles;
+  std::string log_level = "info";
+};
+
+struct DebugArgs {
+  int frame_delay_ms = 0;
+  int publish_delay_ms = 0;
+  bool skip_data_barrier = false;
+};
+
+void add_common_options(CLI::App& app, CommonArgs& args);
+void add_debug_options(CLI::App& app, DebugArgs& args);
+
+/// Loads the scenario with the command-line overrides applied.
+scenario::Scenario load_scenario(const CommonArgs& args);
+/// The run id used when none is given: the scenario name and its fingerprint, so processes
+/// started by hand from the same scenario agree.
+std::string default_run_id(const scenario::Scenario& s);
+dds::DdsOptions dds_options(const CommonArgs& args, const scenario::Scenario& s);
+dds::MemberRuntimeOptions member_options(const CommonArgs& args, const DebugArgs& debug,
+                                         const scenario::Scenario& s);
+
+/// Set by SIGINT / SIGTERM.
+const std::atomic<bool>& interrupted();
+
+/// Parses the command line, sets up logging and signals, calls `body`, and maps exceptions to
+/// exit codes: ConfigError -> 1 (message names file:line:key), anything else -> 3.
+int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonArgs& common,
+                const std::function<int()>& body);
+
+}  // namespace syndds::service

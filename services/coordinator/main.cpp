@@ -1,0 +1,37 @@
+// syndds_coordinator: the time barrier of a run. See docs/protocol.md.
+#include <spdlog/spdlog.h>
+
+#include "common/service_cli.hpp"
+#include "dds/coordinator_service.hpp"
+
+namespace service = syndds::service;
+namespace sdds = syndds::dds;
+
+int main(int argc, char** argv) {
+  CLI::App app{"syndds coordinator: grants frames to the members a scenario declares"};
+  service::CommonArgs common;
+  service::add_common_options(app, common);
+  bool print_members = false;
+  app.add_flag("--print-members", print_members,
+               "Print the member ids the scenario declares and exit");
+  return service::run_service("coordinator", app, argc, argv, common, [&] {
+    const auto s = service::load_scenario(common);
+    if (print_members) {
+      for (const auto& m : s.member_ids()) std::printf("%s\n", m.c_str());
+      return 0;
+    }
+    sdds::CoordinatorOptions o;
+    o.dds = service::dds_options(common, s);
+    o.config_fingerprint = s.fingerprint;
+    o.scenario_name = s.name;
+    o.barrier.members = s.member_ids();
+    o.barrier.final_frame = s.time.final_frame();
+    o.barrier.heartbeat_s = s.time.heartbeat_s;
+    o.barrier.join_timeout_s = s.coordinator.join_timeout_s;
+    o.barrier.frame_timeout_s = s.coordinator.frame_timeout_s;
+    o.barrier.on_member_loss = s.coordinator.on_member_loss;
+    o.barrier.realtime = s.time.realtime;
+    sdds::CoordinatorService coordinator(o);
+    return coordinator.run(service::interrupted());
+  });
+}

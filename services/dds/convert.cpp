@@ -1,0 +1,285 @@
+#include "dds/convert.hpp"
+
+#include "core/error.hpp"
+
+namespace syndds::dds {
+namespace {
+
+msg::Vec3 v3(const Vec3& v) {
+  msg::Vec3 o;
+  o.x(v.x());
+  o.y(v.y());
+  o.z(v.z());
+  return o;
+}
+Vec3 v3(const msg::Vec3& v) { return Vec3(v.x(), v.y(), v.z()); }
+
+msg::Pose pose(const Pose& p) {
+  msg::Pose o;
+  o.position(v3(p.position));
+  msg::Quat q;
+  q.w(p.orientation.w());
+  q.x(p.orientation.x());
+  q.y(p.orientation.y());
+  q.z(p.orientation.z());
+  o.orientation(q);
+  return o;
+}
+Pose pose(const msg::Pose& p) {
+  Pose o;
+  o.position = v3(p.position());
+  const auto& q = p.orientation();
+  o.orientation = Quat(q.w(), q.x(), q.y(), q.z());
+  return o;
+}
+
+std::vector<msg::TopicCount> manifest(const proto::Manifest& m) {
+  std::vector<msg::TopicCount> out;
+  out.reserve(m.size());
+  for (const auto& e : m) {
+    msg::TopicCount c;
+    c.topic(std::string(proto::to_string(e.topic)));
+    c.key(e.key);
+    c.writer(e.writer);
+    c.count(e.count);
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+proto::Manifest manifest(const std::vector<msg::TopicCount>& m) {
+  proto::Manifest out;
+  out.reserve(m.size());
+  for (const auto& c : m) {
+    proto::TopicCount e;
+    if (!proto::topic_from_string(c.topic(), e.topic)) {
+      throw ProtocolError("manifest entry names unknown topic '" + c.topic() + "' (writer " +
+                          c.writer() + ")");
+    }
+    e.key = c.key();
+    e.writer = c.writer();
+    e.count = c.count();
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+}  // namespace
+
+msg::MemberAnnounce to_dds(const proto::MemberAnnounceMsg& m) {
+  msg::MemberAnnounce o;
+  o.member_id(m.member_id);
+  o.kind(static_cast<msg::MemberKind>(m.kind));
+  o.run_id(m.run_id);
+  o.participant_guid(m.participant_guid);
+  o.host(m.host);
+  o.pid(m.pid);
+  o.protocol_version(m.protocol_version);
+  o.config_fingerprint(m.config_fingerprint);
+  o.expected_members(m.expected_members);
+  return o;
+}
+proto::MemberAnnounceMsg from_dds(const msg::MemberAnnounce& m) {
+  proto::MemberAnnounceMsg o;
+  o.member_id = m.member_id();
+  const auto kind = static_cast<int>(m.kind());
+  if (kind < 0 || kind > static_cast<int>(proto::MemberKind::coordinator)) {
+    throw ProtocolError("member_announce from '" + m.member_id() + "': kind " +
+                        std::to_string(kind) + " is out of range");
+  }
+  o.kind = static_cast<proto::MemberKind>(kind);
+  o.run_id = m.run_id();
+  o.participant_guid = m.participant_guid();
+  o.host = m.host();
+  o.pid = m.pid();
+  o.protocol_version = m.protocol_version();
+  o.config_fingerprint = m.config_fingerprint();
+  o.expected_members = m.expected_members();
+  return o;
+}
+
+msg::FrameGrant to_dds(const proto::FrameGrantMsg& m) {
+  msg::FrameGrant o;
+  o.frame(m.frame);
+  o.sim_time_s(m.sim_time_s);
+  o.manifest(manifest(m.manifest));
+  return o;
+}
+proto::FrameGrantMsg from_dds(const msg::FrameGrant& m) {
+  return proto::FrameGrantMsg{m.frame(), m.sim_time_s(), manifest(m.manifest())};
+}
+
+msg::FrameDone to_dds(const proto::FrameDoneMsg& m) {
+  msg::FrameDone o;
+  o.member_id(m.member_id);
+  o.frame(m.frame);
+  o.published(manifest(m.published));
+  o.compute_s(m.compute_s);
+  o.finished(m.finished);
+  return o;
+}
+proto::FrameDoneMsg from_dds(const msg::FrameDone& m) {
+  return proto::FrameDoneMsg{m.member_id(), m.frame(), manifest(m.published()), m.compute_s(),
+                             m.finished()};
+}
+
+msg::RunControl to_dds(const proto::RunControlMsg& m) {
+  msg::RunControl o;
+  o.status(m.status == proto::RunStatus::completed ? msg::RUN_COMPLETED : msg::RUN_ABORTED);
+  o.reason(m.reason);
+  o.final_frame(m.final_frame);
+  o.final_manifest(manifest(m.final_manifest));
+  msg::RunStats s;
+  s.frames(m.stats.frames);
+  s.final_frame(m.stats.final_frame);
+  s.sim_time_s(m.stats.sim_time_s);
+  s.wall_time_s(m.stats.wall_time_s);
+  s.real_time_factor(m.stats.real_time_factor);
+  for (const auto& ms : m.stats.members) {
+    msg::MemberStats x;
+    x.member_id(ms.member_id);
+    x.mean_response_s(ms.mean_response_s);
+    x.max_response_s(ms.max_response_s);
+    x.mean_compute_s(ms.mean_compute_s);
+    x.slowest_count(ms.slowest_count);
+    x.lost(ms.lost);
+    s.members().push_back(x);
+  }
+  o.stats(s);
+  return o;
+}
+proto::RunControlMsg from_dds(const msg::RunControl& m) {
+  proto::RunControlMsg o;
+  o.status = m.status() == msg::RUN_COMPLETED ? proto::RunStatus::completed
+                                              : proto::RunStatus::aborted;
+  o.reason = m.reason();
+  o.final_frame = m.final_frame();
+  o.final_manifest = manifest(m.final_manifest());
+  const auto& s = m.stats();
+  o.stats.frames = s.frames();
+  o.stats.final_frame = s.final_frame();
+  o.stats.sim_time_s = s.sim_time_s();
+  o.stats.wall_time_s = s.wall_time_s();
+  o.stats.real_time_factor = s.real_time_factor();
+  for (const auto& x : s.members()) {
+    o.stats.members.push_back({x.member_id(), x.mean_response_s(), x.max_response_s(),
+                               x.mean_compute_s(), x.slowest_count(), x.lost()});
+  }
+  return o;
+}
+
+msg::VehicleState to_dds(const proto::VehicleStateMsg& m) {
+  msg::VehicleState o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.sim_time_s(m.sim_time_s);
+  o.pose(pose(m.pose));
+  o.linear_velocity(v3(m.linear_velocity));
+  o.angular_velocity(v3(m.angular_velocity));
+  o.linear_acceleration(v3(m.linear_acceleration));
+  o.angular_acceleration(v3(m.angular_acceleration));
+  for (const auto& w : m.wheels) {
+    msg::WheelState x;
+    x.pose(pose(w.pose));
+    x.spin_rad_s(w.spin_rad_s);
+    x.steer_angle_rad(w.steer_angle_rad);
+    x.vertical_load_n(w.vertical_load_n);
+    o.wheels().push_back(x);
+  }
+  o.steering(m.steering);
+  o.throttle(m.throttle);
+  o.braking(m.braking);
+  o.gear(m.gear);
+  o.engine_speed_rpm(m.engine_speed_rpm);
+  return o;
+}
+proto::VehicleStateMsg from_dds(const msg::VehicleState& m) {
+  proto::VehicleStateMsg o;
+  o.vehicle_id = m.vehicle_id();
+  o.source = m.source();
+  o.frame = m.frame();
+  o.sim_time_s = m.sim_time_s();
+  o.pose = pose(m.pose());
+  o.linear_velocity = v3(m.linear_velocity());
+  o.angular_velocity = v3(m.angular_velocity());
+  o.linear_acceleration = v3(m.linear_acceleration());
+  o.angular_acceleration = v3(m.angular_acceleration());
+  for (const auto& w : m.wheels()) {
+    o.wheels.push_back({pose(w.pose()), w.spin_rad_s(), w.steer_angle_rad(), w.vertical_load_n()});
+  }
+  o.steering = m.steering();
+  o.throttle = m.throttle();
+  o.braking = m.braking();
+  o.gear = m.gear();
+  o.engine_speed_rpm = m.engine_speed_rpm();
+  return o;
+}
+
+msg::DriverCommand to_dds(const proto::DriverCommandMsg& m) {
+  msg::DriverCommand o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.steering(m.steering);
+  o.throttle(m.throttle);
+  o.braking(m.braking);
+  return o;
+}
+proto::DriverCommandMsg from_dds(const msg::DriverCommand& m) {
+  // Values are range-checked by the vehicle (it logs and rejects bad commands).
+  return proto::DriverCommandMsg{m.vehicle_id(), m.source(),   m.frame(),
+                                 m.steering(),   m.throttle(), m.braking()};
+}
+
+msg::TerrainDeformation to_dds(const proto::TerrainDeformationMsg& m) {
+  msg::TerrainDeformation o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.spacing_m(m.spacing_m);
+  o.vertices().reserve(m.vertices.size());
+  for (const auto& v : m.vertices) {
+    msg::TerrainVertex x;
+    x.i(v.i);
+    x.j(v.j);
+    x.height(v.height);
+    o.vertices().push_back(x);
+  }
+  return o;
+}
+proto::TerrainDeformationMsg from_dds(const msg::TerrainDeformation& m) {
+  proto::TerrainDeformationMsg o;
+  o.vehicle_id = m.vehicle_id();
+  o.source = m.source();
+  o.frame = m.frame();
+  o.spacing_m = m.spacing_m();
+  o.vertices.reserve(m.vertices().size());
+  for (const auto& v : m.vertices()) {
+    if (!std::isfinite(v.height())) {
+      throw ProtocolError("terrain_deformation from " + m.source() + ": vertex (" +
+                          std::to_string(v.i()) + ", " + std::to_string(v.j()) +
+                          ") height is not finite");
+    }
+    o.vertices.push_back({v.i(), v.j(), v.height()});
+  }
+  return o;
+}
+
+msg::CollisionEvent to_dds(const proto::CollisionEventMsg& m) {
+  msg::CollisionEvent o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.sim_time_s(m.sim_time_s);
+  o.obstacle_id(m.obstacle_id);
+  o.impulse_ns(m.impulse_ns);
+  o.position(v3(m.position));
+  return o;
+}
+proto::CollisionEventMsg from_dds(const msg::CollisionEvent& m) {
+  return proto::CollisionEventMsg{m.vehicle_id(), m.source(),     m.frame(),
+                                  m.sim_time_s(), m.obstacle_id(), m.impulse_ns(),
+                                  v3(m.position())};
+}
+
+}  // namespace syndds::dds

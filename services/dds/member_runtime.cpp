@@ -1,0 +1,344 @@
+#include "dds/member_runtime.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <thread>
+
+#include "core/error.hpp"
+#include "dds/convert.hpp"
+#include "protocol/local_runner.hpp"
+
+namespace syndds::dds {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr auto kPollInterval = std::chrono::milliseconds(50);  // for signals only
+
+Clock::time_point after(double seconds) {
+  return Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                            std::chrono::duration<double>(seconds));
+}
+
+template <typename W, typename Samples>
+void write_all(W& writer, const Samples& samples, const char* topic) {
+  for (const auto& s : samples) {
+    if (!writer) {
+      throw ProtocolError(std::string("agent wrote ") + topic + " but did not declare it");
+    }
+    if (!writer->write(to_dds(s))) {
+      throw std::runtime_error(std::string("DDS refused a ") + topic + " sample");
+    }
+  }
+}
+
+}  // namespace
+
+MemberRuntime::MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options)
+    : agent_(agent), options_(std::move(options)), inbox_(agent.subscriptions()) {}
+
+MemberRuntime::~MemberRuntime() {
+  // Readers first: their callbacks touch members of this object.
+  announce_reader_.reset();
+  grant_reader_.reset();
+  control_reader_.reset();
+  state_reader_.reset();
+  command_reader_.reset();
+  terrain_reader_.reset();
+  collision_reader_.reset();
+}
+
+void MemberRuntime::setup() {
+  participant_ = std::make_unique<Participant>(options_.dds);
+  participant_->set_lost_callback([this](const std::string& guid, bool graceful) {
+    std::lock_guard lock(mutex_);
+    if (coordinator_ && coordinator_->participant_guid == guid) {
+      coordinator_lost_ = true;
+      cv_.notify_all();
+    }
+  });
+
+  // Readers before writers and before the announcement, so nothing addressed to us is missed.
+  auto guard = [this](const char* topic, auto&& fn) {
+    try {
+      fn();
+    } catch (const std::exception& e) {
+      std::lock_guard lock(mutex_);
+      spdlog::error("{}: dropped malformed {} sample: {}", agent_.member_id(), topic, e.what());
+    }
+  };
+  announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
+      topics::kMemberAnnounce, profiles::kProtocolReader, [this, guard](msg::MemberAnnounce&& m) {
+        guard("member_announce", [&] {
+          if (m.kind() != msg::MEMBER_COORDINATOR) return;
+          auto a = from_dds(m);
+          std::lock_guard lock(mutex_);
+          coordinator_ = std::move(a);
+          cv_.notify_all();
+        });
+      });
+  grant_reader_ = participant_->make_reader<msg::FrameGrant>(
+      topics::kFrameGrant, profiles::kProtocolReader, [this, guard](msg::FrameGrant&& m) {
+        guard("frame_grant", [&] {
+          auto g = from_dds(m);
+          std::lock_guard lock(mutex_);
+          grants_.push_back(std::move(g));
+          cv_.notify_all();
+        });
+      });
+  control_reader_ = participant_->make_reader<msg::RunControl>(
+      topics::kRunControl, profiles::kProtocolReader, [this, guard](msg::RunControl&& m) {
+        guard("run_control", [&] {
+          auto c = from_dds(m);
+          std::lock_guard lock(mutex_);
+          control_ = std::move(c);
+          cv_.notify_all();
+        });
+      });
+
+  auto subscribes = [this](proto::Topic t) {
+    for (const auto& s : agent_.subscriptions()) {
+      if (s.topic == t) return true;
+    }
+    return false;
+  };
+  auto data_reader = [&](auto& reader, proto::Topic topic, auto tag) {
+    using T = decltype(tag);
+    if (!subscribes(topic)) return;
+    reader = participant_->make_reader<T>(
+        topics::data(topic), profiles::kDataReader, [this, guard, topic](T&& m) {
+          guard(std::string(proto::to_string(topic)).c_str(), [&] {
+            auto s = from_dds(m);
+            std::lock_guard lock(mutex_);
+            if (inbox_.add(std::move(s))) cv_.notify_all();
+          });
+        });
+  };
+  data_reader(state_reader_, proto::Topic::vehicle_state, msg::VehicleState{});
+  data_reader(command_reader_, proto::Topic::driver_command, msg::DriverCommand{});
+  data_reader(terrain_reader_, proto::Topic::terrain_deformation, msg::TerrainDeformation{});
+  data_reader(collision_reader_, proto::Topic::collision_event, msg::CollisionEvent{});
+
+  for (proto::Topic t : agent_.publications()) {
+    const std::string name = topics::data(t);
+    switch (t) {
+      case proto::Topic::vehicle_state:
+        state_writer_ = participant_->make_writer<msg::VehicleState>(name, profiles::kDataWriter);
+        break;
+      case proto::Topic::driver_command:
+        command_writer_ = participant_->make_writer<msg::DriverCommand>(name, profiles::kDataWriter);
+        break;
+      case proto::Topic::terrain_deformation:
+        terrain_writer_ =
+            participant_->make_writer<msg::TerrainDeformation>(name, profiles::kDataWriter);
+        break;
+      case proto::Topic::collision_event:
+        collision_writer_ =
+            participant_->make_writer<msg::CollisionEvent>(name, profiles::kDataWriter);
+        break;
+    }
+  }
+  done_writer_ = participant_->make_writer<msg::FrameDone>(topics::kFrameDone,
+                                                          profiles::kProtocolWriter);
+  announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
+                                                                    profiles::kProtocolWriter);
+}
+
+void MemberRuntime::announce() {
+  proto::MemberAnnounceMsg a;
+  a.member_id = agent_.member_id();
+  a.kind = agent_.kind();
+  a.run_id = options_.dds.run_id;
+  a.participant_guid = participant_->guid_prefix();
+  a.host = host_name();
+  a.pid = process_id();
+  a.config_fingerprint = options_.config_fingerprint;
+  announce_writer_->write(to_dds(a));
+}
+
+bool MemberRuntime::wait_for_coordinator(const std::atomic<bool>& interrupt) {
+  const auto deadline = after(options_.join_timeout_s);
+  std::unique_lock lock(mutex_);
+  while (!coordinator_) {
+    if (interrupt.load()) {
+      end_reason_ = "interrupted";
+      return false;
+    }
+    if (Clock::now() >= deadline) {
+      end_reason_ = "no coordinator for run '" + options_.dds.run_id + "' on DDS domain " +
+                    std::to_string(options_.dds.domain_id) + " within " +
+                    std::to_string(static_cast<int>(options_.join_timeout_s)) + " s";
+      return false;
+    }
+    cv_.wait_for(lock, kPollInterval);
+  }
+  const auto& c = *coordinator_;
+  const auto& expected = c.expected_members;
+  if (std::find(expected.begin(), expected.end(), agent_.member_id()) == expected.end()) {
+    end_reason_ = "the coordinator of run '" + options_.dds.run_id + "' does not expect member " +
+                  agent_.member_id();
+    return false;
+  }
+  if (c.config_fingerprint != options_.config_fingerprint) {
+    end_reason_ = "scenario mismatch: the coordinator (host " + c.host +
+                  ") loaded a different scenario or overrides (fingerprint " +
+                  std::to_string(c.config_fingerprint) + ", mine " +
+                  std::to_string(options_.config_fingerprint) + ")";
+    return false;
+  }
+  if (c.protocol_version != proto::kProtocolVersion) {
+    end_reason_ = "protocol version mismatch: coordinator " + std::to_string(c.protocol_version) +
+                  ", mine " + std::to_string(proto::kProtocolVersion);
+    return false;
+  }
+  return true;
+}
+
+bool MemberRuntime::wait_inputs(std::int64_t frame, const proto::Manifest& manifest,
+                                double timeout_s, const std::atomic<bool>& interrupt) {
+  const auto deadline = after(timeout_s);
+  std::unique_lock lock(mutex_);
+  while (!inbox_.complete(frame, manifest)) {
+    if (interrupt.load() || coordinator_lost_ || (control_ && frame >= 0 &&
+                                                  control_->final_frame < frame)) {
+      return false;
+    }
+    if (Clock::now() >= deadline) return false;
+    cv_.wait_until(lock, std::min(deadline, Clock::now() + kPollInterval));
+  }
+  return true;
+}
+
+void MemberRuntime::publish(const proto::FrameSamples& out) {
+  write_all(state_writer_, out.vehicle_states, "vehicle_state");
+  write_all(command_writer_, out.driver_commands, "driver_command");
+  write_all(terrain_writer_, out.terrain_deformations, "terrain_deformation");
+  write_all(collision_writer_, out.collision_events, "collision_event");
+}
+
+void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& published,
+                              double compute_s, bool finished) {
+  proto::FrameDoneMsg d;
+  d.member_id = agent_.member_id();
+  d.frame = frame;
+  d.published = published;
+  d.compute_s = compute_s;
+  d.finished = finished;
+  if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
+}
+
+int MemberRuntime::finish(const proto::RunControlMsg& control,
+                          const std::atomic<bool>& interrupt) {
+  proto::FrameSamples final_inputs;
+  if (control.final_frame >= 0 && !control.final_manifest.empty()) {
+    if (!wait_inputs(control.final_frame, control.final_manifest, options_.final_timeout_s,
+                     interrupt)) {
+      std::lock_guard lock(mutex_);
+      spdlog::warn("{}: final frame {} incomplete: {}", agent_.member_id(), control.final_frame,
+                   inbox_.describe_missing(control.final_frame, control.final_manifest));
+    }
+    std::lock_guard lock(mutex_);
+    final_inputs = inbox_.take(control.final_frame, control.final_manifest);
+  }
+  agent_.finish(proto::RunEnd{control}, final_inputs);
+  if (end_reason_.empty()) end_reason_ = control.reason;
+  try {
+    send_done(control.final_frame, {}, 0.0, true);
+    done_writer_->wait_for_acknowledgments(2.0);
+  } catch (const std::exception& e) {
+    spdlog::warn("{}: could not confirm the end of the run: {}", agent_.member_id(), e.what());
+  }
+  return control.status == proto::RunStatus::completed ? kExitCompleted : kExitAborted;
+}
+
+int MemberRuntime::run(const std::atomic<bool>& interrupt) {
+  auto local_abort = [&](const std::string& reason, int code) {
+    end_reason_ = reason;
+    proto::RunControlMsg c;
+    c.status = proto::RunStatus::aborted;
+    c.reason = reason;
+    agent_.finish(proto::RunEnd{c}, {});
+    return code;
+  };
+
+  setup();
+  announce();
+  if (!wait_for_coordinator(interrupt)) {
+    return local_abort(end_reason_, interrupt.load() ? kExitInterrupted : kExitFailed);
+  }
+  spdlog::info("{}: joined run '{}' (coordinator on {})", agent_.member_id(), options_.dds.run_id,
+               coordinator_->host);
+
+  std::int64_t next_frame = 0;
+  while (true) {
+    proto::FrameGrantMsg grant;
+    {
+      std::unique_lock lock(mutex_);
+      while (grants_.empty() && !control_ && !coordinator_lost_ && !interrupt.load()) {
+        cv_.wait_for(lock, kPollInterval);
+      }
+      if (control_) {
+        const proto::RunControlMsg control = *control_;
+        lock.unlock();
+        return finish(control, interrupt);
+      }
+      if (interrupt.load()) {
+        lock.unlock();
+        return local_abort("interrupted", kExitInterrupted);
+      }
+      if (coordinator_lost_) {
+        lock.unlock();
+        return local_abort("the coordinator was lost (its process exited or stopped answering)",
+                           kExitFailed);
+      }
+      grant = std::move(grants_.front());
+      grants_.pop_front();
+    }
+    if (grant.frame < next_frame) continue;  // duplicate
+    if (grant.frame > next_frame) {
+      return local_abort("protocol error: granted frame " + std::to_string(grant.frame) +
+                             " while frame " + std::to_string(next_frame) + " was expected",
+                         kExitFailed);
+    }
+
+    const std::int64_t input_frame = grant.frame - 1;
+    if (!options_.debug_skip_data_barrier &&
+        !wait_inputs(input_frame, grant.manifest, options_.input_timeout_s, interrupt)) {
+      std::unique_lock lock(mutex_);
+      if (control_ || interrupt.load() || coordinator_lost_) continue;  // handled above
+      const std::string missing = inbox_.describe_missing(input_frame, grant.manifest);
+      lock.unlock();
+      return local_abort("frame " + std::to_string(grant.frame) + ": announced inputs missing after " +
+                             std::to_string(options_.input_timeout_s) + " s: " + missing,
+                         kExitFailed);
+    }
+    proto::FrameSamples inputs;
+    {
+      std::lock_guard lock(mutex_);
+      inputs = inbox_.take(input_frame, grant.manifest);
+    }
+
+    const auto t0 = Clock::now();
+    proto::FrameSamples outputs;
+    const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s};
+    agent_.step(ctx, inputs, outputs);
+    proto::check_outputs(outputs, grant.frame, agent_.member_id());
+    if (options_.debug_frame_delay_ms > 0) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_frame_delay_ms));
+    }
+    const double compute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+    const proto::Manifest published = outputs.manifest(agent_.member_id());
+    if (options_.debug_publish_delay_ms > 0) {
+      send_done(grant.frame, published, compute_s, false);
+      std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_publish_delay_ms));
+      publish(outputs);
+    } else {
+      publish(outputs);
+      send_done(grant.frame, published, compute_s, false);
+    }
+    next_frame = grant.frame + 1;
+  }
+}
+
+}  // namespace syndds::dds

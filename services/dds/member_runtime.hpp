@@ -1,0 +1,95 @@
+#pragma once
+// Runs one Agent as a barrier member over DDS: announce, wait for the coordinator, then for
+// every grant k: wait until every announced sample stamped k-1 that the agent subscribes to has
+// arrived (the data barrier), step, publish, report done with the manifest of what was written.
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+
+#include "dds/participant.hpp"
+#include "protocol/agent.hpp"
+#include "protocol/frame_inbox.hpp"
+
+namespace syndds::dds {
+
+struct MemberRuntimeOptions {
+  DdsOptions dds;
+  std::uint64_t config_fingerprint = 0;
+  double heartbeat_s = 0.01;      // frame length, from the scenario
+  double join_timeout_s = 30.0;   // waiting for the coordinator's announcement
+  double input_timeout_s = 10.0;  // waiting for announced samples once a frame is granted
+  double final_timeout_s = 5.0;   // gathering the final frame's samples after the run ended
+
+  // Test knobs (never set by the launcher):
+  int debug_frame_delay_ms = 0;    // sleep this long in every frame: a slow process
+  int debug_publish_delay_ms = 0;  // send done first, data this long after: data that arrives
+                                   // after the grant it belongs to
+  bool debug_skip_data_barrier = false;  // start frames without waiting for announced data
+};
+
+/// Process exit codes shared by every service (documented in docs/protocol.md).
+enum ExitCode : int {
+  kExitCompleted = 0,
+  kExitConfigError = 1,
+  kExitAborted = 2,       // the coordinator aborted the run (reason in its log and summary)
+  kExitFailed = 3,        // this process failed: coordinator lost, protocol violation, DDS error
+  kExitInterrupted = 130,
+};
+
+class MemberRuntime {
+ public:
+  MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options);
+  ~MemberRuntime();
+
+  /// Runs until the run ends; returns an ExitCode. `interrupt` is polled (signals).
+  int run(const std::atomic<bool>& interrupt);
+
+  /// Why the run ended (for logs): the coordinator's reason or this member's own.
+  const std::string& end_reason() const { return end_reason_; }
+
+ private:
+  struct Control;
+  void setup();
+  void announce();
+  bool wait_for_coordinator(const std::atomic<bool>& interrupt);
+  bool wait_inputs(std::int64_t frame, const proto::Manifest& manifest, double timeout_s,
+                   const std::atomic<bool>& interrupt);
+  void publish(const proto::FrameSamples& out);
+  void send_done(std::int64_t frame, const proto::Manifest& published, double compute_s,
+                 bool finished);
+  int finish(const proto::RunControlMsg& control, const std::atomic<bool>& interrupt);
+
+  proto::Agent& agent_;
+  MemberRuntimeOptions options_;
+  std::unique_ptr<Participant> participant_;
+
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  proto::FrameInbox inbox_;
+  std::deque<proto::FrameGrantMsg> grants_;
+  std::optional<proto::RunControlMsg> control_;
+  std::optional<proto::MemberAnnounceMsg> coordinator_;
+  bool coordinator_lost_ = false;
+  std::string protocol_error_;
+
+  std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
+  std::unique_ptr<Writer<msg::FrameDone>> done_writer_;
+  std::unique_ptr<Writer<msg::VehicleState>> state_writer_;
+  std::unique_ptr<Writer<msg::DriverCommand>> command_writer_;
+  std::unique_ptr<Writer<msg::TerrainDeformation>> terrain_writer_;
+  std::unique_ptr<Writer<msg::CollisionEvent>> collision_writer_;
+  std::unique_ptr<Reader<msg::MemberAnnounce>> announce_reader_;
+  std::unique_ptr<Reader<msg::FrameGrant>> grant_reader_;
+  std::unique_ptr<Reader<msg::RunControl>> control_reader_;
+  std::unique_ptr<Reader<msg::VehicleState>> state_reader_;
+  std::unique_ptr<Reader<msg::DriverCommand>> command_reader_;
+  std::unique_ptr<Reader<msg::TerrainDeformation>> terrain_reader_;
+  std::unique_ptr<Reader<msg::CollisionEvent>> collision_reader_;
+
+  std::string end_reason_;
+};
+
+}  // namespace syndds::dds

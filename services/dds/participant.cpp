@@ -1,0 +1,109 @@
+#include "dds/participant.hpp"
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace syndds::dds {
+
+std::string topics::data(proto::Topic topic) {
+  return "syndds/" + std::string(proto::to_string(topic));
+}
+
+std::string host_name() {
+  char buf[256] = {0};
+  if (gethostname(buf, sizeof buf - 1) != 0) return "unknown";
+  return buf;
+}
+
+int process_id() { return static_cast<int>(getpid()); }
+
+namespace {
+
+// The factory keeps loaded profiles process-wide; load each file once.
+void load_profiles(const std::string& file) {
+  static std::mutex mutex;
+  static std::string loaded;
+  std::lock_guard lock(mutex);
+  if (loaded == file) return;
+  if (!std::filesystem::exists(file)) {
+    throw ConfigError(file + ": DDS QoS profiles file not found (use --dds-profiles)");
+  }
+  if (fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_file(file) !=
+      ReturnCode_t::RETCODE_OK) {
+    throw ConfigError(file + ": Fast DDS could not load these QoS profiles");
+  }
+  loaded = file;
+}
+
+}  // namespace
+
+Participant::Participant(const DdsOptions& options) : options_(options) {
+  load_profiles(options_.profiles_file);
+  if (!options_.discovery_server.empty()) {
+    // Fast DDS 2.9 turns a SIMPLE participant into a discovery-server CLIENT when this is set
+    // (FASTDDS_DISCOVERY_SERVER is not read by 2.9.1).
+    setenv("ROS_DISCOVERY_SERVER", options_.discovery_server.c_str(), 1);
+  }
+  const char* profile =
+      options_.transport == "udp" ? "syndds_participant_udp" : "syndds_participant";
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  participant_ = factory->create_participant_with_profile(
+      static_cast<fdds::DomainId_t>(options_.domain_id), profile, this, fdds::StatusMask::none());
+  if (!participant_) {
+    throw ConfigError("cannot create a DDS participant on domain " +
+                      std::to_string(options_.domain_id) + " with profile " + profile);
+  }
+  fdds::PublisherQos pub_qos = participant_->get_default_publisher_qos();
+  pub_qos.partition().push_back(options_.run_id.c_str());
+  publisher_ = participant_->create_publisher(pub_qos);
+  fdds::SubscriberQos sub_qos = participant_->get_default_subscriber_qos();
+  sub_qos.partition().push_back(options_.run_id.c_str());
+  subscriber_ = participant_->create_subscriber(sub_qos);
+  if (!publisher_ || !subscriber_) fail("cannot create publisher/subscriber");
+}
+
+Participant::~Participant() {
+  if (!participant_) return;
+  participant_->set_listener(nullptr);
+  participant_->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+std::string Participant::guid_prefix() const {
+  std::ostringstream out;
+  out << participant_->guid().guidPrefix;
+  return out.str();
+}
+
+void Participant::set_lost_callback(LostCallback cb) {
+  std::lock_guard lock(mutex_);
+  lost_ = std::move(cb);
+}
+
+void Participant::on_participant_discovery(
+    fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) {
+  using Info = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
+  if (info.status != Info::REMOVED_PARTICIPANT && info.status != Info::DROPPED_PARTICIPANT) return;
+  std::ostringstream out;
+  out << info.info.m_guid.guidPrefix;
+  LostCallback cb;
+  {
+    std::lock_guard lock(mutex_);
+    cb = lost_;
+  }
+  if (cb) cb(out.str(), info.status == Info::REMOVED_PARTICIPANT);
+}
+
+void Participant::fail(const std::string& what) const {
+  throw std::runtime_error("DDS: " + what + " (domain " + std::to_string(options_.domain_id) +
+                           ", run " + options_.run_id + ")");
+}
+
+}  // namespace syndds::dds

@@ -1,0 +1,203 @@
+#pragma once
+// The single DDS edge of a process: one DomainParticipant with the syndds QoS profiles, the run
+// id as partition, typed writers and readers. Everything above this layer speaks the plain
+// structs of common/protocol.
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+#include <syndds.h>
+#include <synddsPubSubTypes.h>
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "protocol/messages.hpp"
+
+namespace syndds::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+
+struct DdsOptions {
+  int domain_id = 0;
+  std::string run_id;            // becomes the DDS partition: runs on one domain never mix
+  std::string transport = "default";  // default (shared memory + UDP) | udp
+  std::string discovery_server;  // "ADDR:PORT" of a Fast DDS discovery server; empty: multicast
+  std::string profiles_file;     // QoS profiles XML (config/dds/profiles.xml)
+};
+
+/// Topic names, defined once. Protocol topics and one per data topic.
+namespace topics {
+inline constexpr const char* kMemberAnnounce = "syndds/member_announce";
+inline constexpr const char* kFrameGrant = "syndds/frame_grant";
+inline constexpr const char* kFrameDone = "syndds/frame_done";
+inline constexpr const char* kRunControl = "syndds/run_control";
+std::string data(proto::Topic topic);  // "syndds/vehicle_state", ...
+}  // namespace topics
+
+/// QoS profile names in config/dds/profiles.xml.
+namespace profiles {
+inline constexpr const char* kProtocolWriter = "protocol_writer";
+inline constexpr const char* kProtocolReader = "protocol_reader";
+inline constexpr const char* kDataWriter = "data_writer";
+inline constexpr const char* kDataReader = "data_reader";
+}  // namespace profiles
+
+template <typename T>
+struct TypeTraits;
+#define SYNDDS_DDS_TYPE(T)                 \
+  template <>                              \
+  struct TypeTraits<msg::T> {              \
+    using PubSub = msg::T##PubSubType;     \
+    static constexpr const char* name = "syndds::msg::" #T; \
+  };
+SYNDDS_DDS_TYPE(MemberAnnounce)
+SYNDDS_DDS_TYPE(FrameGrant)
+SYNDDS_DDS_TYPE(FrameDone)
+SYNDDS_DDS_TYPE(RunControl)
+SYNDDS_DDS_TYPE(VehicleState)
+SYNDDS_DDS_TYPE(DriverCommand)
+SYNDDS_DDS_TYPE(TerrainDeformation)
+SYNDDS_DDS_TYPE(CollisionEvent)
+#undef SYNDDS_DDS_TYPE
+
+class Participant;
+
+template <typename T>
+class Writer {
+ public:
+  Writer(fdds::Publisher* publisher, fdds::DataWriter* writer)
+      : publisher_(publisher), writer_(writer) {}
+  ~Writer() { publisher_->delete_datawriter(writer_); }
+  Writer(const Writer&) = delete;
+  Writer& operator=(const Writer&) = delete;
+  /// Returns false if DDS refused the sample (the caller decides how bad that is).
+  bool write(const T& sample) { return writer_->write(const_cast<T*>(&sample)); }
+  fdds::DataWriter* raw() { return writer_; }
+  /// Blocks until every matched reader acknowledged everything written (bounded).
+  bool wait_for_acknowledgments(double timeout_s);
+
+ private:
+  fdds::Publisher* publisher_;
+  fdds::DataWriter* writer_;
+};
+
+/// Calls `on_sample` from the DDS receive thread for every valid sample taken.
+template <typename T>
+class Reader : public fdds::DataReaderListener {
+ public:
+  using Callback = std::function<void(T&&)>;
+  explicit Reader(Callback on_sample) : on_sample_(std::move(on_sample)) {}
+  ~Reader() override {
+    if (reader_) subscriber_->delete_datareader(reader_);
+  }
+  Reader(const Reader&) = delete;
+  Reader& operator=(const Reader&) = delete;
+
+  void on_data_available(fdds::DataReader* reader) override {
+    fdds::SampleInfo info;
+    T sample;
+    while (reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK) {
+      if (info.valid_data) on_sample_(std::move(sample));
+      sample = T();
+    }
+  }
+  void attach(fdds::Subscriber* subscriber, fdds::DataReader* reader) {
+    subscriber_ = subscriber;
+    reader_ = reader;
+  }
+  fdds::DataReader* raw() { return reader_; }
+
+ private:
+  Callback on_sample_;
+  fdds::Subscriber* subscriber_ = nullptr;
+  fdds::DataReader* reader_ = nullptr;
+};
+
+class Participant : private fdds::DomainParticipantListener {
+ public:
+  /// Called from a DDS thread when a remote participant leaves (graceful = it said goodbye)
+  /// or is dropped (its liveliness lease expired).
+  using LostCallback = std::function<void(const std::string& guid_prefix, bool graceful)>;
+
+  explicit Participant(const DdsOptions& options);
+  ~Participant() override;
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  const DdsOptions& options() const { return options_; }
+  std::string guid_prefix() const;
+  void set_lost_callback(LostCallback cb);
+
+  template <typename T>
+  std::unique_ptr<Writer<T>> make_writer(const std::string& topic_name, const char* profile) {
+    fdds::Topic* t = topic<T>(topic_name);
+    fdds::DataWriter* w = publisher_->create_datawriter_with_profile(t, profile);
+    if (!w) fail("cannot create writer for " + topic_name + " with profile " + profile);
+    return std::make_unique<Writer<T>>(publisher_, w);
+  }
+
+  template <typename T>
+  std::unique_ptr<Reader<T>> make_reader(const std::string& topic_name, const char* profile,
+                                         typename Reader<T>::Callback on_sample) {
+    fdds::Topic* t = topic<T>(topic_name);
+    auto reader = std::make_unique<Reader<T>>(std::move(on_sample));
+    fdds::DataReader* r = subscriber_->create_datareader_with_profile(
+        t, profile, reader.get(), fdds::StatusMask::data_available());
+    if (!r) fail("cannot create reader for " + topic_name + " with profile " + profile);
+    reader->attach(subscriber_, r);
+    return reader;
+  }
+
+ private:
+  void on_participant_discovery(fdds::DomainParticipant* participant,
+                                eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override;
+  [[noreturn]] void fail(const std::string& what) const;
+
+  template <typename T>
+  fdds::Topic* topic(const std::string& name) {
+    std::lock_guard lock(mutex_);
+    auto it = topics_.find(name);
+    if (it != topics_.end()) return it->second;
+    fdds::TypeSupport type(new typename TypeTraits<T>::PubSub());
+    if (type.register_type(participant_) != ReturnCode_t::RETCODE_OK &&
+        !participant_->find_type(type.get_type_name())) {
+      fail(std::string("cannot register type ") + TypeTraits<T>::name);
+    }
+    fdds::Topic* t = participant_->create_topic(name, type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+    if (!t) fail("cannot create topic " + name);
+    topics_[name] = t;
+    return t;
+  }
+
+  DdsOptions options_;
+  fdds::DomainParticipant* participant_ = nullptr;
+  fdds::Publisher* publisher_ = nullptr;
+  fdds::Subscriber* subscriber_ = nullptr;
+  std::map<std::string, fdds::Topic*> topics_;
+  mutable std::mutex mutex_;
+  LostCallback lost_;
+};
+
+template <typename T>
+bool Writer<T>::wait_for_acknowledgments(double timeout_s) {
+  const auto secs = static_cast<std::int32_t>(timeout_s);
+  const auto nanos = static_cast<std::uint32_t>((timeout_s - secs) * 1e9);
+  return writer_->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(secs, nanos)) ==
+         ReturnCode_t::RETCODE_OK;
+}
+
+/// Process identity for announcements.
+std::string host_name();
+int process_id();
+
+}  // namespace syndds::dds
