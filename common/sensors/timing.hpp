@@ -1,0 +1,81 @@
+#pragma once
+// When a sensor measures and when its data becomes available, in whole ticks.
+//
+// A sensor is fed at a fixed tick (the dynamics step for interoceptive sensors, the frame for
+// rendered ones). Measurement k is due at tick T_k = ceil(k * P) with P = 1 / (rate * tick):
+// an integer P (100 Hz on 2 ms steps: every 5 ticks) is honoured exactly, a fractional one
+// (30 Hz on 10 ms frames: ticks 0, 4, 7, 10, 14, ...) averages to the rate without drift.
+// The measurement carries time T_k * tick; it becomes available `lag_ticks` later, where
+// lag_ticks = lag / tick rounded up (exact when the lag is a whole number of ticks).
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace syndds::sensors {
+
+/// Stamps every sample carries.
+struct SampleStamp {
+  std::uint64_t sequence = 0;   // measurement index k (0, 1, 2, ...)
+  double time_s = 0.0;          // measurement time (start of the collection window)
+  double available_s = 0.0;     // time_s + lag: when a consumer may see it
+};
+
+class SampleClock {
+ public:
+  /// Throws std::invalid_argument when rate > 1 / tick, rate <= 0, lag < 0 or tick <= 0.
+  SampleClock(double rate_hz, double lag_s, double tick_s, const std::string& sensor_id);
+
+  double tick_s() const { return tick_s_; }
+  double rate_hz() const { return rate_hz_; }
+  std::int64_t lag_ticks() const { return lag_ticks_; }
+  double period_ticks() const { return period_ticks_; }
+
+  /// Nearest tick of a time on the tick grid.
+  std::int64_t tick_of(double time_s) const;
+  double time_of(std::int64_t tick) const { return static_cast<double>(tick) * tick_s_; }
+  /// Tick of measurement k.
+  std::int64_t trigger_tick(std::uint64_t k) const;
+
+  /// Call once per tick (ticks increasing). Returns the measurement index due at this tick,
+  /// if any. A skipped tick makes the measurement happen at the next tick fed.
+  std::optional<std::uint64_t> trigger(std::int64_t tick);
+
+  SampleStamp stamp(std::uint64_t k, std::int64_t tick) const {
+    return {k, time_of(tick), time_of(tick + lag_ticks_)};
+  }
+
+ private:
+  double rate_hz_;
+  double tick_s_;
+  double period_ticks_;
+  std::int64_t lag_ticks_;
+  bool started_ = false;
+  std::uint64_t next_k_ = 0;
+  std::int64_t next_tick_ = 0;
+};
+
+/// Samples waiting for their available time (lag is constant, so FIFO order is release order).
+template <typename Sample>
+class LagQueue {
+ public:
+  void push(Sample sample, std::int64_t available_tick) {
+    items_.push_back({available_tick, std::move(sample)});
+  }
+  /// Removes and returns every sample available at or before `tick`.
+  std::vector<Sample> take_ready(std::int64_t tick) {
+    std::vector<Sample> out;
+    while (!items_.empty() && items_.front().first <= tick) {
+      out.push_back(std::move(items_.front().second));
+      items_.pop_front();
+    }
+    return out;
+  }
+  std::size_t pending() const { return items_.size(); }
+
+ private:
+  std::deque<std::pair<std::int64_t, Sample>> items_;
+};
+
+}  // namespace syndds::sensors
