@@ -62,12 +62,14 @@ plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bi
        --format launcher "${PASS[@]}") || exit 1
 
 mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
+: > "$OUTPUT/logs/pids"
 names=(); pids=(); codes=()
 while IFS=$'\t' read -r member cmd; do
   [ -n "$member" ] || continue
   log="$OUTPUT/logs/${member//\//_}.log"
   ( eval "exec $cmd" ) > "$log" 2>&1 &
   names+=("$member"); pids+=($!); codes+=("")
+  echo "$member $!" >> "$OUTPUT/logs/pids"
 done <<< "$plan"
 echo "run_scenario: started ${#pids[@]} processes for run $RUN_ID (logs in $OUTPUT/logs)"
 

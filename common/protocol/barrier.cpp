@@ -37,7 +37,7 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
     return "ignoring done from '" + done.member_id + "': not a member of this scenario";
   }
   Member& m = it->second;
-  if (m.lost) return "ignoring done from '" + done.member_id + "': member was declared lost";
+  if (m.left) return "ignoring done from '" + done.member_id + "': member has left the run";
   if (done.finished) {
     m.finished = true;
     return "";
@@ -70,6 +70,8 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
   it->second.lost = true;
   if (config_.on_member_loss == LossPolicy::abort || phase_ == Phase::joining) {
     if (!pending_abort_) pending_abort_ = "member " + member + " lost: " + why;
+  } else {
+    it->second.left = true;
   }
 }
 
@@ -77,9 +79,11 @@ void Barrier::on_interrupt(const std::string& why, double now_s) {
   if (!pending_abort_) pending_abort_ = why;
 }
 
+// A member that died without leaving (abort policy) never counts as done: a frame is complete
+// only when every member still in the barrier reported it.
 bool Barrier::everyone_done() const {
   for (const auto& [name, m] : members_) {
-    if (!m.lost && !m.done) return false;
+    if (!m.left && !m.done) return false;
   }
   return true;
 }
@@ -87,7 +91,7 @@ bool Barrier::everyone_done() const {
 Manifest Barrier::collect_manifest() const {
   Manifest out;
   for (const auto& [name, m] : members_) {
-    if (m.lost) continue;
+    if (!m.done) continue;
     out.insert(out.end(), m.published.begin(), m.published.end());
   }
   std::sort(out.begin(), out.end(), [](const TopicCount& a, const TopicCount& b) {
@@ -210,14 +214,14 @@ std::vector<std::string> Barrier::missing_members() const {
 std::vector<std::string> Barrier::pending_members() const {
   std::vector<std::string> out;
   for (const auto& [name, m] : members_) {
-    if (!m.lost && !m.done) out.push_back(name);
+    if (!m.left && !m.done) out.push_back(name);
   }
   return out;
 }
 
 bool Barrier::all_finished() const {
   for (const auto& [name, m] : members_) {
-    if (!m.lost && !m.finished) return false;
+    if (m.joined && !m.lost && !m.finished) return false;
   }
   return true;
 }

@@ -60,7 +60,8 @@ class Barrier {
  private:
   struct Member {
     bool joined = false;
-    bool lost = false;
+    bool lost = false;       // its process died or stopped answering
+    bool left = false;       // lost under the `continue` policy: no longer waited for
     bool done = false;       // done with the current frame
     bool finished = false;   // replied to stop
     Manifest published;      // in the current frame

@@ -232,14 +232,17 @@ int MemberRuntime::finish(const proto::RunControlMsg& control,
                           const std::atomic<bool>& interrupt) {
   proto::FrameSamples final_inputs;
   if (control.final_frame >= 0 && !control.final_manifest.empty()) {
-    if (!wait_inputs(control.final_frame, control.final_manifest, options_.final_timeout_s,
-                     interrupt)) {
-      std::lock_guard lock(mutex_);
-      spdlog::warn("{}: final frame {} incomplete: {}", agent_.member_id(), control.final_frame,
+    const bool complete = wait_inputs(control.final_frame, control.final_manifest,
+                                      options_.final_timeout_s, interrupt);
+    std::lock_guard lock(mutex_);
+    if (complete) {
+      final_inputs = inbox_.take(control.final_frame, control.final_manifest);
+    } else {
+      // Never hand out a partial frame: the agent ends with the last complete one.
+      spdlog::warn("{}: final frame {} incomplete, not used: {}", agent_.member_id(),
+                   control.final_frame,
                    inbox_.describe_missing(control.final_frame, control.final_manifest));
     }
-    std::lock_guard lock(mutex_);
-    final_inputs = inbox_.take(control.final_frame, control.final_manifest);
   }
   agent_.finish(proto::RunEnd{control}, final_inputs);
   if (end_reason_.empty()) end_reason_ = control.reason;
@@ -264,6 +267,8 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
 
   setup();
   announce();
+  spdlog::info("{}: announced; waiting for the coordinator of run '{}' on domain {}",
+               agent_.member_id(), options_.dds.run_id, options_.dds.domain_id);
   if (!wait_for_coordinator(interrupt)) {
     return local_abort(end_reason_, interrupt.load() ? kExitInterrupted : kExitFailed);
   }

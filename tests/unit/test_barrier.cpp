@@ -213,3 +213,20 @@ TEST(Barrier, StatsCountResponseTimesAndTheSlowestMember) {
     }
   }
 }
+
+// With the abort policy a member lost in the middle of a frame leaves that frame incomplete:
+// its data will never come, so the frame must not be announced as final.
+TEST(Barrier, FrameWithALostMemberIsNotComplete) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 1
+  b.on_done(done("controller/a", 1, {{Topic::driver_command, "a", "controller/a", 1}}), 0.1);
+  b.on_done(done("recorder", 1), 0.1);
+  b.on_member_lost("vehicle/a", "killed", 0.2);
+  auto a = b.poll(0.2);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.final_frame, 0);
+  EXPECT_TRUE(a.control.final_manifest.empty());
+}

@@ -1,0 +1,254 @@
+// Multi-process tests: the real programs, started as a user (or the launcher) would start them.
+#include <nlohmann/json.hpp>
+
+#include "harness.hpp"
+
+using namespace syndds::test;
+
+namespace {
+
+const std::string kTwo = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+const std::string kDefault = kConfig + "/scenarios/default.yaml";
+
+// Runs every planned process (optionally reordered / modified) and returns vehicles.csv.
+std::string distributed_csv(const TestRun& run, const std::string& scenario,
+                            const std::string& extra, bool reverse = false,
+                            const std::function<std::string(const Planned&)>& tweak = {}) {
+  const fs::path out = run.dir / "distributed";
+  auto processes = plan(run, scenario, out.string(), extra);
+  if (reverse) std::reverse(processes.begin(), processes.end());
+  auto procs = start_all(run, processes, tweak);
+  const auto codes = wait_all(procs, 90.0);
+  for (std::size_t i = 0; i < codes.size(); ++i) {
+    EXPECT_EQ(codes[i], 0) << processes[i].member << "\n" << describe_logs(procs);
+  }
+  return read_file(out / "vehicles.csv");
+}
+
+}  // namespace
+
+TEST(Determinism, DistributedRunEqualsSingleProcessRun) {
+  TestRun run;
+  const std::string single = single_process_csv(run, kDefault, "--duration 3");
+  const std::string distributed = distributed_csv(run, kDefault, "--duration 3");
+  EXPECT_EQ(count_lines(single), 1u + 301u * 3u);
+  EXPECT_EQ(distributed, single);
+}
+
+TEST(Determinism, ReverseStartOrderGivesTheSameResult) {
+  TestRun run;
+  const std::string single = single_process_csv(run, kTwo, "");
+  // Recorder first, coordinator last; each member has announced itself before the next starts.
+  const fs::path out = run.dir / "distributed";
+  auto processes = plan(run, kTwo, out.string(), "");
+  std::reverse(processes.begin(), processes.end());
+  std::vector<std::unique_ptr<Process>> procs;
+  for (const auto& p : processes) {
+    procs.push_back(std::make_unique<Process>(p.command, run.dir / log_name(p.member)));
+    if (p.member == "coordinator") break;
+    ASSERT_TRUE(wait_until(
+        [&] { return procs.back()->log().find("waiting for the coordinator") != std::string::npos; },
+        20))
+        << describe_logs(procs);
+  }
+  const auto codes = wait_all(procs, 90.0);
+  for (int c : codes) EXPECT_EQ(c, 0) << describe_logs(procs);
+  EXPECT_EQ(read_file(out / "vehicles.csv"), single);
+}
+
+TEST(Determinism, ASlowedProcessChangesNothing) {
+  TestRun run;
+  const std::string single = single_process_csv(run, kTwo, "");
+  const std::string distributed = distributed_csv(run, kTwo, "", false, [](const Planned& p) {
+    return p.member == "vehicle/a" ? p.command + " --debug-frame-delay-ms 3" : p.command;
+  });
+  EXPECT_EQ(distributed, single);
+}
+
+TEST(Determinism, UdpOnlyTransportGivesTheSameResult) {
+  TestRun run;
+  const std::string single = single_process_csv(run, kTwo, "");
+  EXPECT_EQ(distributed_csv(run, kTwo, "--transport udp"), single);
+}
+
+// The data barrier: every member reports a frame done BEFORE publishing its data, so the grant
+// of the next frame overtakes the data. With the barrier, members wait for what the manifest
+// announces and the results do not change.
+TEST(DataBarrier, DataArrivingAfterTheGrantIsWaitedFor) {
+  TestRun run;
+  const std::string single = single_process_csv(run, kTwo, "--duration 0.5");
+  const std::string distributed =
+      distributed_csv(run, kTwo, "--duration 0.5", false, [](const Planned& p) {
+        return p.member == "coordinator" ? p.command : p.command + " --debug-publish-delay-ms 10";
+      });
+  EXPECT_EQ(distributed, single);
+}
+
+// The same run with the vehicles' data barrier switched off: they start frames with whatever
+// commands have arrived, use stale ones, and the trajectories change. This is what the test
+// above would see if the barrier were removed.
+TEST(DataBarrier, WithoutTheBarrierStaleDataChangesTheResult) {
+  TestRun run;
+  const std::string single = single_process_csv(run, kTwo, "--duration 0.5");
+  const std::string distributed =
+      distributed_csv(run, kTwo, "--duration 0.5", false, [](const Planned& p) {
+        if (p.member == "coordinator") return p.command;
+        std::string cmd = p.command + " --debug-publish-delay-ms 10";
+        if (p.member.rfind("vehicle/", 0) == 0) cmd += " --debug-skip-data-barrier";
+        return cmd;
+      });
+  EXPECT_NE(distributed, single);
+}
+
+TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/long_run.yaml";
+  Process launcher(kSource + "/launch_scripts/run_scenario.sh " + scenario + " --output " +
+                       out.string() + run.common_args(),
+                   run.dir / "launcher.log");
+  // Wait until the recorder has written 50 frames (3 vehicles each).
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 150; }, 30))
+      << launcher.log();
+  // Find vehicle/b's pid and kill it hard.
+  std::istringstream pids(read_file(out / "logs" / "pids"));
+  std::string member;
+  int pid = 0;
+  while (pids >> member >> pid && member != "vehicle/b") {
+  }
+  ASSERT_EQ(member, "vehicle/b");
+  ASSERT_EQ(::kill(pid, SIGKILL), 0);
+  const auto t_kill = Clock::now();
+
+  const auto code = launcher.wait(40);
+  ASSERT_TRUE(code.has_value()) << "launcher still running\n" << launcher.log();
+  EXPECT_EQ(*code, 2) << launcher.log();
+  const std::string coordinator = read_file(out / "logs" / "coordinator.log");
+  EXPECT_NE(coordinator.find("run aborted: member vehicle/b lost"), std::string::npos)
+      << coordinator;
+  const std::string launcher_log = launcher.log();
+  EXPECT_NE(launcher_log.find("FAILED: run 'long_run' aborted: member vehicle/b lost"),
+            std::string::npos)
+      << launcher_log;
+  const double took = std::chrono::duration<double>(Clock::now() - t_kill).count();
+  std::printf("kill -9 to launcher exit: %.2f s\n", took);
+
+  // Every process is gone and the recorder kept only complete frames, from 0 on.
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  EXPECT_EQ(summary["status"], "aborted");
+  EXPECT_NE(summary["reason"].get<std::string>().find("vehicle/b"), std::string::npos);
+  std::istringstream csv(read_file(out / "vehicles.csv"));
+  std::string line;
+  std::getline(csv, line);  // header
+  std::map<long, int> rows_per_frame;
+  while (std::getline(csv, line)) ++rows_per_frame[std::stol(line.substr(0, line.find(',')))];
+  ASSERT_GT(rows_per_frame.size(), 50u);
+  long expected_frame = 0;
+  for (const auto& [frame, rows] : rows_per_frame) {
+    EXPECT_EQ(frame, expected_frame++);
+    EXPECT_EQ(rows, 3) << "frame " << frame;
+  }
+  EXPECT_EQ(summary["recorded_up_to_frame"].get<long>(), rows_per_frame.rbegin()->first);
+}
+
+TEST(Failure, MissingMemberIsNamedAfterTheJoinTimeout) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/join_timeout.yaml";
+  auto processes = plan(run, scenario, (run.dir / "out").string(), "");
+  std::erase_if(processes, [](const Planned& p) { return p.member == "controller/a"; });
+  auto procs = start_all(run, processes);
+  const auto codes = wait_all(procs, 30.0);
+  ASSERT_EQ(processes[0].member, "coordinator");
+  EXPECT_EQ(codes[0], 2) << describe_logs(procs);
+  EXPECT_NE(procs[0]->log().find("join timeout after 2 s: missing controller/a"),
+            std::string::npos)
+      << procs[0]->log();
+  for (std::size_t i = 1; i < codes.size(); ++i) {
+    EXPECT_EQ(codes[i], 2) << processes[i].member << "\n" << describe_logs(procs);
+  }
+}
+
+TEST(Failure, MemberWithoutCoordinatorGivesUp) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/join_timeout.yaml";
+  auto processes = plan(run, scenario, (run.dir / "out").string(), "");
+  Process vehicle(processes[1].command, run.dir / "vehicle.log");
+  const auto code = vehicle.wait(30);
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 3);
+  EXPECT_NE(vehicle.log().find("no coordinator for run '" + run.run_id + "'"), std::string::npos)
+      << vehicle.log();
+}
+
+TEST(Failure, InterruptedCoordinatorStopsTheRun) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/long_run.yaml";
+  const fs::path out = run.dir / "out";
+  auto processes = plan(run, scenario, out.string(), "");
+  auto procs = start_all(run, processes);
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 30; }, 30))
+      << describe_logs(procs);
+  procs[0]->signal(SIGINT);
+  const auto codes = wait_all(procs, 30.0);
+  EXPECT_EQ(codes[0], 130) << describe_logs(procs);
+  for (std::size_t i = 1; i < codes.size(); ++i) EXPECT_EQ(codes[i], 2) << describe_logs(procs);
+  EXPECT_NE(read_file(out / "summary.txt").find("aborted: interrupted"), std::string::npos);
+}
+
+// An external program drives a vehicle; NaN commands are rejected, logged, never applied.
+TEST(ExternalController, DrivesTheVehicleAndBadCommandsAreRejected) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/external.yaml";
+  for (const std::string throttle : {"0.5", "nan"}) {
+    const fs::path out = run.dir / ("out-" + throttle);
+    auto processes = plan(run, scenario, out.string(), "");
+    processes.push_back({"external/ext", kBin + "/syndds_external_driver " + scenario +
+                                             " --vehicle ext --throttle " + throttle +
+                                             run.common_args() + " --config-dir " + kConfig});
+    auto procs = start_all(run, processes);
+    const auto codes = wait_all(procs, 60.0);
+    for (int c : codes) ASSERT_EQ(c, 0) << describe_logs(procs);
+    const std::string csv = read_file(out / "vehicles.csv");
+    const std::string last = csv.substr(csv.rfind('\n', csv.size() - 2) + 1);
+    const std::string vehicle_log = read_file(run.dir / "vehicle_ext.log");
+    if (throttle == "nan") {
+      EXPECT_NE(vehicle_log.find("rejected driver_command from external/ext stamped frame"),
+                std::string::npos)
+          << vehicle_log;
+      EXPECT_NE(vehicle_log.find("throttle is not a finite number"), std::string::npos);
+      EXPECT_NE(last.find(",0,0,0,0,800"), std::string::npos) << last;  // never moved
+    } else {
+      EXPECT_EQ(vehicle_log.find("rejected"), std::string::npos) << vehicle_log;
+      EXPECT_NE(last.find(",0,0.5,0,"), std::string::npos) << last;  // throttle applied
+    }
+  }
+}
+
+TEST(Cli, BadScenariosGiveClearErrors) {
+  TestRun run;
+  struct Case {
+    std::string yaml;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {"time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1\n", "YAML syntax error"},
+      {"time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}\nvehicles:\n"
+       "  - {id: a, model: hmmwv, start: {x: 0, y: 0}}\nspeed: 3\n",
+       ":4:1: speed: unknown key 'speed'"},
+      {"time: {step_s: -0.002, heartbeat_s: 0.01, end_time_s: 1}\nvehicles: []\n",
+       ":1:16: time.step_s: must be positive, got -0.002"},
+      {"time: {step_s: 0.003, heartbeat_s: 0.01, end_time_s: 1}\nvehicles: []\n",
+       "heartbeat_s (0.01) must be a whole multiple of step_s (0.003)"},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const fs::path file = run.dir / ("bad" + std::to_string(i) + ".yaml");
+    std::ofstream(file) << cases[i].yaml;
+    Process p(kBin + "/syndds_coordinator " + file.string() + run.common_args(),
+              run.dir / ("bad" + std::to_string(i) + ".log"));
+    const auto code = p.wait(20);
+    ASSERT_TRUE(code.has_value());
+    EXPECT_EQ(*code, 1);
+    EXPECT_NE(p.log().find(file.string()), std::string::npos) << p.log();
+    EXPECT_NE(p.log().find(cases[i].expected), std::string::npos) << p.log();
+  }
+}
