@@ -30,7 +30,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
     --run-id) [ $# -ge 2 ] || die "--run-id needs a value"; RUN_ID=$2; shift ;;
-    --duration|--domain|--transport|--discovery-server|--log-level)
+    --duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir)
       [ $# -ge 2 ] || die "$1 needs a value"; PASS+=("$1" "$2"); shift ;;
     --realtime) PASS+=("$1") ;;
     --single-process) SINGLE=1 ;;

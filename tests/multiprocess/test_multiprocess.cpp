@@ -35,6 +35,26 @@ TEST(Determinism, DistributedRunEqualsSingleProcessRun) {
   EXPECT_EQ(distributed, single);
 }
 
+// More members than Fast DDS's default resource limits allow instances (10): every keyed topic
+// must lift them, or the 11th announcement / vehicle state is silently dropped.
+TEST(Determinism, TwelveVehiclesWithControllers) {
+  TestRun run;
+  const fs::path scenario = run.dir / "twelve.yaml";
+  {
+    std::ofstream f(scenario);
+    f << "name: twelve\ntime: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 0.5}\nvehicles:\n";
+    for (int i = 0; i < 12; ++i) {
+      f << "  - id: v" << i << "\n    model: hmmwv\n    controller:\n      type: path_follower\n"
+        << "      path: {waypoints: [[0, " << 10 * i << "], [50, " << 10 * i << "]]}\n"
+        << "      speed: {target_mps: 5}\n";
+    }
+  }
+  const std::string args = "--config-dir " + kConfig;
+  const std::string single = single_process_csv(run, scenario.string(), args);
+  EXPECT_EQ(count_lines(single), 1u + 51u * 12u);
+  EXPECT_EQ(distributed_csv(run, scenario.string(), args), single);
+}
+
 TEST(Determinism, ReverseStartOrderGivesTheSameResult) {
   TestRun run;
   const std::string single = single_process_csv(run, kTwo, "");
