@@ -1,6 +1,7 @@
 #include "vehicle/vehicle_params.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace syndds::vehicle {
 namespace {
@@ -26,6 +27,7 @@ AxleParams parse_axle(const YamlNode& node, bool steered_default) {
   a.damping_nspm = m.positive("damping_nspm", std::nullopt);
   a.travel_m = m.positive("travel_m", std::nullopt);
   a.preload_n = m.number("preload_n", -1.0, -1.0, kBig);
+  a.bump_stop_rate_npm = m.number("bump_stop_rate_npm", 0.0, 0.0, kBig);
   a.steered = m.get_or("steered", steered_default);
   a.driven = m.get_or("driven", true);
   a.brake_torque_nm = m.number("brake_torque_nm", std::nullopt, 0, kBig);
@@ -47,6 +49,37 @@ double VehicleParams::engine_torque_nm(double rpm) const {
   return lo->second + t * (hi->second - lo->second);
 }
 
+std::pair<double, double> VehicleParams::engine_peak_torque() const {
+  std::pair<double, double> best{0.0, 0.0};  // (torque, rpm)
+  for (const auto& [rpm, torque] : engine.torque_map_rpm_nm) {
+    if (torque > best.first) best = {torque, rpm};
+  }
+  return best;
+}
+
+double VehicleParams::total_com_x_m() const {
+  const double wheels_x = 2.0 * wheels.mass_kg * (front.x_m + rear.x_m);
+  return (chassis.mass_kg * chassis.com_m.x() + wheels_x) / total_mass_kg();
+}
+
+double VehicleParams::static_wheel_load_n(bool front_axle) const {
+  const double x = total_com_x_m();
+  const double share = front_axle ? (x - rear.x_m) / wheelbase_m()   // b / L
+                                  : (front.x_m - x) / wheelbase_m();  // a / L
+  return total_mass_kg() * kGravity * share / 2.0;
+}
+
+double VehicleParams::converter_capacity_rpm_per_sqrt_nm() const {
+  if (transmission.converter_capacity_factor > 0) return transmission.converter_capacity_factor;
+  const auto [torque, rpm] = engine_peak_torque();
+  return rpm / std::sqrt(torque);
+}
+
+double VehicleParams::engine_motoring_torque_nm() const {
+  if (engine.motoring_torque_nm >= 0) return engine.motoring_torque_nm;
+  return 0.1 * engine_peak_torque().first;
+}
+
 VehicleParams parse_vehicle_params(const YamlNode& root) {
   VehicleParams p;
   p.source_file = root.file();
@@ -60,6 +93,7 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
     p.chassis.com_m = vec3(m, "com_m");
     p.chassis.half_extents_m = vec3(m, "half_extents_m", p.chassis.half_extents_m);
     p.chassis.box_centre_m = vec3(m, "box_centre_m", p.chassis.box_centre_m);
+    p.chassis.drag_area_m2 = m.number("drag_area_m2", 0.0, 0, 100);
     m.finish();
     if ((p.chassis.inertia_kgm2.array() <= 0).any()) {
       top.required("chassis").fail("inertia_kgm2 must be positive");
@@ -76,6 +110,12 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
   p.front = parse_axle(top.required("front_axle"), true);
   p.rear = parse_axle(top.required("rear_axle"), false);
   if (p.wheelbase_m() <= 0) top.required("rear_axle").fail("x_m must be behind front_axle.x_m");
+  if (p.rear.steered) {
+    top.required("rear_axle").fail("steered: rear-axle steering is not supported");
+  }
+  if (!p.front.driven && !p.rear.driven) {
+    top.required("rear_axle").fail("driven: at least one axle must be driven");
+  }
   {
     MapReader m(top.required("steering"));
     p.steering.max_angle_deg = m.number("max_angle_deg", std::nullopt, 1, 60);
@@ -96,7 +136,14 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
     p.engine.idle_rpm = m.positive("idle_rpm", std::nullopt);
     p.engine.max_rpm = m.positive("max_rpm", std::nullopt);
     p.engine.inertia_kgm2 = m.positive("inertia_kgm2", std::nullopt);
+    p.engine.motoring_torque_nm = m.number("motoring_torque_nm", -1.0, -1.0, kBig);
     m.finish();
+    if (p.engine.idle_rpm >= p.engine.max_rpm) {
+      top.required("engine").fail("idle_rpm must be below max_rpm");
+    }
+    if (p.engine_peak_torque().first <= 0) {
+      top.required("engine").fail("torque_map_rpm_nm needs a positive torque");
+    }
   }
   {
     MapReader m(top.required("transmission"));
@@ -134,6 +181,8 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
     p.tire.vertical_stiffness_npm = m.positive("vertical_stiffness_npm", std::nullopt);
     p.tire.vertical_damping_nspm = m.positive("vertical_damping_nspm", std::nullopt);
     p.tire.rolling_resistance = m.number("rolling_resistance", 0.015, 0, 0.5);
+    p.tire.relaxation_length_m = m.number("relaxation_length_m", 0.25, 0.01, 5);
+    p.tire.stiffness_load_exponent = m.number("stiffness_load_exponent", 0.8, 0, 2);
     m.finish();
   }
   {

@@ -18,6 +18,7 @@ struct ChassisParams {
   Vec3 com_m = Vec3::Zero();         // COM in the chassis reference frame
   Vec3 half_extents_m = Vec3(2.4, 1.1, 0.5);  // collision / render box half sizes
   Vec3 box_centre_m = Vec3(0.0, 0.0, 0.4);    // box centre in the chassis reference frame
+  double drag_area_m2 = 0.0;  // Cd * A of the full model's aerodynamic drag (0: none)
 };
 
 struct AxleParams {
@@ -27,6 +28,7 @@ struct AxleParams {
   double damping_nspm = 0.0;          // per wheel
   double travel_m = 0.0;              // total travel (bump + rebound) around the design height
   double preload_n = -1.0;            // spring force at design height; < 0: static load share
+  double bump_stop_rate_npm = 0.0;    // stiffness beyond +-travel/2 (0: 20 x spring rate)
   bool steered = false;
   bool driven = true;
   double brake_torque_nm = 0.0;       // per wheel at braking = 1
@@ -36,7 +38,7 @@ struct WheelParams {
   double radius_m = 0.0;
   double width_m = 0.0;
   double mass_kg = 0.0;               // wheel + tire (+ unsprung hub) per corner
-  double spin_inertia_kgm2 = 0.0;
+  double spin_inertia_kgm2 = 0.0;     // about the spin axis (rotating parts only)
 };
 
 struct SteeringParams {
@@ -49,6 +51,8 @@ struct EngineParams {
   double idle_rpm = 800.0;
   double max_rpm = 2700.0;
   double inertia_kgm2 = 0.0;
+  double motoring_torque_nm = -1.0;   // closed-throttle drag at max_rpm, linear in rpm
+                                      // (< 0: 10 % of the peak torque)
 };
 
 struct TransmissionParams {
@@ -59,7 +63,9 @@ struct TransmissionParams {
   double shift_time_s = 0.0;
   double converter_stall_ratio = 1.0;  // torque multiplication at stall
   double converter_coupling_speed_ratio = 0.85;  // speed ratio where multiplication ends
-  double converter_capacity_factor = 0.0;  // K: input speed (rpm) / sqrt(input torque)
+  // K: pump speed (rpm) / sqrt(pump torque, N m) below the coupling point. 0: derived so that
+  // the full-throttle stall speed is the rpm of peak torque.
+  double converter_capacity_factor = 0.0;
 };
 
 struct DrivelineParams {
@@ -75,6 +81,8 @@ struct TireParams {
   double vertical_stiffness_npm = 0.0;
   double vertical_damping_nspm = 0.0;
   double rolling_resistance = 0.0;     // coefficient
+  double relaxation_length_m = 0.25;   // tread deflection relaxation length (full model)
+  double stiffness_load_exponent = 0.8;  // slip stiffnesses scale as (Fz / nominal)^exponent
 };
 
 /// Parameters only the reduced-order (kinematic bicycle) model uses.
@@ -107,6 +115,16 @@ struct VehicleParams {
   double total_mass_kg() const { return chassis.mass_kg + 4.0 * wheels.mass_kg; }
   /// Full-throttle engine torque at `rpm` (linear interpolation, clamped at the map ends).
   double engine_torque_nm(double rpm) const;
+  /// Peak of the full-throttle torque map and the rpm where it occurs.
+  std::pair<double, double> engine_peak_torque() const;
+  /// x of the whole vehicle's centre of mass (chassis + wheels at their axles).
+  double total_com_x_m() const;
+  /// Static vertical load on one wheel of the front (rear) axle on level ground: m g b / L / 2.
+  double static_wheel_load_n(bool front) const;
+  /// Torque converter capacity factor K (rpm / sqrt(N m)), derived when the file gives 0.
+  double converter_capacity_rpm_per_sqrt_nm() const;
+  /// Closed-throttle engine drag at max_rpm (N m, positive), derived when the file gives < 0.
+  double engine_motoring_torque_nm() const;
 };
 
 /// Reads and validates a vehicle file; errors name file:line:column and the key.

@@ -1,0 +1,660 @@
+#include "vehicle/ode_vehicle.hpp"
+
+#include <ode/ode.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+
+#include "core/error.hpp"
+#include "vehicle/powertrain.hpp"
+#include "vehicle/steering.hpp"
+#include "vehicle/tire_model.hpp"
+
+static_assert(sizeof(dReal) == 8, "syndds needs ODE built in double precision (dDOUBLE)");
+
+namespace syndds::vehicle {
+namespace {
+
+constexpr double kAirDensity = 1.2;          // kg/m^3
+constexpr double kSettleStepS = 0.002;
+constexpr double kSteerGainPerStep = 0.5;    // steering motor closes half the error per step
+constexpr double kSteerMaxTorqueNm = 2.0e4;
+constexpr double kSteerStopMarginRad = 0.05;
+constexpr double kObstacleFriction = 0.5;
+constexpr double kObstacleSoftCfm = 1e-7;
+constexpr double kObstacleSoftErp = 0.2;
+constexpr double kEpisodeGapS = 0.5;         // contact-free time that ends a collision episode
+constexpr int kMaxContactsPerPair = 4;
+constexpr double kRollingResistanceSpeedMps = 0.1;  // smooth sign of the resistance moment
+constexpr double kBumpStopFactor = 20.0;     // bump stop rate = factor x spring rate (default)
+
+std::once_flag g_ode_init_once;  // ODE's own process-wide initialisation, done once
+
+void ensure_ode_ready() {
+  std::call_once(g_ode_init_once, [] { dInitODE2(0); });
+  dAllocateODEDataForThread(dAllocateMaskAll);
+}
+
+Vec3 vec(const dReal* v) { return Vec3(v[0], v[1], v[2]); }
+Quat body_quat(dBodyID b) {
+  const dReal* q = dBodyGetQuaternion(b);
+  return Quat(q[0], q[1], q[2], q[3]);
+}
+void set_body_pose(dBodyID b, const Vec3& p, const Quat& q) {
+  dBodySetPosition(b, p.x(), p.y(), p.z());
+  const dQuaternion dq = {q.w(), q.x(), q.y(), q.z()};
+  dBodySetQuaternion(b, dq);
+}
+void set_geom_pose(dGeomID g, const Vec3& p, const Quat& q) {
+  dGeomSetPosition(g, p.x(), p.y(), p.z());
+  const dQuaternion dq = {q.w(), q.x(), q.y(), q.z()};
+  dGeomSetQuaternion(g, dq);
+}
+Vec3 point_velocity(dBodyID b, const Vec3& p) {
+  dVector3 v;
+  dBodyGetPointVel(b, p.x(), p.y(), p.z(), v);
+  return vec(v);
+}
+void add_force_at(dBodyID b, const Vec3& f, const Vec3& p) {
+  dBodyAddForceAtPos(b, f.x(), f.y(), f.z(), p.x(), p.y(), p.z());
+}
+void add_torque(dBodyID b, const Vec3& t) { dBodyAddTorque(b, t.x(), t.y(), t.z()); }
+
+bool finite(const Vec3& v) { return v.allFinite(); }
+
+}  // namespace
+
+struct OdeVehicleModel::Impl {
+  struct ObstacleGeom {
+    std::string id;
+    dGeomID geom = nullptr;
+    Vec3 centre = Vec3::Zero();
+    double radius = 0.0;               // bounding sphere
+    double last_contact_s = -std::numeric_limits<double>::infinity();
+  };
+  struct PendingContact {
+    dContact contact;
+    std::size_t obstacle = 0;
+    dBodyID body = nullptr;
+  };
+
+  VehicleParams p;
+  std::shared_ptr<const terrain::TerrainSurface> terrain;
+  std::shared_ptr<terrain::WheelTerrainContact> deformable;
+  TireModel tire;
+  Powertrain powertrain;
+
+  dWorldID world = nullptr;
+  dJointGroupID contact_group = nullptr;
+  dBodyID chassis = nullptr;
+  std::array<dBodyID, 4> wheels{};
+  std::array<dJointID, 4> joints{};
+  dGeomID chassis_geom = nullptr;
+  std::array<dGeomID, 4> wheel_geoms{};
+  std::vector<ObstacleGeom> obstacles;
+  std::vector<PendingContact> contacts;
+  std::vector<dJointFeedback> feedback;
+  double vehicle_radius = 0.0;         // bounding sphere about the chassis COM
+  unsigned long solver_seed = 0;       // ODE's solver seed, private to this instance
+
+  std::array<Vec3, 4> wheel_local;     // design wheel centres in the chassis reference frame
+  std::array<const AxleParams*, 4> axle{};
+  std::array<double, 4> preload{};
+  std::array<TireState, 4> tire_states{};
+  std::array<WheelDiagnostics, 4> diag{};
+
+  DriverInputs commanded;
+  DriverInputs applied;
+  double time = 0.0;
+  double last_dt = -1.0;
+  Vec3 accel = Vec3::Zero();
+  Vec3 angular_accel = Vec3::Zero();
+  std::vector<CollisionContact> collisions;
+
+  Impl(const VehicleParams& params, std::shared_ptr<const terrain::TerrainSurface> t,
+       std::shared_ptr<terrain::WheelTerrainContact> d)
+      : p(params),
+        terrain(std::move(t)),
+        deformable(std::move(d)),
+        tire(params.tire, params.wheels),
+        powertrain(params) {}
+
+  ~Impl() {
+    for (auto& o : obstacles) dGeomDestroy(o.geom);
+    for (auto g : wheel_geoms) {
+      if (g) dGeomDestroy(g);
+    }
+    if (chassis_geom) dGeomDestroy(chassis_geom);
+    if (contact_group) dJointGroupDestroy(contact_group);
+    if (world) dWorldDestroy(world);  // bodies and joints with it
+  }
+
+  // --- construction ------------------------------------------------------------------------
+
+  void build(const Pose& start, const world::Obstacles& obstacle_list) {
+    world = dWorldCreate();
+    dWorldSetGravity(world, 0, 0, -kGravity);
+    dWorldSetERP(world, 0.2);
+    dWorldSetCFM(world, 1e-10);
+    dWorldSetAutoDisableFlag(world, 0);
+    dWorldSetContactMaxCorrectingVel(world, 1.0);
+    dWorldSetContactSurfaceLayer(world, 0.001);
+    contact_group = dJointGroupCreate(0);
+
+    const double r = p.wheels.radius_m;
+    const AxleParams* axles[4] = {&p.front, &p.front, &p.rear, &p.rear};
+    const double sides[4] = {1.0, -1.0, 1.0, -1.0};
+    for (int i = 0; i < 4; ++i) {
+      axle[i] = axles[i];
+      wheel_local[i] = Vec3(axles[i]->x_m, sides[i] * axles[i]->half_track_m, 0.0);
+      const double static_load = p.static_wheel_load_n(i < 2);
+      preload[i] = axles[i]->preload_n >= 0 ? axles[i]->preload_n
+                                            : static_load - p.wheels.mass_kg * kGravity;
+    }
+
+    chassis = dBodyCreate(world);
+    dMass m;
+    const Vec3& ic = p.chassis.inertia_kgm2;
+    dMassSetParameters(&m, p.chassis.mass_kg, 0, 0, 0, ic.x(), ic.y(), ic.z(), 0, 0, 0);
+    dBodySetMass(chassis, &m);
+    const double w = p.wheels.width_m;
+    const double i_tilt = p.wheels.mass_kg * (3.0 * r * r + w * w) / 12.0;
+    for (int i = 0; i < 4; ++i) {
+      wheels[i] = dBodyCreate(world);
+      dMassSetParameters(&m, p.wheels.mass_kg, 0, 0, 0, i_tilt, p.wheels.spin_inertia_kgm2,
+                         i_tilt, 0, 0, 0);
+      dBodySetMass(wheels[i], &m);
+    }
+
+    place(start);
+    for (int i = 0; i < 4; ++i) make_joint(i);
+    make_geoms();
+    for (const auto& o : obstacle_list) add_obstacle(o);
+  }
+
+  /// Puts the chassis at start (x, y, yaw) on the terrain: the chassis plane fits the ground
+  /// under the four wheels, each tire at its static deflection, suspension at design height.
+  void place(const Pose& start) {
+    const double yaw = yaw_of(start.orientation);
+    const Quat q_yaw = quat_from_yaw(yaw);
+    const Vec3 origin(start.position.x(), start.position.y(), 0.0);
+    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 4; ++i) {
+      const Vec3 xy = origin + q_yaw * Vec3(wheel_local[i].x(), wheel_local[i].y(), 0.0);
+      const double h = terrain->height(xy.x(), xy.y());
+      const Eigen::Vector3d row(1.0, wheel_local[i].x(), wheel_local[i].y());
+      a += row * row.transpose();
+      b += row * h;
+    }
+    const Eigen::Vector3d plane = a.ldlt().solve(b);  // h = c0 + gx X + gy Y (vehicle axes)
+    const Vec3 normal = (q_yaw * Vec3(-plane[1], -plane[2], 1.0)).normalized();
+    const Vec3 forward = q_yaw * Vec3::UnitX();
+    const Vec3 x_axis = (forward - forward.dot(normal) * normal).normalized();
+    Eigen::Matrix3d rot;
+    rot.col(0) = x_axis;
+    rot.col(1) = normal.cross(x_axis);
+    rot.col(2) = normal;
+    const Quat qc(rot);
+    const double deflection =
+        0.5 * (p.static_wheel_load_n(true) + p.static_wheel_load_n(false)) /
+        p.tire.vertical_stiffness_npm;
+    const Vec3 ref(origin.x(), origin.y(),
+                   plane[0] + (p.wheels.radius_m - deflection) / normal.z());
+    set_body_pose(chassis, ref + qc * p.chassis.com_m, qc);
+    for (int i = 0; i < 4; ++i) set_body_pose(wheels[i], ref + qc * wheel_local[i], qc);
+  }
+
+  void make_joint(int i) {
+    dJointID j = dJointCreateHinge2(world, nullptr);
+    dJointAttach(j, chassis, wheels[i]);
+    const Vec3 c = vec(dBodyGetPosition(wheels[i]));
+    dJointSetHinge2Anchor(j, c.x(), c.y(), c.z());
+    const Quat qc = body_quat(chassis);
+    const Vec3 up = qc * Vec3::UnitZ();
+    const Vec3 left = qc * Vec3::UnitY();
+    const dReal axis1[3] = {up.x(), up.y(), up.z()};
+    const dReal axis2[3] = {left.x(), left.y(), left.z()};
+    dJointSetHinge2Axes(j, axis1, axis2);
+    if (axle[i]->steered) {
+      const double lim = deg_to_rad(p.steering.max_angle_deg) + kSteerStopMarginRad;
+      dJointSetHinge2Param(j, dParamLoStop, -lim);
+      dJointSetHinge2Param(j, dParamHiStop, lim);
+      dJointSetHinge2Param(j, dParamFMax, kSteerMaxTorqueNm);
+      dJointSetHinge2Param(j, dParamVel, 0.0);
+    } else {
+      dJointSetHinge2Param(j, dParamLoStop, 0.0);
+      dJointSetHinge2Param(j, dParamHiStop, 0.0);
+    }
+    dJointSetHinge2Param(j, dParamVel2, 0.0);
+    dJointSetHinge2Param(j, dParamFMax2, 0.0);
+    joints[i] = j;
+  }
+
+  void make_geoms() {
+    const Vec3 he = p.chassis.half_extents_m;
+    chassis_geom = dCreateBox(nullptr, 2 * he.x(), 2 * he.y(), 2 * he.z());
+    dGeomSetBody(chassis_geom, chassis);
+    const Vec3 off = p.chassis.box_centre_m - p.chassis.com_m;
+    dGeomSetOffsetPosition(chassis_geom, off.x(), off.y(), off.z());
+    vehicle_radius = off.norm() + he.norm();
+    // Cylinder axis (local z) turned onto the wheel's spin axis (local y).
+    const Quat z_to_y(Eigen::AngleAxisd(std::numbers::pi / 2, Vec3::UnitX()));
+    const dQuaternion dq = {z_to_y.w(), z_to_y.x(), z_to_y.y(), z_to_y.z()};
+    for (int i = 0; i < 4; ++i) {
+      wheel_geoms[i] = dCreateCylinder(nullptr, p.wheels.radius_m, p.wheels.width_m);
+      dGeomSetBody(wheel_geoms[i], wheels[i]);
+      dGeomSetOffsetQuaternion(wheel_geoms[i], dq);
+      const double reach = (wheel_local[i] - p.chassis.com_m).norm() + axle[i]->travel_m +
+                           std::hypot(p.wheels.radius_m, 0.5 * p.wheels.width_m);
+      vehicle_radius = std::max(vehicle_radius, reach);
+    }
+  }
+
+  void add_obstacle(const world::Obstacle& o) {
+    ObstacleGeom g;
+    g.id = o.id;
+    const Vec3& s = o.size;
+    auto positive = [&](double v) {
+      if (!(v > 0.0) || !std::isfinite(v)) {
+        throw ConfigError("obstacle '" + o.id + "': sizes must be positive and finite");
+      }
+      return v;
+    };
+    switch (o.shape) {
+      case world::ShapeKind::box:
+        g.geom = dCreateBox(nullptr, 2 * positive(s.x()), 2 * positive(s.y()), 2 * positive(s.z()));
+        g.radius = s.norm();
+        break;
+      case world::ShapeKind::sphere:
+        g.geom = dCreateSphere(nullptr, positive(s.x()));
+        g.radius = s.x();
+        break;
+      case world::ShapeKind::cylinder:
+        g.geom = dCreateCylinder(nullptr, positive(s.x()), 2 * positive(s.z()));
+        g.radius = std::hypot(s.x(), s.z());
+        break;
+    }
+    set_geom_pose(g.geom, o.pose.position, o.pose.orientation.normalized());
+    g.centre = o.pose.position;
+    obstacles.push_back(std::move(g));
+  }
+
+  void settle() {
+    commanded = DriverInputs{0.0, 0.0, 1.0};
+    applied = commanded;
+    const int steps = static_cast<int>(std::lround(kSettleTimeS / kSettleStepS));
+    for (int n = 0; n < steps; ++n) step(kSettleStepS, false);
+    for (dBodyID b : {chassis, wheels[0], wheels[1], wheels[2], wheels[3]}) {
+      dBodySetLinearVel(b, 0, 0, 0);
+      dBodySetAngularVel(b, 0, 0, 0);
+    }
+    powertrain.reset();
+    commanded = DriverInputs{};
+    applied = commanded;
+    time = 0.0;
+    accel.setZero();
+    angular_accel.setZero();
+    collisions.clear();
+    for (auto& o : obstacles) o.last_contact_s = -std::numeric_limits<double>::infinity();
+  }
+
+  // --- state helpers -----------------------------------------------------------------------
+
+  Vec3 reference_point() const {
+    return vec(dBodyGetPosition(chassis)) - body_quat(chassis) * p.chassis.com_m;
+  }
+  Vec3 spin_axis(int i) const { return body_quat(wheels[i]) * Vec3::UnitY(); }
+  /// Wheel spin relative to the chassis about its axle (positive rolls forward).
+  double relative_spin(int i) const {
+    const Vec3 w = vec(dBodyGetAngularVel(wheels[i])) - vec(dBodyGetAngularVel(chassis));
+    return w.dot(spin_axis(i));
+  }
+  /// Road-wheel angle from the geometry (positive = turned left).
+  double steer_angle(int i) const {
+    const Vec3 y = body_quat(chassis).conjugate() * spin_axis(i);
+    return std::atan2(-y.x(), y.y());
+  }
+
+  // --- one step ----------------------------------------------------------------------------
+
+  void set_step_size(double dt) {
+    if (dt == last_dt) return;
+    for (int i = 0; i < 4; ++i) {
+      // Implicit spring-damper of the hinge-2 suspension axis: k = ERP/(h CFM), c = (1-ERP)/CFM.
+      const double hk = dt * axle[i]->spring_rate_npm;
+      const double denom = hk + axle[i]->damping_nspm;
+      dJointSetHinge2Param(joints[i], dParamSuspensionERP, hk / denom);
+      dJointSetHinge2Param(joints[i], dParamSuspensionCFM, 1.0 / denom);
+    }
+    last_dt = dt;
+  }
+
+  void apply_steering_and_brakes(double dt) {
+    double s = commanded.steering;
+    if (p.steering.rate_deg_s > 0.0) {
+      const double max_change = p.steering.rate_deg_s / p.steering.max_angle_deg * dt;
+      s = applied.steering + clamp(s - applied.steering, -max_change, max_change);
+    }
+    applied = DriverInputs{s, commanded.throttle, commanded.braking};
+    const AckermannAngles angles = ackermann_angles(p, applied.steering);
+    for (int i = 0; i < 4; ++i) {
+      if (axle[i]->steered) {
+        const double target = (i % 2 == 0) ? angles.left_rad : angles.right_rad;
+        // ODE's hinge-2 motor drives body 1 relative to body 2: the wheel turns the other way.
+        const double rate = kSteerGainPerStep * (target - steer_angle(i)) / dt;
+        dJointSetHinge2Param(joints[i], dParamVel, -rate);
+      }
+      dJointSetHinge2Param(joints[i], dParamFMax2, applied.braking * axle[i]->brake_torque_nm);
+    }
+  }
+
+  void apply_drive_torque(double dt) {
+    std::array<double, 4> spin{};
+    for (int i = 0; i < 4; ++i) spin[i] = relative_spin(i);
+    const double front_share =
+        p.front.driven ? (p.rear.driven ? p.driveline.front_torque_share : 1.0) : 0.0;
+    // Open differentials: the centre input turns at the torque-weighted mean of the axles.
+    const double w_front = 0.5 * (spin[0] + spin[1]);
+    const double w_rear = 0.5 * (spin[2] + spin[3]);
+    const double w_in = front_share * w_front + (1.0 - front_share) * w_rear;
+    const Quat qc = body_quat(chassis);
+    const double v_forward = vec(dBodyGetLinearVel(chassis)).dot(qc * Vec3::UnitX());
+    const double torque = powertrain.step(applied.throttle, w_in, v_forward, dt);
+    for (int i = 0; i < 4; ++i) {
+      const double share = i < 2 ? front_share : 1.0 - front_share;
+      const double t = 0.5 * share * torque;
+      diag[i].drive_torque_nm = t;
+      if (t == 0.0) continue;
+      const Vec3 axis = spin_axis(i);
+      add_torque(wheels[i], t * axis);
+      add_torque(chassis, -t * axis);
+    }
+  }
+
+  void apply_tire_forces(double dt) {
+    const double r = p.wheels.radius_m;
+    for (int i = 0; i < 4; ++i) {
+      WheelDiagnostics& d = diag[i];
+      d.in_contact = false;
+      d.tire_normal_force_n = d.tire_deflection_m = d.slip_ratio = d.slip_angle_rad = 0.0;
+      const Vec3 c = vec(dBodyGetPosition(wheels[i]));
+      const Vec3 a = spin_axis(i);
+      const Vec3 n0 = terrain->normal(c.x(), c.y());
+      Vec3 down = -(n0 - n0.dot(a) * a);
+      if (down.norm() < 1e-6) {  // wheel lying flat: no rolling contact
+        tire_states[i] = TireState{};
+        continue;
+      }
+      down.normalize();
+      const Vec3 lowest = c + r * down;
+      const double h = terrain->height(lowest.x(), lowest.y());
+      const Vec3 n = terrain->normal(lowest.x(), lowest.y());
+      const double depth = std::min((h - lowest.z()) * n.z(), 0.9 * r);
+      if (depth <= 0.0) {
+        tire_states[i] = TireState{};
+        continue;
+      }
+      const Vec3 v = vec(dBodyGetLinearVel(wheels[i]));
+      const Vec3 w = vec(dBodyGetAngularVel(wheels[i]));
+      const double fz = tire.normal_force(depth, -v.dot(n));
+      const Vec3 contact = lowest + depth * n;
+      Vec3 ex = a.cross(n);
+      if (ex.norm() < 1e-6) {
+        tire_states[i] = TireState{};
+        continue;
+      }
+      ex.normalize();
+      const Vec3 ey = n.cross(ex);
+      // Slip at the effective rolling radius r - deflection/3.
+      const Vec3 arm = (contact - c) * ((r - depth / 3.0) / (r - depth));
+      const Vec3 vc = v + w.cross(arm);
+      TireKinematics k;
+      k.normal_force_n = fz;
+      k.ground_speed_mps = v.dot(ex);
+      k.slip_velocity_x_mps = vc.dot(ex);
+      k.slip_velocity_y_mps = vc.dot(ey);
+      k.friction = terrain->friction(contact.x(), contact.y()) * p.tire.friction_scale;
+      const TireForce f = tire.update(k, dt, tire_states[i]);
+      add_force_at(wheels[i], fz * n + f.fx_n * ex + f.fy_n * ey, contact);
+      // Rolling resistance: a moment against the spin, smoothed through zero speed.
+      const double spin_speed = w.dot(a) * r;
+      const double moment = -p.tire.rolling_resistance * fz * (r - depth) *
+                            clamp(spin_speed / kRollingResistanceSpeedMps, -1.0, 1.0);
+      add_torque(wheels[i], moment * a);
+      d.in_contact = fz > 0.0;
+      d.tire_normal_force_n = fz;
+      d.tire_deflection_m = depth;
+      d.slip_ratio = f.slip_ratio;
+      d.slip_angle_rad = f.slip_angle_rad;
+    }
+  }
+
+  void apply_deformable_forces(double dt) {
+    std::array<terrain::WheelBodyState, 4> states;
+    std::array<terrain::WheelLoad, 4> loads{};
+    for (int i = 0; i < 4; ++i) {
+      states[i].pose.position = vec(dBodyGetPosition(wheels[i]));
+      states[i].pose.orientation = body_quat(wheels[i]);
+      states[i].linear_velocity = vec(dBodyGetLinearVel(wheels[i]));
+      states[i].angular_velocity = vec(dBodyGetAngularVel(wheels[i]));
+      states[i].radius_m = p.wheels.radius_m;
+      states[i].width_m = p.wheels.width_m;
+    }
+    deformable->compute_wheel_loads(states, dt, loads);
+    for (int i = 0; i < 4; ++i) {
+      const auto& l = loads[i];
+      if (!finite(l.force) || !finite(l.torque)) {
+        throw std::runtime_error("deformable terrain returned a non-finite wheel load");
+      }
+      dBodyAddForce(wheels[i], l.force.x(), l.force.y(), l.force.z());
+      add_torque(wheels[i], l.torque);
+      diag[i].in_contact = l.in_contact;
+      diag[i].tire_normal_force_n = l.force.z();
+      diag[i].tire_deflection_m = l.sinkage_m;
+      diag[i].slip_ratio = diag[i].slip_angle_rad = 0.0;
+    }
+  }
+
+  void apply_suspension_forces() {
+    for (int i = 0; i < 4; ++i) {
+      dVector3 a1, a2, ax;
+      dJointGetHinge2Anchor(joints[i], a1);
+      dJointGetHinge2Anchor2(joints[i], a2);
+      dJointGetHinge2Axis1(joints[i], ax);
+      const Vec3 p1 = vec(a1), p2 = vec(a2), axis = vec(ax);
+      const double s = (p2 - p1).dot(axis);  // compression from design height
+      const double s_dot = (point_velocity(wheels[i], p2) - point_velocity(chassis, p1)).dot(axis);
+      const AxleParams& ax_p = *axle[i];
+      const double half_travel = 0.5 * ax_p.travel_m;
+      const double k_stop = ax_p.bump_stop_rate_npm > 0 ? ax_p.bump_stop_rate_npm
+                                                        : kBumpStopFactor * ax_p.spring_rate_npm;
+      const double c_stop = std::sqrt(k_stop * p.wheels.mass_kg);  // damping ratio 0.5
+      double stop = 0.0;
+      if (s > half_travel) stop = std::max(0.0, k_stop * (s - half_travel) + c_stop * s_dot);
+      if (s < -half_travel) stop = std::min(0.0, k_stop * (s + half_travel) + c_stop * s_dot);
+      const double push = preload[i] + stop;  // pushes the wheel down, the chassis up
+      dBodyAddForce(wheels[i], -push * axis.x(), -push * axis.y(), -push * axis.z());
+      add_force_at(chassis, push * axis, p1);
+      diag[i].suspension_compression_m = s;
+      diag[i].spring_force_n = push + ax_p.spring_rate_npm * s + ax_p.damping_nspm * s_dot;
+    }
+  }
+
+  void apply_aero_drag() {
+    if (p.chassis.drag_area_m2 <= 0.0) return;
+    const Vec3 v = vec(dBodyGetLinearVel(chassis));
+    const Vec3 f = -0.5 * kAirDensity * p.chassis.drag_area_m2 * v.norm() * v;
+    dBodyAddForce(chassis, f.x(), f.y(), f.z());
+  }
+
+  void find_obstacle_contacts() {
+    contacts.clear();
+    if (obstacles.empty()) return;
+    const Vec3 centre = vec(dBodyGetPosition(chassis));
+    const dGeomID geoms[5] = {chassis_geom, wheel_geoms[0], wheel_geoms[1], wheel_geoms[2],
+                              wheel_geoms[3]};
+    for (std::size_t o = 0; o < obstacles.size(); ++o) {
+      const auto& ob = obstacles[o];
+      if ((ob.centre - centre).norm() > ob.radius + vehicle_radius) continue;
+      for (dGeomID g : geoms) {
+        dContactGeom cg[kMaxContactsPerPair];
+        const int n = dCollide(g, ob.geom, kMaxContactsPerPair, cg, sizeof(dContactGeom));
+        for (int k = 0; k < n; ++k) {
+          PendingContact pc;
+          pc.contact = dContact{};
+          pc.contact.geom = cg[k];
+          pc.contact.surface.mode = dContactApprox1 | dContactSoftERP | dContactSoftCFM;
+          pc.contact.surface.mu = kObstacleFriction;
+          pc.contact.surface.soft_erp = kObstacleSoftErp;
+          pc.contact.surface.soft_cfm = kObstacleSoftCfm;
+          pc.obstacle = o;
+          pc.body = dGeomGetBody(g);
+          contacts.push_back(pc);
+        }
+      }
+    }
+    feedback.assign(contacts.size(), dJointFeedback{});
+    for (std::size_t k = 0; k < contacts.size(); ++k) {
+      dJointID j = dJointCreateContact(world, contact_group, &contacts[k].contact);
+      dJointAttach(j, contacts[k].body, nullptr);
+      dJointSetFeedback(j, &feedback[k]);
+    }
+  }
+
+  void record_collisions(double dt, bool record) {
+    if (contacts.empty()) return;
+    // Sum the contact forces on the vehicle per obstacle (contacts are grouped by obstacle).
+    std::size_t k = 0;
+    while (k < contacts.size()) {
+      const std::size_t o = contacts[k].obstacle;
+      Vec3 force = Vec3::Zero();
+      const Vec3 position = vec(contacts[k].contact.geom.pos);
+      for (; k < contacts.size() && contacts[k].obstacle == o; ++k) force += vec(feedback[k].f1);
+      ObstacleGeom& ob = obstacles[o];
+      if (record && time - ob.last_contact_s > kEpisodeGapS) {
+        collisions.push_back(CollisionContact{ob.id, force.norm() * dt, position});
+      }
+      ob.last_contact_s = time;
+    }
+    dJointGroupEmpty(contact_group);
+    contacts.clear();
+  }
+
+  void step(double dt, bool record) {
+    if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("step must be positive");
+    ensure_ode_ready();
+    set_step_size(dt);
+    const Vec3 v0 = point_velocity(chassis, reference_point());
+    const Vec3 w0 = vec(dBodyGetAngularVel(chassis));
+
+    apply_steering_and_brakes(dt);
+    apply_drive_torque(dt);
+    if (deformable) {
+      apply_deformable_forces(dt);
+    } else {
+      apply_tire_forces(dt);
+    }
+    apply_suspension_forces();
+    apply_aero_drag();
+    find_obstacle_contacts();
+
+    // ODE's solver seed is process-global: give each instance its own sequence.
+    const unsigned long outer_seed = dRandGetSeed();
+    dRandSetSeed(solver_seed);
+    dWorldStep(world, dt);
+    solver_seed = dRandGetSeed();
+    dRandSetSeed(outer_seed);
+
+    time += dt;
+    record_collisions(dt, record);
+
+    const Vec3 v1 = point_velocity(chassis, reference_point());
+    const Vec3 w1 = vec(dBodyGetAngularVel(chassis));
+    if (!finite(v1) || !finite(w1) || !finite(vec(dBodyGetPosition(chassis)))) {
+      throw std::runtime_error("vehicle dynamics diverged at t = " + std::to_string(time) + " s");
+    }
+    accel = (v1 - v0) / dt;
+    angular_accel = (w1 - w0) / dt;
+  }
+};
+
+OdeVehicleModel::OdeVehicleModel(const VehicleParams& params, const Pose& start,
+                                 std::shared_ptr<const terrain::TerrainSurface> terrain,
+                                 const world::Obstacles& obstacles,
+                                 std::shared_ptr<terrain::WheelTerrainContact> deformable) {
+  if (!terrain) throw std::invalid_argument("OdeVehicleModel needs a terrain surface");
+  ensure_ode_ready();
+  impl_ = std::make_unique<Impl>(params, std::move(terrain), std::move(deformable));
+  impl_->build(start, obstacles);
+  impl_->settle();
+}
+
+OdeVehicleModel::~OdeVehicleModel() = default;
+
+void OdeVehicleModel::set_inputs(const DriverInputs& inputs) {
+  impl_->commanded = clamp_inputs(inputs);
+  if (impl_->p.steering.rate_deg_s <= 0.0) impl_->applied.steering = impl_->commanded.steering;
+  impl_->applied.throttle = impl_->commanded.throttle;
+  impl_->applied.braking = impl_->commanded.braking;
+}
+
+void OdeVehicleModel::advance(double dt) { impl_->step(dt, true); }
+
+void OdeVehicleModel::set_speed(double forward_speed_mps) {
+  Impl& m = *impl_;
+  const Vec3 v = forward_speed_mps * (body_quat(m.chassis) * Vec3::UnitX());
+  dBodySetLinearVel(m.chassis, v.x(), v.y(), v.z());
+  dBodySetAngularVel(m.chassis, 0, 0, 0);
+  for (int i = 0; i < 4; ++i) {
+    dBodySetLinearVel(m.wheels[i], v.x(), v.y(), v.z());
+    const double r_eff = m.p.wheels.radius_m - m.diag[i].tire_deflection_m / 3.0;
+    const Vec3 w = forward_speed_mps / r_eff * m.spin_axis(i);
+    dBodySetAngularVel(m.wheels[i], w.x(), w.y(), w.z());
+    m.tire_states[i] = TireState{};
+  }
+}
+
+VehicleSnapshot OdeVehicleModel::snapshot() const {
+  const Impl& m = *impl_;
+  VehicleSnapshot s;
+  s.time_s = m.time;
+  s.pose.position = m.reference_point();
+  s.pose.orientation = body_quat(m.chassis);
+  s.linear_velocity = point_velocity(m.chassis, s.pose.position);
+  s.angular_velocity = vec(dBodyGetAngularVel(m.chassis));
+  s.linear_acceleration = m.accel;
+  s.angular_acceleration = m.angular_accel;
+  s.wheels.resize(4);
+  for (int i = 0; i < 4; ++i) {
+    WheelSnapshot& w = s.wheels[static_cast<std::size_t>(i)];
+    w.pose.position = vec(dBodyGetPosition(m.wheels[i]));
+    w.pose.orientation = body_quat(m.wheels[i]);
+    w.spin_rad_s = m.relative_spin(i);
+    w.steer_angle_rad = m.steer_angle(i);
+    w.vertical_load_n = m.diag[i].tire_normal_force_n;
+  }
+  s.inputs = m.applied;
+  s.gear = m.powertrain.gear();
+  s.engine_speed_rpm = m.powertrain.engine_rpm();
+  return s;
+}
+
+std::vector<CollisionContact> OdeVehicleModel::take_collisions() {
+  std::vector<CollisionContact> out;
+  out.swap(impl_->collisions);
+  return out;
+}
+
+std::array<OdeVehicleModel::WheelDiagnostics, 4> OdeVehicleModel::wheel_diagnostics() const {
+  return impl_->diag;
+}
+
+const VehicleParams& OdeVehicleModel::params() const { return impl_->p; }
+
+double OdeVehicleModel::time_s() const { return impl_->time; }
+
+}  // namespace syndds::vehicle

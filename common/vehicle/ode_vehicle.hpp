@@ -1,0 +1,66 @@
+#pragma once
+// Full multibody vehicle on ODE: a chassis and four wheel bodies, independent suspension per
+// wheel, Ackermann steering, engine + torque converter + automatic gearbox, AWD driveline with
+// open differentials, brakes, slip-based tires on rigid ground (or the forces of a deformable
+// terrain), and collisions with static obstacles. docs/vehicle-dynamics.md describes the model.
+//
+// The ODE world is private to each instance (ODE headers are not exposed here); several
+// instances can live and step in one process and give bit-identical results run to run.
+// Not thread-safe: step instances from one thread (ODE keeps a global solver seed, which each
+// instance saves and restores around its step).
+#include <array>
+#include <memory>
+
+#include "terrain/terrain.hpp"
+#include "vehicle/vehicle_model.hpp"
+#include "world/obstacle.hpp"
+
+namespace syndds::vehicle {
+
+class OdeVehicleModel final : public VehicleModel {
+ public:
+  /// Builds the vehicle at start (x, y, yaw; z is ignored: the vehicle is placed on the terrain)
+  /// and settles it with the brakes on, so that time 0 is at rest. If `deformable` is given,
+  /// wheel-ground forces come from it instead of the tire model (settling included).
+  OdeVehicleModel(const VehicleParams& params, const Pose& start,
+                  std::shared_ptr<const terrain::TerrainSurface> terrain,
+                  const world::Obstacles& obstacles = {},
+                  std::shared_ptr<terrain::WheelTerrainContact> deformable = nullptr);
+  ~OdeVehicleModel() override;
+  OdeVehicleModel(const OdeVehicleModel&) = delete;
+  OdeVehicleModel& operator=(const OdeVehicleModel&) = delete;
+
+  std::string_view kind() const override { return "full"; }
+  void set_inputs(const DriverInputs& inputs) override;
+  /// One dynamics step. Throws std::runtime_error if the state stops being finite.
+  void advance(double dt) override;
+  VehicleSnapshot snapshot() const override;
+  std::vector<CollisionContact> take_collisions() override;
+
+  /// Sets the vehicle rolling straight ahead at `forward_speed_mps` (chassis and wheels, tire
+  /// states reset), e.g. to start a scenario or a test at speed. Positions are kept.
+  void set_speed(double forward_speed_mps);
+
+  /// Per-wheel internals for tests and diagnostics (FL, FR, RL, RR), as of the last step.
+  struct WheelDiagnostics {
+    double suspension_compression_m = 0.0;  // from design height, positive = bump
+    double spring_force_n = 0.0;            // spring + damper + preload + bump stop
+    double tire_normal_force_n = 0.0;
+    double tire_deflection_m = 0.0;         // radial, rigid ground only
+    double slip_ratio = 0.0;
+    double slip_angle_rad = 0.0;
+    double drive_torque_nm = 0.0;
+    bool in_contact = false;
+  };
+  std::array<WheelDiagnostics, 4> wheel_diagnostics() const;
+  const VehicleParams& params() const;
+  double time_s() const;
+  /// Simulated time spent settling in the constructor (before time 0).
+  static constexpr double kSettleTimeS = 2.0;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace syndds::vehicle

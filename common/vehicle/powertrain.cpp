@@ -1,0 +1,118 @@
+#include "vehicle/powertrain.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace syndds::vehicle {
+namespace {
+constexpr double kRadPerSToRpm = 60.0 / (2.0 * std::numbers::pi);
+constexpr double kIdleAuthority = 0.2;    // max throttle the idle governor may add
+constexpr double kIdleBand = 0.1;         // governor reaches full authority 10 % below idle
+constexpr double kStoppedMps = 0.1;       // below this, throttle 0 selects neutral
+}  // namespace
+
+Powertrain::Powertrain(const VehicleParams& params)
+    : params_(params),
+      capacity_(params.converter_capacity_rpm_per_sqrt_nm()),
+      motoring_(params.engine_motoring_torque_nm()) {
+  reset();
+}
+
+void Powertrain::reset() {
+  gear_ = 0;
+  engine_speed_ = params_.engine.idle_rpm / kRadPerSToRpm;
+  turbine_rpm_ = params_.engine.idle_rpm;
+  since_shift_s_ = 1e9;
+  engine_torque_ = 0.0;
+  turbine_torque_ = 0.0;
+}
+
+double Powertrain::engine_rpm() const { return engine_speed_ * kRadPerSToRpm; }
+
+double Powertrain::overall_ratio() const {
+  if (gear_ <= 0) return 0.0;
+  return params_.transmission.forward_ratios[static_cast<std::size_t>(gear_ - 1)] *
+         params_.driveline.final_drive_ratio;
+}
+
+double Powertrain::engine_torque(double w_engine, double throttle) const {
+  const double rpm = w_engine * kRadPerSToRpm;
+  const double idle = params_.engine.idle_rpm;
+  const double governor =
+      kIdleAuthority * clamp((idle - rpm) / (kIdleBand * idle), 0.0, 1.0);
+  const double s = std::max(throttle, governor);
+  return s * params_.engine_torque_nm(rpm) -
+         (1.0 - s) * motoring_ * std::max(rpm, 0.0) / params_.engine.max_rpm;
+}
+
+std::pair<double, double> Powertrain::converter_torques(double w_engine,
+                                                        double w_turbine) const {
+  const double rpm_e = std::max(w_engine, 0.0) * kRadPerSToRpm;
+  const double rpm_t = w_turbine * kRadPerSToRpm;
+  const double k2 = capacity_ * capacity_;
+  const double sr_c = params_.transmission.converter_coupling_speed_ratio;
+  const double stall = params_.transmission.converter_stall_ratio;
+  // Coupling region (also covers rpm_e ~ 0 without dividing by it).
+  if (rpm_t >= sr_c * rpm_e) {
+    const double pump = rpm_e * (rpm_e - rpm_t) / (k2 * (1.0 - sr_c));
+    return {pump, pump};
+  }
+  const double sr = rpm_e > 0.0 ? std::max(rpm_t / rpm_e, 0.0) : 0.0;
+  const double pump = rpm_e * rpm_e / k2;
+  const double ratio = stall + (1.0 - stall) * sr / sr_c;
+  return {pump, ratio * pump};
+}
+
+double Powertrain::step(double throttle, double wheel_speed_rad_s, double vehicle_speed_mps,
+                        double dt) {
+  const auto& tr = params_.transmission;
+  const int top_gear = static_cast<int>(tr.forward_ratios.size());
+  since_shift_s_ += dt;
+
+  // Gear selection.
+  if (gear_ == 0) {
+    if (throttle > 0.0) {
+      gear_ = 1;
+      since_shift_s_ = 0.0;
+    }
+  } else if (throttle <= 0.0 && std::abs(vehicle_speed_mps) < kStoppedMps) {
+    gear_ = 0;
+  } else if (since_shift_s_ >= tr.shift_time_s) {
+    const double rpm_t = wheel_speed_rad_s / overall_ratio() * kRadPerSToRpm;
+    if (rpm_t > tr.upshift_rpm && gear_ < top_gear) {
+      ++gear_;
+      since_shift_s_ = 0.0;
+    } else if (rpm_t < tr.downshift_rpm && gear_ > 1) {
+      --gear_;
+      since_shift_s_ = 0.0;
+    }
+  }
+
+  const double ratio = overall_ratio();
+  const double w_t = gear_ > 0 ? wheel_speed_rad_s / ratio : 0.0;
+  auto net = [&](double w) {
+    const double pump = gear_ > 0 ? converter_torques(w, w_t).first : 0.0;
+    return (engine_torque(w, throttle) - pump) / params_.engine.inertia_kgm2;
+  };
+  // Engine speed: backward Euler linearised about the current speed (the converter and the
+  // governor region of the map are stiff against the small crankshaft inertia).
+  const double w0 = engine_speed_;
+  const double f0 = net(w0);
+  constexpr double kProbe = 0.5;  // rad/s
+  const double df = (net(w0 + kProbe) - f0) / kProbe;
+  double w1 = w0 + dt * f0 / (1.0 - dt * std::min(df, 0.0));
+  const double w_max = 1.5 * params_.engine.max_rpm / kRadPerSToRpm;
+  engine_speed_ = clamp(w1, 0.0, w_max);
+
+  engine_torque_ = engine_torque(engine_speed_, throttle);
+  if (gear_ == 0) {
+    turbine_rpm_ = engine_rpm();
+    turbine_torque_ = 0.0;
+    return 0.0;
+  }
+  turbine_rpm_ = w_t * kRadPerSToRpm;
+  turbine_torque_ = converter_torques(engine_speed_, w_t).second;
+  return turbine_torque_ / ratio;
+}
+
+}  // namespace syndds::vehicle

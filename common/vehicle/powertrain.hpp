@@ -1,0 +1,55 @@
+#pragma once
+// Engine + torque converter + automatic gearbox + final drive of the full vehicle (no ODE
+// here: it takes the driveline speed and returns the torque at the wheels).
+//
+// - Engine: one speed state, J dw/dt = T_engine - T_pump. T_engine = s T_full(rpm)
+//   - (1 - s) T_motoring rpm / max_rpm, with s = max(throttle, idle governor).
+// - Torque converter (speed ratio sr = w_turbine / w_pump):
+//     below the coupling point sr_c:  T_pump = (rpm / K)^2,  TR = stall + (1 - stall) sr / sr_c
+//     above it (fluid coupling):      T_pump = (rpm / K)^2 (1 - sr) / (1 - sr_c),  TR = 1
+//   T_turbine = TR T_pump; sr > 1 gives negative torque (engine braking).
+// - Gearbox: Chrono's convention, ratio = output / input speed. Upshift when the turbine
+//   exceeds upshift_rpm, downshift below downshift_rpm, at most one shift per shift_time_s.
+//   Neutral (gear 0) while throttle is 0 and the vehicle is (nearly) stopped; first gear as
+//   soon as throttle > 0. DriverInputs have no gear selector, so reverse is never engaged.
+#include "vehicle/vehicle_params.hpp"
+
+namespace syndds::vehicle {
+
+class Powertrain {
+ public:
+  explicit Powertrain(const VehicleParams& params);
+
+  /// Advances by dt. `wheel_speed_rad_s` is the driveline speed seen at the wheels (centre
+  /// differential input in wheel units), `vehicle_speed_mps` the forward speed.
+  /// Returns the total drive torque at the wheels (N m), to be split by the differentials.
+  double step(double throttle, double wheel_speed_rad_s, double vehicle_speed_mps, double dt);
+  /// Neutral, engine at idle, shift timer cleared.
+  void reset();
+
+  int gear() const { return gear_; }
+  double engine_rpm() const;
+  double turbine_rpm() const { return turbine_rpm_; }
+  double engine_torque_nm() const { return engine_torque_; }
+  double turbine_torque_nm() const { return turbine_torque_; }
+  /// Overall speed ratio wheel / turbine of the current gear (0 in neutral).
+  double overall_ratio() const;
+
+  /// Converter torques for engine speed w_e and turbine speed w_t (rad/s): (pump, turbine).
+  std::pair<double, double> converter_torques(double w_engine, double w_turbine) const;
+  /// Engine torque at w_e (rad/s) for a throttle, including the idle governor.
+  double engine_torque(double w_engine, double throttle) const;
+
+ private:
+  VehicleParams params_;
+  double capacity_ = 1.0;        // K, rpm / sqrt(N m)
+  double motoring_ = 0.0;        // N m at max_rpm
+  int gear_ = 0;
+  double engine_speed_ = 0.0;    // rad/s
+  double turbine_rpm_ = 0.0;
+  double since_shift_s_ = 1e9;
+  double engine_torque_ = 0.0;
+  double turbine_torque_ = 0.0;
+};
+
+}  // namespace syndds::vehicle
