@@ -1,0 +1,112 @@
+#!/usr/bin/env bash
+# Three "hosts" on one machine: network namespaces joined by a bridge, each host with its own
+# /dev/shm (processes of one host share it, as on a real machine; no host sees another's) and
+# its own copy of config/. The
+# coordinator and recorder run on host 1, the vehicles on host 2, the controllers on host 3.
+# The recorded run must equal the single-process run byte for byte.
+#
+#   multihost.sh multicast          default discovery (multicast on the bridge)
+#   multihost.sh discovery-server   no multicast route anywhere; a Fast DDS discovery server
+#                                   on host 1 (the setup for networks without multicast)
+#   multihost.sh udp                like multicast, with --transport udp
+# Needs root (ip netns); exits 77 (skipped) without it.
+set -euo pipefail
+MODE=${1:-multicast}
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+BIN=${SYNDDS_BIN_DIR:-$ROOT/build/bin}
+[ "$(id -u)" -eq 0 ] && ip netns list > /dev/null 2>&1 || { echo "multihost: needs root"; exit 77; }
+
+TAG=sy$$
+WORK=$(mktemp -d)
+HOSTS=(h1 h2 h3)
+cleanup() {
+  for p in $(jobs -p); do { kill -9 "$p" && wait "$p"; } 2> /dev/null || true; done
+  for h in "${HOSTS[@]}"; do
+    ip netns del "$TAG$h" 2> /dev/null || true
+    umount "$WORK/$h/shm" 2> /dev/null || true
+  done
+  ip netns del "${TAG}br" 2> /dev/null || true
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+# Network: a bridge in its own namespace, one veth per host, 10.77.x.0/24.
+NET=10.77.$(( $$ % 200 + 20 ))
+ip netns add "${TAG}br"
+ip -n "${TAG}br" link add br0 type bridge
+ip -n "${TAG}br" link set br0 up
+i=0
+for h in "${HOSTS[@]}"; do
+  i=$((i + 1))
+  ip netns add "$TAG$h"
+  ip link add "$TAG${h}a" type veth peer name "$TAG${h}b"
+  ip link set "$TAG${h}a" netns "$TAG$h"
+  ip link set "$TAG${h}b" netns "${TAG}br"
+  ip -n "$TAG$h" link set lo up
+  ip -n "$TAG$h" link set "$TAG${h}a" name eth0
+  ip -n "$TAG$h" addr add "$NET.$i/24" dev eth0
+  ip -n "$TAG$h" link set eth0 up
+  ip -n "${TAG}br" link set "$TAG${h}b" master br0
+  ip -n "${TAG}br" link set "$TAG${h}b" up
+  if [ "$MODE" = discovery-server ]; then
+    ip -n "$TAG$h" link set eth0 multicast off
+  else
+    ip -n "$TAG$h" route add 224.0.0.0/4 dev eth0
+  fi
+  # Each host has its own copy of the configuration: nothing is shared on disk.
+  mkdir -p "$WORK/$h/shm"
+  mount -t tmpfs tmpfs "$WORK/$h/shm"
+  cp -r "$ROOT/config" "$WORK/$h/config"
+  cp "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" "$WORK/$h/scenario.yaml"
+done
+
+on_host() {  # host log command... : run in the host's network namespace and /dev/shm
+  local h=$1 log=$2; shift 2
+  ip netns exec "$TAG$h" unshare -m sh -c 'mount --bind "$0" /dev/shm && exec "$@"' \
+    "$WORK/$h/shm" "$@" > "$log" 2>&1 &
+}
+
+EXTRA=()
+case "$MODE" in
+  multicast) ;;
+  udp) EXTRA=(--transport udp) ;;
+  discovery-server)
+    on_host h1 "$WORK/discovery.log" fast-discovery-server -i 0 -l "$NET.1" -p 11811
+    EXTRA=(--discovery-server "$NET.1:11811") ;;
+  *) echo "multihost: unknown mode $MODE" >&2; exit 2 ;;
+esac
+
+RUN_ID=multihost-$$
+plan() {  # host -> plan lines for that host's copy
+  "$BIN/syndds_plan" "$WORK/$1/scenario.yaml" --format launcher --run-id "$RUN_ID" --domain 3 \
+    --config-dir "$WORK/$1/config" --output "$WORK/$1/out" --bin-dir "$BIN" "${EXTRA[@]}"
+}
+host_of() {
+  case "$1" in
+    coordinator|recorder) echo h1 ;;
+    vehicle/*) echo h2 ;;
+    *) echo h3 ;;
+  esac
+}
+pids=()
+for h in "${HOSTS[@]}"; do
+  while IFS=$'\t' read -r member cmd; do
+    [ "$(host_of "$member")" = "$h" ] || continue
+    on_host "$h" "$WORK/${member//\//_}.log" sh -c "exec $cmd"
+    pids+=($!)
+  done < <(plan "$h")
+done
+
+status=0
+for p in "${pids[@]}"; do
+  wait "$p" || status=1
+done
+if [ $status -ne 0 ] || [ ! -f "$WORK/h1/out/vehicles.csv" ]; then
+  echo "multihost ($MODE): a process failed"; tail -n 5 "$WORK"/*.log; exit 1
+fi
+"$BIN/syndds_sim" "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" --quiet \
+  --output "$WORK/single" > /dev/null
+if ! cmp "$WORK/h1/out/vehicles.csv" "$WORK/single/vehicles.csv"; then
+  echo "multihost ($MODE): recorded run differs from the single-process run"; exit 1
+fi
+echo "multihost ($MODE): 3 hosts, $(($(wc -l < "$WORK/h1/out/vehicles.csv") - 1)) rows, identical to the single-process run"
