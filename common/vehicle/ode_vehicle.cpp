@@ -26,7 +26,10 @@ constexpr double kSteerStopMarginRad = 0.05;
 constexpr double kObstacleFriction = 0.5;
 constexpr double kObstacleSoftCfm = 1e-7;
 constexpr double kObstacleSoftErp = 0.2;
-constexpr double kEpisodeGapS = 0.5;         // contact-free time that ends a collision episode
+// A collision episode with an obstacle ends when the vehicle has been free of it for this long
+// and the obstacle is outside the vehicle's broad-phase sphere (so front and rear wheels
+// rolling over one rock, or pushing against a wall, make one episode).
+constexpr double kEpisodeGapS = 0.5;
 constexpr int kMaxContactsPerPair = 4;
 constexpr double kRollingResistanceSpeedMps = 0.1;  // smooth sign of the resistance moment
 constexpr double kBumpStopFactor = 20.0;     // bump stop rate = factor x spring rate (default)
@@ -74,6 +77,7 @@ struct OdeVehicleModel::Impl {
     Vec3 centre = Vec3::Zero();
     double radius = 0.0;               // bounding sphere
     double last_contact_s = -std::numeric_limits<double>::infinity();
+    bool episode_open = false;         // a collision episode with this obstacle is running
   };
   struct PendingContact {
     dContact contact;
@@ -299,7 +303,10 @@ struct OdeVehicleModel::Impl {
     accel.setZero();
     angular_accel.setZero();
     collisions.clear();
-    for (auto& o : obstacles) o.last_contact_s = -std::numeric_limits<double>::infinity();
+    for (auto& o : obstacles) {
+      o.last_contact_s = -std::numeric_limits<double>::infinity();
+      o.episode_open = false;
+    }
   }
 
   // --- state helpers -----------------------------------------------------------------------
@@ -498,8 +505,12 @@ struct OdeVehicleModel::Impl {
     const dGeomID geoms[5] = {chassis_geom, wheel_geoms[0], wheel_geoms[1], wheel_geoms[2],
                               wheel_geoms[3]};
     for (std::size_t o = 0; o < obstacles.size(); ++o) {
-      const auto& ob = obstacles[o];
-      if ((ob.centre - centre).norm() > ob.radius + vehicle_radius) continue;
+      auto& ob = obstacles[o];
+      if ((ob.centre - centre).norm() > ob.radius + vehicle_radius) {
+        // Out of reach: an episode ends once the vehicle has also been free of it for a while.
+        if (ob.episode_open && time - ob.last_contact_s > kEpisodeGapS) ob.episode_open = false;
+        continue;
+      }
       for (dGeomID g : geoms) {
         dContactGeom cg[kMaxContactsPerPair];
         const int n = dCollide(g, ob.geom, kMaxContactsPerPair, cg, sizeof(dContactGeom));
@@ -535,9 +546,10 @@ struct OdeVehicleModel::Impl {
       const Vec3 position = vec(contacts[k].contact.geom.pos);
       for (; k < contacts.size() && contacts[k].obstacle == o; ++k) force += vec(feedback[k].f1);
       ObstacleGeom& ob = obstacles[o];
-      if (record && time - ob.last_contact_s > kEpisodeGapS) {
+      if (record && !ob.episode_open) {
         collisions.push_back(CollisionContact{ob.id, force.norm() * dt, position});
       }
+      ob.episode_open = record;
       ob.last_contact_s = time;
     }
     dJointGroupEmpty(contact_group);

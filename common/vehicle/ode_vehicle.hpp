@@ -35,6 +35,10 @@ class OdeVehicleModel final : public VehicleModel {
   /// One dynamics step. Throws std::runtime_error if the state stops being finite.
   void advance(double dt) override;
   VehicleSnapshot snapshot() const override;
+  /// Obstacle hits since the last call, one per episode, reported in the step contact began:
+  /// impulse = normal contact impulse of that first step (ODE contacts are velocity
+  /// constraints, so this is most of the hit), position = first contact point. An episode
+  /// lasts until the vehicle has been free of the obstacle for 0.5 s and is out of its reach.
   std::vector<CollisionContact> take_collisions() override;
 
   /// Sets the vehicle rolling straight ahead at `forward_speed_mps` (chassis and wheels, tire

@@ -72,7 +72,13 @@ double Powertrain::step(double throttle, double wheel_speed_rad_s, double vehicl
   // Gear selection.
   if (gear_ == 0) {
     if (throttle > 0.0) {
+      // Engage the lowest gear whose turbine speed stays below the upshift speed (first gear
+      // from standstill; the right gear when the vehicle is already rolling).
       gear_ = 1;
+      while (gear_ < top_gear && wheel_speed_rad_s / overall_ratio() * kRadPerSToRpm >
+                                     tr.upshift_rpm) {
+        ++gear_;
+      }
       since_shift_s_ = 0.0;
     }
   } else if (throttle <= 0.0 && std::abs(vehicle_speed_mps) < kStoppedMps) {

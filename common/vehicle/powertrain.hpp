@@ -10,8 +10,9 @@
 //   T_turbine = TR T_pump; sr > 1 gives negative torque (engine braking).
 // - Gearbox: Chrono's convention, ratio = output / input speed. Upshift when the turbine
 //   exceeds upshift_rpm, downshift below downshift_rpm, at most one shift per shift_time_s.
-//   Neutral (gear 0) while throttle is 0 and the vehicle is (nearly) stopped; first gear as
-//   soon as throttle > 0. DriverInputs have no gear selector, so reverse is never engaged.
+//   Neutral (gear 0) while throttle is 0 and the vehicle is (nearly) stopped; with throttle > 0
+//   it engages the lowest gear whose turbine speed is below upshift_rpm (first gear from
+//   standstill). DriverInputs have no gear selector, so reverse is never engaged.
 #include "vehicle/vehicle_params.hpp"
 
 namespace syndds::vehicle {

@@ -421,3 +421,29 @@ TEST(OdeVehicle, SnapshotDescribesTheVehicle) {
   EXPECT_GT(after.engine_speed_rpm, p.engine.idle_rpm);
   EXPECT_THROW(m.advance(0.0), std::invalid_argument);
 }
+
+// Rolling over a rock with the front and then the rear wheel is one episode; each rock counts.
+TEST(OdeVehicle, RollingOverRocksCountsEachRockOnce) {
+  const auto p = load("hmmwv");
+  world::Obstacles rocks;
+  for (int k = 0; k < 2; ++k) {
+    world::Obstacle r;
+    r.id = "rock" + std::to_string(k);
+    r.label = "rock";
+    r.shape = world::ShapeKind::sphere;
+    r.size = Vec3(0.3, 0, 0);
+    r.pose.position = Vec3(15.0 + 12.0 * k, k == 0 ? p.front.half_track_m : -p.front.half_track_m,
+                           0.0);
+    rocks.push_back(r);
+  }
+  OdeVehicleModel m(p, Pose{}, flat(), rocks);
+  std::vector<std::string> hits;
+  for (int k = 0; k < 800; ++k) {
+    drive(m, 0.01, 6.0, 0.0);
+    for (const auto& c : m.take_collisions()) hits.push_back(c.obstacle_id);
+  }
+  EXPECT_EQ(hits, (std::vector<std::string>{"rock0", "rock1"}));
+  const auto s = m.snapshot();
+  EXPECT_GT(s.pose.position.x(), 35.0);  // climbed over both
+  EXPECT_LT(std::abs(s.pose.position.y()), 2.0);  // deflected a little, no steering
+}

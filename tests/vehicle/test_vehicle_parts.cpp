@@ -146,6 +146,12 @@ TEST(Powertrain, ShiftsAtTheConfiguredSpeeds) {
   // Stopped with the throttle closed: neutral.
   pt.step(0.0, 0.0, 0.0, 0.002);
   EXPECT_EQ(pt.gear(), 0);
+  // Engaging while rolling picks the gear that fits the speed: here third gear.
+  const double ratio3 = p.transmission.forward_ratios[2] * p.driveline.final_drive_ratio;
+  pt.step(0.5, 0.9 * p.transmission.upshift_rpm * to_rad * ratio3, 15.0, 0.002);
+  EXPECT_EQ(pt.gear(), 3);
+  pt.step(0.0, 0.0, 0.0, 0.002);
+  EXPECT_EQ(pt.gear(), 0);
   // Idle governor holds the engine near idle in neutral.
   for (int i = 0; i < 5000; ++i) pt.step(0.0, 0.0, 0.0, 0.002);
   EXPECT_NEAR(pt.engine_rpm(), p.engine.idle_rpm, 0.05 * p.engine.idle_rpm);
