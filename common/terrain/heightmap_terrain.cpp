@@ -14,6 +14,10 @@ namespace syndds::terrain {
 namespace {
 
 std::vector<double> read_image_heights(const HeightmapSpec& spec, int& columns, int& rows) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(spec.image_file, ec)) {
+    throw ConfigError(spec.image_file + ": cannot read height-map image (no such file)");
+  }
   const cv::Mat img = cv::imread(spec.image_file, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
   if (img.empty()) throw ConfigError(spec.image_file + ": cannot read height-map image");
   double g_max = 0.0;
@@ -122,7 +126,12 @@ Vec3 HeightmapTerrain::normal(double x, double y) const {
     const double g1 = (1 - tx) * g[index(i, j + 1)] + tx * g[index(i + 1, j + 1)];
     return (1 - ty) * g0 + ty * g1;
   };
-  return Vec3(-lerp(gx_), -lerp(gy_), 1.0).normalized();
+  // Beyond the border the height is constant across it: no slope in that direction.
+  const bool outside_x = x < x_min_ || x > x_min_ + (nx_ - 1) * dx_;
+  const bool outside_y = y < y_min_ || y > y_min_ + (ny_ - 1) * dy_;
+  const double gx = outside_x ? 0.0 : lerp(gx_);
+  const double gy = outside_y ? 0.0 : lerp(gy_);
+  return Vec3(-gx, -gy, 1.0).normalized();
 }
 
 HeightmapSpec parse_heightmap_spec(const YamlNode& node, const std::string& base_dir) {

@@ -2,7 +2,8 @@
 // Rigid terrain from a height map: a regular grid of heights read from a grey image (8 or 16
 // bit, via OpenCV) or given directly. Heights are bilinear between grid vertices; normals come
 // from the grid (central differences at the vertices, one-sided at the border, interpolated
-// bilinearly and normalised). Outside the map the border values continue.
+// bilinearly and normalised). Outside the map the border heights continue (constant across
+// the border, so the normal there has no slope in that direction).
 //
 // Image convention (as Chrono's height-map patches): the image covers size_x_m x size_y_m
 // centred on centre_m; column 0 is the west edge (min x), row 0 the north edge (max y); pixel

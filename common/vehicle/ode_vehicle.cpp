@@ -608,6 +608,10 @@ OdeVehicleModel::OdeVehicleModel(const VehicleParams& params, const Pose& start,
 OdeVehicleModel::~OdeVehicleModel() = default;
 
 void OdeVehicleModel::set_inputs(const DriverInputs& inputs) {
+  if (!std::isfinite(inputs.steering) || !std::isfinite(inputs.throttle) ||
+      !std::isfinite(inputs.braking)) {
+    throw std::invalid_argument("driver inputs must be finite numbers");
+  }
   impl_->commanded = clamp_inputs(inputs);
   if (impl_->p.steering.rate_deg_s <= 0.0) impl_->applied.steering = impl_->commanded.steering;
   impl_->applied.throttle = impl_->commanded.throttle;

@@ -31,6 +31,7 @@ class OdeVehicleModel final : public VehicleModel {
   OdeVehicleModel& operator=(const OdeVehicleModel&) = delete;
 
   std::string_view kind() const override { return "full"; }
+  /// Clamps to the ranges; throws std::invalid_argument on NaN or infinite values.
   void set_inputs(const DriverInputs& inputs) override;
   /// One dynamics step. Throws std::runtime_error if the state stops being finite.
   void advance(double dt) override;

@@ -56,8 +56,10 @@ TEST(HeightmapTerrain, SixteenBitPlaneGivesHeightsAndNormals) {
     }
   }
   EXPECT_DOUBLE_EQ(t.friction(0, 0), 0.6);
-  // Outside the map the border continues.
+  // Outside the map the border continues: constant across the border, slope along it.
   EXPECT_NEAR(t.height(x_min - 50, y_min), 2.0, quantum);
+  EXPECT_NEAR(t.height(x_min - 50, y_min + 10), 2.0 + 0.02 * 10, quantum);
+  EXPECT_LT((t.normal(x_min - 50, y_min + 10) - Vec3(0, -0.02, 1).normalized()).norm(), 1e-4);
 }
 
 // An 8-bit image with one bump: vertex heights, bilinear between vertices, orientation

@@ -420,6 +420,7 @@ TEST(OdeVehicle, SnapshotDescribesTheVehicle) {
   EXPECT_GT(after.gear, 0);
   EXPECT_GT(after.engine_speed_rpm, p.engine.idle_rpm);
   EXPECT_THROW(m.advance(0.0), std::invalid_argument);
+  EXPECT_THROW(m.set_inputs({std::nan(""), 0.0, 0.0}), std::invalid_argument);
 }
 
 // Rolling over a rock with the front and then the rear wheel is one episode; each rock counts.
