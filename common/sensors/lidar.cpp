@@ -1,0 +1,248 @@
+#include "sensors/lidar.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+
+#include "sensors/random.hpp"
+
+namespace syndds::sensors {
+namespace {
+constexpr int kSamplesPerTask = 32;  // azimuth samples per thread-pool task
+}
+
+LidarRenderer::LidarRenderer(const LidarConfig& config) : config_(config), pool_(config.threads) {
+  if (config.channels < 1 || config.channels > 1024 || config.samples < 1 ||
+      config.samples > 65535) {
+    throw std::invalid_argument(config.id + ": channels must be 1..1024, samples 1..65535");
+  }
+  if (!(config.max_range_m > config.min_range_m) || config.min_range_m < 0.0) {
+    throw std::invalid_argument(config.id + ": need 0 <= min_range_m < max_range_m");
+  }
+  if (config.vfov_max_deg < config.vfov_min_deg || config.hfov_max_deg < config.hfov_min_deg ||
+      config.hfov_max_deg - config.hfov_min_deg > 360.0 + 1e-9 || config.vfov_min_deg < -90.0 ||
+      config.vfov_max_deg > 90.0) {
+    throw std::invalid_argument(config.id + ": bad field of view");
+  }
+  if (config.beam_samples < 1) throw std::invalid_argument(config.id + ": beam_samples >= 1");
+  const int sub = config.beam_samples;
+  directions_.resize(static_cast<std::size_t>(beams()) * sub * 3);
+  std::size_t r = 0;
+  for (int s = 0; s < config.samples; ++s) {
+    for (int c = 0; c < config.channels; ++c) {
+      const double az = azimuth_rad(s), el = elevation_rad(c);
+      const Vec3 d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+      Vec3 e1 = d.cross(Vec3::UnitZ());
+      if (e1.norm() < 1e-6) e1 = d.cross(Vec3::UnitX());
+      e1.normalize();
+      const Vec3 e2 = d.cross(e1);
+      const double half = 0.5 * config.divergence_rad;
+      for (int j = 0; j < sub; ++j, ++r) {
+        Vec3 v = d;
+        if (j > 0) {
+          const double phi = 2.0 * std::numbers::pi * (j - 1) / (sub - 1);
+          v = std::cos(half) * d + std::sin(half) * (std::cos(phi) * e1 + std::sin(phi) * e2);
+        }
+        for (int k = 0; k < 3; ++k) directions_[3 * r + k] = static_cast<float>(v[k]);
+      }
+    }
+  }
+  hits_range_.resize(static_cast<std::size_t>(beams()) * sub);
+  hits_intensity_.resize(hits_range_.size());
+}
+
+double LidarRenderer::elevation_rad(int channel) const {
+  if (config_.channels == 1) return deg_to_rad(0.5 * (config_.vfov_min_deg + config_.vfov_max_deg));
+  return deg_to_rad(config_.vfov_min_deg + channel * (config_.vfov_max_deg - config_.vfov_min_deg) /
+                                               (config_.channels - 1));
+}
+
+double LidarRenderer::azimuth_rad(int sample) const {
+  const double span = config_.hfov_max_deg - config_.hfov_min_deg;
+  const bool full = span >= 360.0 - 1e-9;
+  const double step = full || config_.samples == 1 ? span / config_.samples
+                                                   : span / (config_.samples - 1);
+  return deg_to_rad(config_.hfov_min_deg + sample * step);
+}
+
+void LidarRenderer::render(const Scene& scene, const Pose& pose, std::vector<BeamReturn>& out,
+                           int hidden_vehicle_slot) {
+  if (!scene.committed()) throw std::logic_error("lidar render: scene not committed");
+  const int sub = config_.beam_samples;
+  const int rays_per_sample = config_.channels * sub;
+  const Eigen::Matrix3d rot = pose.orientation.toRotationMatrix();
+  float m[9], o[3];
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) m[3 * i + j] = static_cast<float>(rot(i, j));
+    o[i] = static_cast<float>(pose.position[i]);
+  }
+  const auto tnear = static_cast<float>(config_.min_range_m);
+  const auto tfar = static_cast<float>(config_.max_range_m);
+  RTCScene handle = scene.handle();
+  const int tasks = (config_.samples + kSamplesPerTask - 1) / kSamplesPerTask;
+  pool_.run(tasks, [&](int task) {
+    const int s0 = task * kSamplesPerTask, s1 = std::min(config_.samples, s0 + kSamplesPerTask);
+    const std::size_t r0 = static_cast<std::size_t>(s0) * rays_per_sample;
+    const std::size_t r1 = static_cast<std::size_t>(s1) * rays_per_sample;
+    HidingContext ctx;
+    init_hiding_context(ctx, hidden_vehicle_slot, false);
+    alignas(64) RTCRayHit16 rh;
+    alignas(64) int valid[16];
+    float dir[16][3];
+    for (std::size_t base = r0; base < r1; base += 16) {
+      for (int l = 0; l < 16; ++l) {
+        const std::size_t r = base + static_cast<std::size_t>(l);
+        valid[l] = r < r1 ? -1 : 0;
+        if (!valid[l]) continue;
+        const float* d = &directions_[3 * r];
+        for (int i = 0; i < 3; ++i) dir[l][i] = m[3 * i] * d[0] + m[3 * i + 1] * d[1] + m[3 * i + 2] * d[2];
+        rh.ray.org_x[l] = o[0];
+        rh.ray.org_y[l] = o[1];
+        rh.ray.org_z[l] = o[2];
+        rh.ray.dir_x[l] = dir[l][0];
+        rh.ray.dir_y[l] = dir[l][1];
+        rh.ray.dir_z[l] = dir[l][2];
+        rh.ray.tnear[l] = tnear;
+        rh.ray.tfar[l] = tfar;
+        rh.ray.time[l] = 0.0f;
+        rh.ray.mask[l] = 0xFFFFFFFFu;
+        rh.ray.id[l] = static_cast<unsigned>(l);
+        rh.ray.flags[l] = 0;
+        rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+      }
+      rtcIntersect16(valid, handle, &ctx.context, &rh);
+      for (int l = 0; l < 16; ++l) {
+        if (!valid[l]) continue;
+        const std::size_t r = base + static_cast<std::size_t>(l);
+        if (rh.hit.geomID[l] == RTC_INVALID_GEOMETRY_ID) {
+          hits_range_[r] = -1.0f;
+          hits_intensity_[r] = 0.0f;
+          continue;
+        }
+        const float n[3] = {rh.hit.Ng_x[l], rh.hit.Ng_y[l], rh.hit.Ng_z[l]};
+        const float nl = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const float cosi =
+            std::abs(n[0] * dir[l][0] + n[1] * dir[l][1] + n[2] * dir[l][2]) / std::max(nl, 1e-30f);
+        const Surface& s = scene.surface(rh.hit.geomID[l]);
+        const float refl =
+            rh.hit.primID[l] >= s.secondary_first_prim ? s.secondary_reflectance : s.reflectance;
+        hits_range_[r] = rh.ray.tfar[l];
+        hits_intensity_[r] = refl * cosi;
+      }
+    }
+    // Reduce sub-rays to one return per beam.
+    for (int s = s0; s < s1; ++s) {
+      for (int c = 0; c < config_.channels; ++c) {
+        const std::size_t beam = static_cast<std::size_t>(s) * config_.channels + c;
+        const std::size_t first = beam * sub;
+        BeamReturn ret;
+        if (sub == 1) {
+          ret = {hits_range_[first], hits_intensity_[first]};
+        } else {
+          int hits = 0;
+          float sum_range = 0.0f, sum_intensity = 0.0f;
+          float best_range = std::numeric_limits<float>::infinity(), best_intensity = -1.0f;
+          float nearest_intensity = 0.0f, strongest_range = 0.0f;
+          for (int j = 0; j < sub; ++j) {
+            const float rr = hits_range_[first + j], ii = hits_intensity_[first + j];
+            if (rr <= 0.0f) continue;
+            ++hits;
+            sum_range += rr;
+            sum_intensity += ii;
+            if (rr < best_range) {
+              best_range = rr;
+              nearest_intensity = ii;
+            }
+            if (ii > best_intensity) {
+              best_intensity = ii;
+              strongest_range = rr;
+            }
+          }
+          if (hits == 0) {
+            ret = {-1.0f, 0.0f};
+          } else {
+            switch (config_.return_mode) {
+              case LidarReturnMode::nearest: ret = {best_range, nearest_intensity}; break;
+              case LidarReturnMode::strongest: ret = {strongest_range, best_intensity}; break;
+              case LidarReturnMode::mean:
+                ret = {sum_range / static_cast<float>(hits), sum_intensity / static_cast<float>(sub)};
+                break;
+            }
+          }
+        }
+        out[beam] = ret;
+      }
+    }
+  });
+}
+
+LidarSensor::LidarSensor(const LidarConfig& config, std::string vehicle_id, std::uint64_t seed,
+                         double tick_s)
+    : config_(config),
+      vehicle_id_(std::move(vehicle_id)),
+      seed_(seed),
+      renderer_(config),
+      clock_(config.rate_hz, config.lag_s, tick_s, config.id) {
+  returns_.resize(static_cast<std::size_t>(renderer_.beams()));
+}
+
+Pose LidarSensor::sensor_pose(const Scene& scene) const {
+  if (vehicle_id_.empty()) return config_.mount.pose;
+  const auto vehicle = scene.vehicle_pose(vehicle_id_);
+  if (!vehicle) throw std::runtime_error(config_.id + ": vehicle '" + vehicle_id_ + "' not in scene");
+  Pose p;
+  p.position = vehicle->position + vehicle->orientation * config_.mount.pose.position;
+  p.orientation = vehicle->orientation * config_.mount.pose.orientation;
+  return p;
+}
+
+LidarScan LidarSensor::scan(const Scene& scene, std::uint64_t noise_index) {
+  LidarScan out;
+  out.sensor_id = config_.id;
+  out.pose = sensor_pose(scene);
+  out.channels = config_.channels;
+  out.samples = config_.samples;
+  const int hidden =
+      config_.hide_own_vehicle && !vehicle_id_.empty() ? scene.vehicle_slot(vehicle_id_) : -1;
+  renderer_.render(scene, out.pose, returns_, hidden);
+  NormalRng rng(mix64(seed_ ^ mix64(noise_index + 0x11DA)));
+  const double sr = config_.range_noise_std_m, sa = config_.angle_noise_std_rad;
+  for (int s = 0; s < config_.samples; ++s) {
+    for (int c = 0; c < config_.channels; ++c) {
+      const BeamReturn& r = returns_[static_cast<std::size_t>(s) * config_.channels + c];
+      if (r.range <= 0.0f) continue;
+      // Fixed draw order per return: range, azimuth, elevation.
+      const double range = r.range + rng.normal(sr);
+      const double az = renderer_.azimuth_rad(s) + rng.normal(sa);
+      const double el = renderer_.elevation_rad(c) + rng.normal(sa);
+      LidarPoint p;
+      p.x = static_cast<float>(range * std::cos(el) * std::cos(az));
+      p.y = static_cast<float>(range * std::cos(el) * std::sin(az));
+      p.z = static_cast<float>(range * std::sin(el));
+      p.range = static_cast<float>(range);
+      p.intensity = r.intensity;
+      p.channel = static_cast<std::uint16_t>(c);
+      p.sample = static_cast<std::uint16_t>(s);
+      out.points.push_back(p);
+    }
+  }
+  return out;
+}
+
+void LidarSensor::update(const Scene& scene, double time_s) {
+  const std::int64_t tick = clock_.tick_of(time_s);
+  if (const auto k = clock_.trigger(tick)) {
+    LidarScan s = scan(scene, *k);
+    s.stamp = clock_.stamp(*k, tick);
+    queue_.push(std::move(s), tick + clock_.lag_ticks());
+  }
+}
+
+std::vector<LidarScan> LidarSensor::take_available(double now_s) {
+  return queue_.take_ready(clock_.tick_of(now_s));
+}
+
+}  // namespace syndds::sensors

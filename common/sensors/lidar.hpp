@@ -1,0 +1,114 @@
+#pragma once
+// Lidar: channels x horizontal samples of beams from a mounting pose, ray traced with Embree
+// (16-ray packets along consecutive beams). Sensor frame: x forward, y left, z up; azimuth
+// from x towards y, elevation up. Channel c sits at vfov_min + c * (vfov_max - vfov_min) /
+// (channels - 1); sample s at hfov_min + s * span / samples for a full turn (no duplicate),
+// else span / (samples - 1).
+//
+// Per beam: optional divergence (beam_samples sub-rays: the centre plus a ring at half the
+// divergence angle), reduced by return mode (nearest, strongest intensity, or mean range);
+// intensity = reflectance of the surface * |cos(incidence)| (mean mode: summed over sub-rays
+// / beam_samples). Noise: Gaussian on the range and on the reported azimuth and elevation.
+// A scan is taken at one instant (no rolling-shutter motion within the turn).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.hpp"
+#include "sensors/interoceptive.hpp"
+#include "sensors/scene.hpp"
+#include "sensors/thread_pool.hpp"
+#include "sensors/timing.hpp"
+
+namespace syndds::sensors {
+
+enum class LidarReturnMode { nearest, strongest, mean };
+
+struct LidarConfig {
+  std::string id = "lidar";
+  double rate_hz = 10.0;
+  double lag_s = 0.1;
+  Mount mount;
+  int channels = 16;
+  int samples = 900;
+  double vfov_min_deg = -15.0;
+  double vfov_max_deg = 15.0;
+  double hfov_min_deg = -180.0;
+  double hfov_max_deg = 180.0;
+  double min_range_m = 0.3;
+  double max_range_m = 100.0;
+  double range_noise_std_m = 0.01;
+  double angle_noise_std_rad = 0.001;
+  double divergence_rad = 0.003;
+  int beam_samples = 1;              // 1: one ray per beam (divergence ignored)
+  LidarReturnMode return_mode = LidarReturnMode::nearest;
+  bool hide_own_vehicle = true;
+  int threads = 1;
+};
+
+struct LidarPoint {
+  float x = 0, y = 0, z = 0;         // sensor frame, metres
+  float intensity = 0;               // [0, 1]
+  float range = 0;                   // metres
+  std::uint16_t channel = 0;
+  std::uint16_t sample = 0;
+};
+
+struct LidarScan {
+  std::string sensor_id;
+  SampleStamp stamp;
+  Pose pose;                         // world pose of the sensor
+  int channels = 0;
+  int samples = 0;
+  std::vector<LidarPoint> points;    // beams with a return, in (sample, channel) order
+};
+
+/// Noiseless return of one beam (range <= 0: nothing within range).
+struct BeamReturn {
+  float range = 0.0f;
+  float intensity = 0.0f;
+};
+
+class LidarRenderer {
+ public:
+  /// Throws std::invalid_argument for a malformed geometry (channels, samples, ranges).
+  explicit LidarRenderer(const LidarConfig& config);
+  int beams() const { return config_.channels * config_.samples; }
+  double elevation_rad(int channel) const;
+  double azimuth_rad(int sample) const;
+  /// Traces every beam from `pose`; out[sample * channels + channel].
+  void render(const Scene& scene, const Pose& pose, std::vector<BeamReturn>& out,
+              int hidden_vehicle_slot = -1);
+
+ private:
+  LidarConfig config_;
+  ThreadPool pool_;
+  std::vector<float> directions_;  // per ray (beam-major, sub-rays inner), sensor frame xyz
+  std::vector<float> hits_range_;
+  std::vector<float> hits_intensity_;
+};
+
+class LidarSensor {
+ public:
+  LidarSensor(const LidarConfig& config, std::string vehicle_id, std::uint64_t seed,
+              double tick_s);
+  /// Feed once per frame after the scene holds that frame's state (committed).
+  void update(const Scene& scene, double time_s);
+  std::vector<LidarScan> take_available(double now_s);
+  /// Scans now (bypasses rate and lag); `noise_index` selects the noise draw.
+  LidarScan scan(const Scene& scene, std::uint64_t noise_index);
+  Pose sensor_pose(const Scene& scene) const;
+  const LidarConfig& config() const { return config_; }
+  const LidarRenderer& renderer() const { return renderer_; }
+
+ private:
+  LidarConfig config_;
+  std::string vehicle_id_;
+  std::uint64_t seed_;
+  LidarRenderer renderer_;
+  SampleClock clock_;
+  LagQueue<LidarScan> queue_;
+  std::vector<BeamReturn> returns_;
+};
+
+}  // namespace syndds::sensors

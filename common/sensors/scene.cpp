@@ -1,0 +1,507 @@
+#include "sensors/scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numbers>
+#include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+
+namespace syndds::sensors {
+namespace {
+
+// Drops hits on the vehicle a sensor rides on (see HidingContext).
+void hide_vehicle_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* ctx = reinterpret_cast<const HidingContext*>(args->context);
+  const int slot = static_cast<int>(reinterpret_cast<std::intptr_t>(args->geometryUserPtr));
+  if (ctx->hidden_slot != slot) return;
+  for (unsigned i = 0; i < args->N; ++i) args->valid[i] = 0;
+}
+
+// Closed cylinder around the local axis `axis` (1: y for wheels, 2: z for obstacles):
+// two rings of `segments` vertices, then the two cap centres.
+std::vector<Vec3> cylinder_vertices(double radius, double half_length, int axis, int segments) {
+  std::vector<Vec3> v;
+  v.reserve(2 * static_cast<std::size_t>(segments) + 2);
+  for (int side = 0; side < 2; ++side) {
+    const double h = side == 0 ? -half_length : half_length;
+    for (int s = 0; s < segments; ++s) {
+      const double a = 2.0 * std::numbers::pi * s / segments;
+      const double c = radius * std::cos(a), d = radius * std::sin(a);
+      v.push_back(axis == 1 ? Vec3(c, h, d) : Vec3(c, d, h));
+    }
+  }
+  v.push_back(axis == 1 ? Vec3(0, -half_length, 0) : Vec3(0, 0, -half_length));
+  v.push_back(axis == 1 ? Vec3(0, half_length, 0) : Vec3(0, 0, half_length));
+  return v;
+}
+
+void cylinder_triangles(unsigned base, int segments, std::vector<std::array<unsigned, 3>>& out) {
+  const auto n = static_cast<unsigned>(segments);
+  const unsigned c0 = base + 2 * n, c1 = c0 + 1;
+  for (unsigned s = 0; s < n; ++s) {
+    const unsigned a0 = base + s, a1 = base + (s + 1) % n;
+    const unsigned b0 = base + n + s, b1 = base + n + (s + 1) % n;
+    out.push_back({a0, a1, b1});
+    out.push_back({a0, b1, b0});
+    out.push_back({c0, a1, a0});
+    out.push_back({c1, b0, b1});
+  }
+}
+
+std::vector<Vec3> box_vertices(const Vec3& half) {
+  std::vector<Vec3> v;
+  for (int k = 0; k < 8; ++k) {
+    v.emplace_back((k & 1) ? half.x() : -half.x(), (k & 2) ? half.y() : -half.y(),
+                   (k & 4) ? half.z() : -half.z());
+  }
+  return v;
+}
+
+void box_triangles(unsigned base, std::vector<std::array<unsigned, 3>>& out) {
+  static constexpr unsigned faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                           {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : faces) {
+    out.push_back({base + f[0], base + f[1], base + f[2]});
+    out.push_back({base + f[0], base + f[2], base + f[3]});
+  }
+}
+
+// New triangle mesh with `vertex_count` float3 vertices and the given triangles.
+RTCGeometry make_mesh(RTCDevice device, std::size_t vertex_count,
+                      const std::vector<std::array<unsigned, 3>>& triangles, float** vertices) {
+  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  *vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+      g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count));
+  auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+      g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles.size()));
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) index[3 * t + k] = triangles[t][k];
+  }
+  return g;
+}
+
+void store(float* dst, std::size_t index, const Vec3& p) {
+  dst[3 * index + 0] = static_cast<float>(p.x());
+  dst[3 * index + 1] = static_cast<float>(p.y());
+  dst[3 * index + 2] = static_cast<float>(p.z());
+}
+
+float srgb_to_linear(float v) { return std::pow(v, 2.2f); }
+
+}  // namespace
+
+TerrainGrid TerrainGrid::flat(const Vec2& origin, double spacing_m, int nx, int ny,
+                              double height_m) {
+  TerrainGrid g;
+  g.origin = origin;
+  g.spacing_m = spacing_m;
+  g.nx = nx;
+  g.ny = ny;
+  g.heights.assign(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny),
+                   static_cast<float>(height_m));
+  return g;
+}
+
+TerrainLook terrain_look(std::string_view kind) {
+  TerrainLook look;
+  if (kind == "rigid") {
+    look.colour = {0.5f, 0.5f, 0.5f};
+    look.reflectance = 0.3f;
+  } else if (kind == "silt" || kind == "scm" || kind == "soil") {
+    look.colour = {0.45f, 0.30f, 0.16f};
+    look.reflectance = 0.25f;
+  } else if (kind == "snow") {
+    look.colour = {0.92f, 0.93f, 0.95f};
+    look.reflectance = 0.8f;
+  } else {
+    throw std::invalid_argument("unknown terrain look '" + std::string(kind) +
+                                "' (rigid | silt | snow)");
+  }
+  return look;
+}
+
+VehicleShape vehicle_shape(const vehicle::VehicleParams& p, const Rgb& body_colour) {
+  VehicleShape s;
+  s.half_extents_m = p.chassis.half_extents_m;
+  s.box_centre_m = p.chassis.box_centre_m;
+  s.wheel_radius_m = p.wheels.radius_m;
+  s.wheel_width_m = p.wheels.width_m;
+  s.wheel_positions_m = {Vec3(p.front.x_m, p.front.half_track_m, 0.0),
+                         Vec3(p.front.x_m, -p.front.half_track_m, 0.0),
+                         Vec3(p.rear.x_m, p.rear.half_track_m, 0.0),
+                         Vec3(p.rear.x_m, -p.rear.half_track_m, 0.0)};
+  s.body_colour = body_colour;
+  return s;
+}
+
+Rgb vehicle_palette(std::size_t index) {
+  static constexpr Rgb palette[] = {
+      {0.10f, 0.25f, 0.80f}, {0.80f, 0.10f, 0.10f}, {0.90f, 0.75f, 0.05f},
+      {0.10f, 0.65f, 0.20f}, {0.60f, 0.15f, 0.70f}, {0.05f, 0.70f, 0.75f},
+      {0.95f, 0.45f, 0.05f}, {0.85f, 0.85f, 0.85f}};
+  return palette[index % std::size(palette)];
+}
+
+Rgb obstacle_colour(std::string_view label) {
+  if (label == "rock") return {0.42f, 0.38f, 0.34f};
+  if (label == "tree") return {0.12f, 0.40f, 0.10f};
+  if (label == "bush") return {0.20f, 0.50f, 0.15f};
+  if (label == "wall") return {0.70f, 0.70f, 0.72f};
+  return {0.95f, 0.40f, 0.05f};
+}
+
+Vec3 SceneConfig::sun_direction() const {
+  const double az = deg_to_rad(sun_azimuth_deg), el = deg_to_rad(sun_elevation_deg);
+  return Vec3(std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el));
+}
+
+Scene::Scene(const SceneConfig& config) : config_(config) {
+  if (config.terrain_tile_cells < 1) throw std::invalid_argument("terrain_tile_cells must be >= 1");
+  if (config.cylinder_segments < 3) throw std::invalid_argument("cylinder_segments must be >= 3");
+  const std::string device_config =
+      config.embree_threads > 0 ? "threads=" + std::to_string(config.embree_threads) : "";
+  device_ = rtcNewDevice(device_config.empty() ? nullptr : device_config.c_str());
+  if (!device_) throw std::runtime_error("Embree: cannot create device");
+  scene_ = rtcNewScene(device_);
+  // ROBUST: watertight ray-quad tests, so rays cannot slip through the seams of the terrain
+  // mesh (without it a camera looking straight down sees a few sky pixels).
+  rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_LOW);
+  check_device("scene creation");
+}
+
+Scene::~Scene() {
+  for (auto& [id, v] : vehicles_) rtcReleaseGeometry(v.geometry);
+  rtcReleaseScene(scene_);
+  rtcReleaseDevice(device_);
+}
+
+void Scene::check_device(const char* what) const {
+  const RTCError e = rtcGetDeviceError(device_);
+  if (e != RTC_ERROR_NONE) {
+    throw std::runtime_error(std::string("Embree error ") + std::to_string(static_cast<int>(e)) +
+                             " during " + what);
+  }
+}
+
+unsigned Scene::attach(RTCGeometry geometry, const Surface& surface) {
+  rtcCommitGeometry(geometry);
+  const unsigned id = rtcAttachGeometry(scene_, geometry);
+  rtcReleaseGeometry(geometry);  // the scene holds it now
+  if (surfaces_.size() <= id) surfaces_.resize(id + 1);
+  surfaces_[id] = surface;
+  dirty_ = true;
+  return id;
+}
+
+void Scene::detach(unsigned id) {
+  rtcDetachGeometry(scene_, id);
+  dirty_ = true;
+}
+
+void Scene::clear_terrain() {
+  for (auto& t : tiles_) {
+    primitive_count_ -= static_cast<std::size_t>(t.cells_x) * t.cells_y;
+    detach(t.id);
+  }
+  tiles_.clear();
+}
+
+void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
+  if (grid.nx < 2 || grid.ny < 2 || !(grid.spacing_m > 0.0) ||
+      grid.heights.size() != static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny)) {
+    throw std::invalid_argument("terrain grid: need nx, ny >= 2, spacing > 0 and nx*ny heights");
+  }
+  std::vector<float> texture;
+  int tw = 0, th = 0;
+  if (!look.texture_file.empty()) {
+    const cv::Mat img = cv::imread(look.texture_file, cv::IMREAD_COLOR);
+    if (img.empty()) throw std::invalid_argument("cannot read terrain texture " + look.texture_file);
+    if (!(look.texture_size_m > 0.0)) throw std::invalid_argument("texture_size_m must be > 0");
+    tw = img.cols;
+    th = img.rows;
+    texture.resize(static_cast<std::size_t>(tw) * th * 3);
+    for (int y = 0; y < th; ++y) {
+      for (int x = 0; x < tw; ++x) {
+        const auto& bgr = img.at<cv::Vec3b>(y, x);
+        // Image row 0 is the top (north edge) of one repeat.
+        const std::size_t o = (static_cast<std::size_t>(th - 1 - y) * tw + x) * 3;
+        texture[o + 0] = srgb_to_linear(bgr[2] / 255.0f);
+        texture[o + 1] = srgb_to_linear(bgr[1] / 255.0f);
+        texture[o + 2] = srgb_to_linear(bgr[0] / 255.0f);
+      }
+    }
+  }
+  clear_terrain();
+  grid_ = grid;
+  look_ = look;
+  texture_ = std::move(texture);
+  texture_width_ = tw;
+  texture_height_ = th;
+
+  const int cells_x = grid.nx - 1, cells_y = grid.ny - 1;
+  const int t = config_.terrain_tile_cells;
+  tiles_x_ = (cells_x + t - 1) / t;
+  tiles_y_ = (cells_y + t - 1) / t;
+  Surface surface;
+  surface.kind = SurfaceKind::terrain;
+  surface.colour = look.colour;
+  surface.reflectance = look.reflectance;
+  tiles_.resize(static_cast<std::size_t>(tiles_x_) * tiles_y_);
+  for (int ty = 0; ty < tiles_y_; ++ty) {
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      Tile& tile = tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+      tile.i0 = tx * t;
+      tile.j0 = ty * t;
+      tile.cells_x = std::min(t, cells_x - tile.i0);
+      tile.cells_y = std::min(t, cells_y - tile.j0);
+      const int vx = tile.cells_x + 1, vy = tile.cells_y + 1;
+      RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_QUAD);
+      tile.vertices = static_cast<float*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                  3 * sizeof(float), static_cast<std::size_t>(vx) * vy));
+      auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+          g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
+          static_cast<std::size_t>(tile.cells_x) * tile.cells_y));
+      for (int lj = 0; lj < vy; ++lj) {
+        for (int li = 0; li < vx; ++li) write_tile_vertex(tile, tile.i0 + li, tile.j0 + lj);
+      }
+      std::size_t q = 0;
+      for (int lj = 0; lj < tile.cells_y; ++lj) {
+        for (int li = 0; li < tile.cells_x; ++li, ++q) {
+          const auto v00 = static_cast<unsigned>(lj * vx + li);
+          index[4 * q + 0] = v00;
+          index[4 * q + 1] = v00 + 1;
+          index[4 * q + 2] = v00 + 1 + static_cast<unsigned>(vx);
+          index[4 * q + 3] = v00 + static_cast<unsigned>(vx);
+        }
+      }
+      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+      tile.geometry = g;
+      tile.id = attach(g, surface);
+      primitive_count_ += static_cast<std::size_t>(tile.cells_x) * tile.cells_y;
+    }
+  }
+  check_device("terrain creation");
+}
+
+void Scene::write_tile_vertex(Tile& tile, int i, int j) {
+  const int li = i - tile.i0, lj = j - tile.j0;
+  const std::size_t v = static_cast<std::size_t>(lj) * (tile.cells_x + 1) + li;
+  tile.vertices[3 * v + 0] = static_cast<float>(grid_.origin.x() + i * grid_.spacing_m);
+  tile.vertices[3 * v + 1] = static_cast<float>(grid_.origin.y() + j * grid_.spacing_m);
+  tile.vertices[3 * v + 2] = grid_.at(i, j);
+}
+
+std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
+  std::size_t applied = 0;
+  const int t = config_.terrain_tile_cells;
+  for (const auto& u : updates) {
+    if (u.i < 0 || u.j < 0 || u.i >= grid_.nx || u.j >= grid_.ny) continue;
+    grid_.at(u.i, u.j) = static_cast<float>(u.height_m);
+    ++applied;
+    // A vertex on a tile border belongs to up to four tiles.
+    const int tx1 = std::min(u.i / t, tiles_x_ - 1), ty1 = std::min(u.j / t, tiles_y_ - 1);
+    const int tx0 = (u.i % t == 0 && u.i > 0) ? tx1 - 1 : tx1;
+    const int ty0 = (u.j % t == 0 && u.j > 0) ? ty1 - 1 : ty1;
+    for (int ty = ty0; ty <= ty1; ++ty) {
+      for (int tx = tx0; tx <= tx1; ++tx) {
+        Tile& tile = tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+        if (u.i < tile.i0 || u.i > tile.i0 + tile.cells_x || u.j < tile.j0 ||
+            u.j > tile.j0 + tile.cells_y) {
+          continue;
+        }
+        write_tile_vertex(tile, u.i, u.j);
+        tile.dirty = true;
+        dirty_ = true;
+      }
+    }
+  }
+  return applied;
+}
+
+void Scene::add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> colour) {
+  Surface surface;
+  surface.kind = SurfaceKind::obstacle;
+  surface.colour = colour.value_or(obstacle_colour(obstacle.label));
+  surface.reflectance = config_.obstacle_reflectance;
+  const Pose& pose = obstacle.pose;
+  RTCGeometry g = nullptr;
+  switch (obstacle.shape) {
+    case world::ShapeKind::sphere: {
+      g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                            RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+      v[0] = static_cast<float>(pose.position.x());
+      v[1] = static_cast<float>(pose.position.y());
+      v[2] = static_cast<float>(pose.position.z());
+      v[3] = static_cast<float>(obstacle.size.x());
+      primitive_count_ += 1;
+      break;
+    }
+    case world::ShapeKind::box:
+    case world::ShapeKind::cylinder: {
+      std::vector<Vec3> local;
+      std::vector<std::array<unsigned, 3>> tris;
+      if (obstacle.shape == world::ShapeKind::box) {
+        local = box_vertices(obstacle.size);
+        box_triangles(0, tris);
+      } else {
+        local = cylinder_vertices(obstacle.size.x(), obstacle.size.z(), 2,
+                                  config_.cylinder_segments);
+        cylinder_triangles(0, config_.cylinder_segments, tris);
+      }
+      float* v = nullptr;
+      g = make_mesh(device_, local.size(), tris, &v);
+      for (std::size_t k = 0; k < local.size(); ++k) {
+        store(v, k, pose.position + pose.orientation * local[k]);
+      }
+      primitive_count_ += tris.size();
+      break;
+    }
+  }
+  rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+  attach(g, surface);
+  check_device("obstacle creation");
+}
+
+void Scene::add_obstacles(const world::Obstacles& obstacles) {
+  for (const auto& o : obstacles) add_obstacle(o);
+}
+
+void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
+  if (vehicles_.contains(id)) throw std::invalid_argument("vehicle '" + id + "' already in scene");
+  VehicleEntry e;
+  e.shape = shape;
+  e.box_local = box_vertices(shape.half_extents_m);
+  for (auto& v : e.box_local) v += shape.box_centre_m;
+  const int seg = config_.cylinder_segments;
+  e.wheel_local = cylinder_vertices(shape.wheel_radius_m, 0.5 * shape.wheel_width_m, 1, seg);
+  std::vector<std::array<unsigned, 3>> tris;
+  box_triangles(0, tris);
+  const auto wheel_vertices = static_cast<unsigned>(e.wheel_local.size());
+  for (unsigned w = 0; w < 4; ++w) cylinder_triangles(8 + w * wheel_vertices, seg, tris);
+  e.geometry = make_mesh(device_, 8 + 4 * e.wheel_local.size(), tris, &e.vertices);
+  rtcSetGeometryBuildQuality(e.geometry, RTC_BUILD_QUALITY_REFIT);
+  // Slot: smallest free index (stable while the vehicle lives).
+  auto it = std::find(used_slots_.begin(), used_slots_.end(), false);
+  e.slot = static_cast<int>(it - used_slots_.begin());
+  if (it == used_slots_.end()) {
+    used_slots_.push_back(true);
+  } else {
+    *it = true;
+  }
+  rtcSetGeometryUserData(e.geometry, reinterpret_cast<void*>(static_cast<std::intptr_t>(e.slot)));
+  rtcSetGeometryIntersectFilterFunction(e.geometry, hide_vehicle_filter);
+  rtcSetGeometryOccludedFilterFunction(e.geometry, hide_vehicle_filter);
+  Surface surface;
+  surface.kind = SurfaceKind::vehicle;
+  surface.colour = shape.body_colour;
+  surface.secondary_colour = shape.wheel_colour;
+  surface.reflectance = shape.body_reflectance;
+  surface.secondary_reflectance = shape.wheel_reflectance;
+  surface.secondary_first_prim = 12;  // box triangles come first, then the wheels
+  surface.vehicle_slot = e.slot;
+  primitive_count_ += tris.size();
+  auto [pos, inserted] = vehicles_.emplace(id, std::move(e));
+  set_vehicle_pose(id, Pose{}, {});  // writes vertices
+  RTCGeometry g = pos->second.geometry;
+  rtcRetainGeometry(g);  // keep our handle valid after attach() releases its reference
+  pos->second.id = attach(g, surface);
+  check_device("vehicle creation");
+}
+
+void Scene::remove_vehicle(const std::string& id) {
+  auto it = vehicles_.find(id);
+  if (it == vehicles_.end()) return;
+  detach(it->second.id);
+  rtcReleaseGeometry(it->second.geometry);
+  used_slots_[static_cast<std::size_t>(it->second.slot)] = false;
+  primitive_count_ -= 12 + 16 * static_cast<std::size_t>(config_.cylinder_segments);
+  vehicles_.erase(it);
+}
+
+void Scene::set_vehicle_pose(const std::string& id, const Pose& chassis,
+                             std::span<const Pose> wheels) {
+  auto it = vehicles_.find(id);
+  if (it == vehicles_.end()) throw std::invalid_argument("no vehicle '" + id + "' in scene");
+  VehicleEntry& e = it->second;
+  e.chassis = chassis;
+  for (std::size_t k = 0; k < 8; ++k) {
+    store(e.vertices, k, chassis.position + chassis.orientation * e.box_local[k]);
+  }
+  const std::size_t per_wheel = e.wheel_local.size();
+  for (std::size_t w = 0; w < 4; ++w) {
+    Pose wp;
+    if (w < wheels.size()) {
+      wp = wheels[w];
+    } else {
+      wp.position = chassis.position + chassis.orientation * e.shape.wheel_positions_m[w];
+      wp.orientation = chassis.orientation;
+    }
+    for (std::size_t k = 0; k < per_wheel; ++k) {
+      store(e.vertices, 8 + w * per_wheel + k, wp.position + wp.orientation * e.wheel_local[k]);
+    }
+  }
+  rtcUpdateGeometryBuffer(e.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(e.geometry);
+  dirty_ = true;
+}
+
+void Scene::set_vehicle_pose(const std::string& id, const vehicle::VehicleSnapshot& snapshot) {
+  std::array<Pose, 4> wheels;
+  const std::size_t n = std::min<std::size_t>(4, snapshot.wheels.size());
+  for (std::size_t w = 0; w < n; ++w) wheels[w] = snapshot.wheels[w].pose;
+  set_vehicle_pose(id, snapshot.pose, std::span<const Pose>(wheels.data(), n));
+}
+
+std::optional<Pose> Scene::vehicle_pose(const std::string& id) const {
+  auto it = vehicles_.find(id);
+  if (it == vehicles_.end()) return std::nullopt;
+  return it->second.chassis;
+}
+
+int Scene::vehicle_slot(const std::string& id) const {
+  auto it = vehicles_.find(id);
+  return it == vehicles_.end() ? -1 : it->second.slot;
+}
+
+void Scene::commit() {
+  refit_tiles_last_commit_ = 0;
+  for (auto& tile : tiles_) {
+    if (!tile.dirty) continue;
+    rtcUpdateGeometryBuffer(tile.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(tile.geometry);
+    tile.dirty = false;
+    ++refit_tiles_last_commit_;
+  }
+  rtcCommitScene(scene_);
+  check_device("scene commit");
+  dirty_ = false;
+}
+
+Rgb Scene::terrain_albedo(float x, float y) const {
+  if (texture_.empty()) return look_.colour;
+  const double s = look_.texture_size_m;
+  double u = x / s, v = y / s;
+  u -= std::floor(u);
+  v -= std::floor(v);
+  const double px = u * texture_width_ - 0.5, py = v * texture_height_ - 0.5;
+  const double fx = std::floor(px), fy = std::floor(py);
+  const float ax = static_cast<float>(px - fx), ay = static_cast<float>(py - fy);
+  auto wrap = [](int i, int n) { return ((i % n) + n) % n; };
+  const int x0 = wrap(static_cast<int>(fx), texture_width_), x1 = wrap(x0 + 1, texture_width_);
+  const int y0 = wrap(static_cast<int>(fy), texture_height_), y1 = wrap(y0 + 1, texture_height_);
+  auto texel = [&](int xi, int yi, int c) {
+    return texture_[(static_cast<std::size_t>(yi) * texture_width_ + xi) * 3 + c];
+  };
+  float out[3];
+  for (int c = 0; c < 3; ++c) {
+    out[c] = (1 - ay) * ((1 - ax) * texel(x0, y0, c) + ax * texel(x1, y0, c)) +
+             ay * ((1 - ax) * texel(x0, y1, c) + ax * texel(x1, y1, c));
+  }
+  return {out[0], out[1], out[2]};
+}
+
+}  // namespace syndds::sensors

@@ -1,0 +1,221 @@
+#pragma once
+// What the camera and lidar see, held in an Embree 3 scene:
+//  - terrain: a regular height grid cut into square tiles of quads, one Embree geometry per
+//    tile; update_terrain() rewrites the changed vertices and marks only their tiles, which
+//    commit() refits (build quality REFIT) - ruts from deformable soil cost a few tiles;
+//  - static obstacles: box (12 triangles), sphere (exact Embree sphere point), cylinder
+//    (triangulated, 32 sides by default);
+//  - vehicles: one triangle mesh each (box chassis + four wheel cylinders) whose vertices are
+//    rewritten from the chassis and wheel poses every frame and refit.
+// The scene is DYNAMIC (Embree's two-level build): commit() rebuilds only what changed plus
+// the small top level. Renderers only read the scene; commit() before rendering.
+#include <embree3/rtcore.h>
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/math.hpp"
+#include "vehicle/vehicle_model.hpp"
+#include "vehicle/vehicle_params.hpp"
+#include "world/obstacle.hpp"
+
+namespace syndds::sensors {
+
+/// Linear RGB in [0, 1] (albedo or radiance).
+struct Rgb {
+  float r = 0.0f, g = 0.0f, b = 0.0f;
+  friend bool operator==(const Rgb&, const Rgb&) = default;
+};
+
+/// Regular height grid: vertex (i, j) at (origin.x + i * spacing, origin.y + j * spacing).
+struct TerrainGrid {
+  Vec2 origin = Vec2::Zero();
+  double spacing_m = 0.1;
+  int nx = 0;  // vertices along x
+  int ny = 0;  // vertices along y
+  std::vector<float> heights;  // nx * ny, index j * nx + i
+
+  static TerrainGrid flat(const Vec2& origin, double spacing_m, int nx, int ny, double height_m);
+  float& at(int i, int j) { return heights[static_cast<std::size_t>(j) * nx + i]; }
+  float at(int i, int j) const { return heights[static_cast<std::size_t>(j) * nx + i]; }
+};
+
+/// One changed terrain vertex (as deformable terrain reports it).
+struct HeightUpdate {
+  std::int32_t i = 0;
+  std::int32_t j = 0;
+  double height_m = 0.0;
+};
+
+/// How the terrain looks: a colour per terrain type or a tiled texture image.
+struct TerrainLook {
+  Rgb colour{0.5f, 0.5f, 0.5f};
+  float reflectance = 0.3f;       // lidar reflectance
+  std::string texture_file;       // optional image (PNG/JPEG), sRGB; replaces `colour`
+  double texture_size_m = 10.0;   // ground size of one texture repeat
+};
+
+/// Presets: "rigid" (neutral grey), "silt" (brown, also "scm"/"soil"), "snow" (white).
+/// Throws std::invalid_argument for other names.
+TerrainLook terrain_look(std::string_view kind);
+
+/// Drawable vehicle: chassis box and wheel cylinders (spin axis = wheel's local y).
+/// Defaults: an HMMWV-class vehicle (config/vehicles/hmmwv.yaml).
+struct VehicleShape {
+  Vec3 half_extents_m = Vec3(2.35, 1.08, 0.55);
+  Vec3 box_centre_m = Vec3(0.0, 0.0, 0.45);     // in the chassis reference frame
+  double wheel_radius_m = 0.467;
+  double wheel_width_m = 0.254;
+  std::array<Vec3, 4> wheel_positions_m{        // FL, FR, RL, RR: used when no wheel poses
+      Vec3(1.689, 0.9095, 0.0), Vec3(1.689, -0.9095, 0.0), Vec3(-1.689, 0.9095, 0.0),
+      Vec3(-1.689, -0.9095, 0.0)};
+  Rgb body_colour{0.15f, 0.3f, 0.75f};
+  Rgb wheel_colour{0.06f, 0.06f, 0.06f};
+  float body_reflectance = 0.6f;
+  float wheel_reflectance = 0.1f;
+};
+
+/// Shape from a vehicle definition (chassis box, wheel size, axle positions).
+VehicleShape vehicle_shape(const vehicle::VehicleParams& params, const Rgb& body_colour);
+/// Distinct body colours for vehicle index 0, 1, 2, ... (cycles after 8).
+Rgb vehicle_palette(std::size_t index);
+/// Default obstacle colours by label (rock, tree, bush, wall, ...; others orange).
+Rgb obstacle_colour(std::string_view label);
+
+struct SceneConfig {
+  double sun_azimuth_deg = 135.0;    // compass azimuth of the sun (clockwise from north)
+  double sun_elevation_deg = 50.0;
+  float sun_intensity = 0.85f;
+  float ambient_intensity = 0.3f;    // sky light on an upward surface (half on a vertical one)
+  float ground_bounce = 0.3f;        // share of the ambient light reaching downward surfaces
+  Rgb sky_horizon{0.78f, 0.86f, 0.95f};
+  Rgb sky_zenith{0.35f, 0.55f, 0.88f};
+  double shadow_max_distance_m = std::numeric_limits<double>::infinity();
+  float obstacle_reflectance = 0.5f;
+  int terrain_tile_cells = 64;       // tile = 64 x 64 cells (8192 triangles)
+  int cylinder_segments = 32;
+  int embree_threads = 0;            // BVH build threads (0: Embree's default)
+
+  /// Unit vector towards the sun (world ENU).
+  Vec3 sun_direction() const;
+};
+
+/// Per-geometry surface data the renderers shade with.
+enum class SurfaceKind : std::uint8_t { terrain, obstacle, vehicle };
+struct Surface {
+  SurfaceKind kind = SurfaceKind::terrain;
+  Rgb colour;
+  Rgb secondary_colour;           // vehicles: wheels
+  float reflectance = 0.5f;
+  float secondary_reflectance = 0.5f;
+  unsigned secondary_first_prim = std::numeric_limits<unsigned>::max();
+  int vehicle_slot = -1;
+};
+
+/// Intersection context every renderer passes to Embree: vehicle geometries carry a filter
+/// that drops hits on `hidden_slot` (a sensor does not see the vehicle it rides on).
+struct HidingContext {
+  RTCIntersectContext context;
+  int hidden_slot = -1;
+};
+inline void init_hiding_context(HidingContext& c, int hidden_slot, bool coherent) {
+  rtcInitIntersectContext(&c.context);
+  c.context.flags =
+      coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  c.hidden_slot = hidden_slot;
+}
+
+class Scene {
+ public:
+  explicit Scene(const SceneConfig& config = {});
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  const SceneConfig& config() const { return config_; }
+
+  /// Replaces the terrain. Throws std::invalid_argument on a malformed grid or a texture
+  /// that cannot be read.
+  void set_terrain(const TerrainGrid& grid, const TerrainLook& look);
+  /// Applies changed heights; returns how many were inside the grid (others are ignored).
+  std::size_t update_terrain(std::span<const HeightUpdate> updates);
+  const TerrainGrid& terrain() const { return grid_; }
+
+  /// Adds a static obstacle; colour defaults to obstacle_colour(label).
+  void add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> colour = std::nullopt);
+  void add_obstacles(const world::Obstacles& obstacles);
+
+  /// Adds a vehicle (placed at the origin until posed). Throws if the id exists.
+  void add_vehicle(const std::string& id, const VehicleShape& shape);
+  void remove_vehicle(const std::string& id);
+  bool has_vehicle(const std::string& id) const { return vehicles_.contains(id); }
+  /// Poses a vehicle: chassis reference frame + wheel centres (empty: nominal positions).
+  void set_vehicle_pose(const std::string& id, const Pose& chassis, std::span<const Pose> wheels);
+  void set_vehicle_pose(const std::string& id, const vehicle::VehicleSnapshot& snapshot);
+  std::optional<Pose> vehicle_pose(const std::string& id) const;
+  /// Slot used to hide a vehicle from its own sensors (-1 if unknown).
+  int vehicle_slot(const std::string& id) const;
+
+  /// Rebuilds what changed (dirty terrain tiles, moved vehicles) and the top level.
+  void commit();
+  bool committed() const { return !dirty_; }
+
+  // --- renderer interface -------------------------------------------------------------------
+  RTCScene handle() const { return scene_; }
+  const Surface& surface(unsigned geom_id) const { return surfaces_[geom_id]; }
+  /// Terrain albedo at world (x, y): preset colour or texture (bilinear, tiled).
+  Rgb terrain_albedo(float x, float y) const;
+  std::size_t primitive_count() const { return primitive_count_; }
+  std::size_t dirty_tiles_last_commit() const { return refit_tiles_last_commit_; }
+
+ private:
+  struct Tile {
+    RTCGeometry geometry = nullptr;
+    unsigned id = 0;
+    int i0 = 0, j0 = 0;      // first vertex
+    int cells_x = 0, cells_y = 0;
+    float* vertices = nullptr;  // (cells_x + 1) * (cells_y + 1) float3
+    bool dirty = false;
+  };
+  struct VehicleEntry {
+    RTCGeometry geometry = nullptr;
+    unsigned id = 0;
+    int slot = 0;
+    VehicleShape shape;
+    Pose chassis;
+    std::vector<Vec3> box_local;     // 8 corners in the chassis frame
+    std::vector<Vec3> wheel_local;   // one wheel's vertices in the wheel frame
+    float* vertices = nullptr;
+  };
+
+  unsigned attach(RTCGeometry geometry, const Surface& surface);
+  void detach(unsigned id);
+  void clear_terrain();
+  void write_tile_vertex(Tile& tile, int i, int j);
+  void check_device(const char* what) const;
+
+  SceneConfig config_;
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+  std::vector<Surface> surfaces_;
+  TerrainGrid grid_;
+  TerrainLook look_;
+  int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<Tile> tiles_;
+  int texture_width_ = 0, texture_height_ = 0;
+  std::vector<float> texture_;  // linear RGB
+  std::map<std::string, VehicleEntry> vehicles_;
+  std::vector<bool> used_slots_;
+  std::size_t primitive_count_ = 0;
+  std::size_t refit_tiles_last_commit_ = 0;
+  bool dirty_ = true;
+};
+
+}  // namespace syndds::sensors

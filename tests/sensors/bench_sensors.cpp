@@ -1,0 +1,136 @@
+// Camera and lidar throughput on a realistic scene: 100 x 100 m terrain at 0.1 m (2 M
+// triangles), 4 vehicles, 30 obstacles. Run: build-sensors/tests/sensors/bench_sensors
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "scene_fixture.hpp"
+#include "sensors/camera.hpp"
+#include "sensors/lidar.hpp"
+
+using namespace syndds;
+using namespace syndds::sensors;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Median of per-call times: robust against other processes on a shared machine.
+template <typename F>
+double median_seconds(int n, F&& f) {
+  std::vector<double> t;
+  for (int i = 0; i < n; ++i) {
+    const auto t0 = Clock::now();
+    f(i);
+    t.push_back(seconds_since(t0));
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+std::string vehicle_name(int v) {
+  std::string name = "v";
+  name += std::to_string(v);
+  return name;
+}
+
+void pose_vehicles(Scene& scene, double t) {
+  for (int v = 0; v < 4; ++v) {
+    Pose p;
+    p.position = Vec3(-20.0 + 10.0 * v + 5.0 * t, 1.5 * (v % 2 ? 1 : -1), 0.5);
+    p.orientation = quat_from_yaw(0.05 * v);
+    scene.set_vehicle_pose(vehicle_name(v), p, {});
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int frames = argc > 1 ? std::stoi(argv[1]) : 20;
+  const std::string only = argc > 2 ? argv[2] : "";  // "camera80", "camera1280", "lidar", ...
+  SceneConfig scene_cfg;
+  if (argc > 3) scene_cfg.terrain_tile_cells = std::stoi(argv[3]);
+  if (argc > 4) scene_cfg.shadow_max_distance_m = std::stod(argv[4]);
+  auto t0 = Clock::now();
+  Scene scene(scene_cfg);
+  scene.set_terrain(fixture::rolling_terrain(100.0, 0.1, 1.0), terrain_look("rigid"));
+  scene.add_obstacles(fixture::scattered_obstacles(30, 100.0, 5));
+  for (int v = 0; v < 4; ++v) {
+    VehicleShape shape;
+    shape.body_colour = vehicle_palette(static_cast<std::size_t>(v));
+    shape.wheel_positions_m = {Vec3(1.689, 0.91, 0), Vec3(1.689, -0.91, 0),
+                               Vec3(-1.689, 0.91, 0), Vec3(-1.689, -0.91, 0)};
+    scene.add_vehicle(vehicle_name(v), shape);
+  }
+  pose_vehicles(scene, 0.0);
+  scene.commit();
+  std::printf("scene: %zu primitives, build %.3f s\n", scene.primitive_count(), seconds_since(t0));
+
+  // Per-frame scene update cost: move 4 vehicles and dig a 2 m rut (400 vertices).
+  {
+    std::vector<HeightUpdate> rut;
+    const int frames_update = 50;
+    auto t1 = Clock::now();
+    for (int f = 0; f < frames_update; ++f) {
+      rut.clear();
+      for (int i = 0; i < 20; ++i) {
+        for (int j = 0; j < 20; ++j) rut.push_back({400 + f * 2 + i, 480 + j, -0.05});
+      }
+      scene.update_terrain(rut);
+      pose_vehicles(scene, 0.01 * f);
+      scene.commit();
+    }
+    std::printf("scene update (4 vehicles + 400-vertex rut) + commit: %.3f ms/frame\n",
+                1e3 * seconds_since(t1) / frames_update);
+  }
+
+  struct Res {
+    int w, h;
+  };
+  for (const Res res : {Res{80, 45}, Res{1280, 720}, Res{1920, 1080}}) {
+    if (!only.empty() && only != "camera" + std::to_string(res.w)) continue;
+    for (int threads : {1, 2}) {
+      CameraConfig cfg;
+      cfg.intrinsics.width = res.w;
+      cfg.intrinsics.height = res.h;
+      cfg.threads = threads;
+      cfg.mode = CameraMode::fixed;
+      cfg.mount.pose.position = Vec3(-30.0, 0.0, 2.0);
+      cfg.mount.pose.orientation = Quat(Eigen::AngleAxisd(0.1, Vec3::UnitY()));
+      CameraSensor cam(cfg, "", 1, 0.01);
+      const int n = res.w <= 80 ? frames * 50 : frames;
+      cam.capture(scene, 0);  // warm-up
+      const double per =
+          median_seconds(n, [&](int f) { cam.capture(scene, static_cast<std::uint64_t>(f)); });
+      std::printf("camera %4dx%-4d threads %d: %8.3f ms/frame  %7.1f frames/s  %.1f Mrays/s (primary)\n",
+                  res.w, res.h, threads, 1e3 * per, 1.0 / per, res.w * res.h / per * 1e-6);
+    }
+  }
+  for (int threads : {1, 2}) {
+    if (!only.empty() && only != "lidar") continue;
+    LidarConfig cfg;
+    cfg.threads = threads;
+    cfg.mount.pose.position = Vec3(0, 0, 2.2);
+    LidarSensor lidar(cfg, "", 1, 0.01);
+    lidar.scan(scene, 0);
+    const int n = frames * 5;
+    std::size_t points = 0;
+    const double per = median_seconds(
+        n, [&](int f) { points += lidar.scan(scene, static_cast<std::uint64_t>(f)).points.size(); });
+    std::printf("lidar 900x16 threads %d: %.3f ms/scan, %.2f M beams/s, %.2f M points/s (%zu pts/scan)\n",
+                threads, 1e3 * per, 14400 / per * 1e-6, static_cast<double>(points) / n / per * 1e-6,
+                points / static_cast<std::size_t>(n));
+    cfg.beam_samples = 5;
+    LidarSensor div(cfg, "", 1, 0.01);
+    const double per2 =
+        median_seconds(n, [&](int f) { div.scan(scene, static_cast<std::uint64_t>(f)); });
+    std::printf("lidar 900x16x5 sub-rays threads %d: %.3f ms/scan, %.2f M rays/s\n", threads,
+                1e3 * per2, 72000 / per2 * 1e-6);
+  }
+  return 0;
+}
