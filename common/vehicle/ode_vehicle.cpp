@@ -102,7 +102,6 @@ struct OdeVehicleModel::Impl {
   std::vector<PendingContact> contacts;
   std::vector<dJointFeedback> feedback;
   double vehicle_radius = 0.0;         // bounding sphere about the chassis COM
-  unsigned long solver_seed = 0;       // ODE's solver seed, private to this instance
 
   std::array<Vec3, 4> wheel_local;     // design wheel centres in the chassis reference frame
   std::array<const AxleParams*, 4> axle{};
@@ -125,6 +124,9 @@ struct OdeVehicleModel::Impl {
         deformable(std::move(d)),
         tire(params.tire, params.wheels),
         powertrain(params) {}
+
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
 
   ~Impl() {
     for (auto& o : obstacles) dGeomDestroy(o.geom);
@@ -574,12 +576,9 @@ struct OdeVehicleModel::Impl {
     apply_aero_drag();
     find_obstacle_contacts();
 
-    // ODE's solver seed is process-global: give each instance its own sequence.
-    const unsigned long outer_seed = dRandGetSeed();
-    dRandSetSeed(solver_seed);
+    // The exact (LCP) solver. Unlike dWorldQuickStep it draws no random numbers from ODE's
+    // process-global seed, so interleaved instances cannot disturb each other.
     dWorldStep(world, dt);
-    solver_seed = dRandGetSeed();
-    dRandSetSeed(outer_seed);
 
     time += dt;
     record_collisions(dt, record);

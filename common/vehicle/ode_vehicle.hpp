@@ -6,8 +6,9 @@
 //
 // The ODE world is private to each instance (ODE headers are not exposed here); several
 // instances can live and step in one process and give bit-identical results run to run.
-// Not thread-safe: step instances from one thread (ODE keeps a global solver seed, which each
-// instance saves and restores around its step).
+// One instance must not be used from two threads at once; stepping different instances from
+// different threads at the same time is untested (Debian's ODE is built without per-thread
+// collision data), so keep them on one thread.
 #include <array>
 #include <memory>
 
