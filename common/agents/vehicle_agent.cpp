@@ -6,17 +6,19 @@
 
 #include "core/error.hpp"
 #include "vehicle/bicycle_model.hpp"
+#include "vehicle/ode_vehicle.hpp"
 
 namespace syndds::agents {
 
-std::shared_ptr<const terrain::TerrainSurface> make_terrain(const scenario::Scenario& s) {
-  return std::make_shared<terrain::FlatTerrain>(s.terrain.height_m, s.terrain.friction);
-}
-
-std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(
-    const scenario::VehicleConfig& config, std::shared_ptr<const terrain::TerrainSurface> terrain) {
+std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(const scenario::Scenario& s,
+                                                          const scenario::VehicleConfig& config) {
+  auto terrain = scenario::make_terrain(s.terrain);
   if (config.dynamics == "reduced") {
     return std::make_unique<vehicle::BicycleModel>(config.params, config.start, std::move(terrain));
+  }
+  if (config.dynamics == "full") {
+    return std::make_unique<vehicle::OdeVehicleModel>(config.params, config.start,
+                                                      std::move(terrain), s.obstacles);
   }
   throw ConfigError("vehicle '" + config.id + "': unknown dynamics '" + config.dynamics + "'");
 }
@@ -44,7 +46,7 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
       member_id_(scenario::vehicle_member(vehicle.id)),
       step_s_(scenario.time.step_s),
       steps_per_frame_(scenario.time.steps_per_frame()),
-      model_(make_vehicle_model(vehicle, make_terrain(scenario))) {}
+      model_(make_vehicle_model(scenario, vehicle)) {}
 
 std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
   return {{proto::Topic::driver_command, vehicle_id_}};

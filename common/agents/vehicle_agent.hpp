@@ -9,12 +9,10 @@
 
 namespace syndds::agents {
 
-/// Builds the dynamics model a vehicle entry of the scenario asks for.
-std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(
-    const scenario::VehicleConfig& config, std::shared_ptr<const terrain::TerrainSurface> terrain);
-
-/// The terrain surface a scenario describes.
-std::shared_ptr<const terrain::TerrainSurface> make_terrain(const scenario::Scenario& scenario);
+/// Builds the dynamics model a vehicle entry of the scenario asks for, on the scenario's terrain
+/// and among its obstacles.
+std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(const scenario::Scenario& scenario,
+                                                          const scenario::VehicleConfig& config);
 
 /// Checks a received command; returns an empty string if valid, else which field is wrong.
 std::string validate_command(const proto::DriverCommandMsg& cmd);

@@ -67,11 +67,54 @@ DdsConfig parse_dds(const YamlNode& node) {
 TerrainConfig parse_terrain(const YamlNode& node) {
   MapReader m(node);
   TerrainConfig t;
-  t.type = m.choice("type", "rigid", {"rigid"});
-  t.friction = m.number("friction", 0.8, 0.01, 2.0);
-  t.height_m = m.number("height_m", 0.0, -1e4, 1e4);
+  t.type = m.choice("type", "rigid", {"rigid", "heightmap"});
+  if (t.type == "rigid") {
+    t.friction = m.number("friction", 0.8, 0.01, 2.0);
+    t.height_m = m.number("height_m", 0.0, -1e4, 1e4);
+  } else {
+    t.heightmap = terrain::parse_heightmap_spec(m.required("heightmap"),
+                                                fs::path(node.file()).parent_path().string());
+    t.friction = t.heightmap.friction;
+  }
   m.finish();
   return t;
+}
+
+world::Obstacle parse_obstacle(const YamlNode& node) {
+  MapReader m(node);
+  world::Obstacle o;
+  auto id = m.required("id");
+  o.id = id.as_string();
+  if (!std::regex_match(o.id, std::regex("[A-Za-z0-9_.-]{1,64}"))) {
+    id.fail("obstacle id must be 1-64 characters of [A-Za-z0-9_.-], got '" + o.id + "'");
+  }
+  o.label = m.get_or<std::string>("label", "obstacle");
+  const std::string shape = m.choice("shape", std::nullopt, {"box", "sphere", "cylinder"});
+  auto pos_node = m.required("position");
+  const auto pos = pos_node.as_doubles();
+  if (pos.size() != 2 && pos.size() != 3) pos_node.fail("expected [x, y] or [x, y, z]");
+  const double yaw = m.number("yaw_deg", 0.0, -360, 360);
+  if (shape == "box") {
+    o.shape = world::ShapeKind::box;
+    auto size = m.required("size_m").as_doubles(3);
+    for (double v : size) {
+      if (!(v > 0)) m.required("size_m").fail("sizes must be positive");
+    }
+    o.size = Vec3(size[0], size[1], size[2]) / 2.0;
+  } else if (shape == "sphere") {
+    o.shape = world::ShapeKind::sphere;
+    const double r = m.positive("radius_m", std::nullopt);
+    o.size = Vec3(r, r, r);
+  } else {
+    o.shape = world::ShapeKind::cylinder;
+    const double r = m.positive("radius_m", std::nullopt);
+    o.size = Vec3(r, r, m.positive("height_m", std::nullopt) / 2.0);
+  }
+  m.finish();
+  // Without z the obstacle rests on the terrain (resolved once the terrain is known).
+  o.pose.position = Vec3(pos[0], pos[1], pos.size() == 3 ? pos[2] : std::nan(""));
+  o.pose.orientation = quat_from_yaw(deg_to_rad(yaw));
+  return o;
 }
 
 control::PidGains parse_pid(const YamlNode& node, control::PidGains g) {
@@ -161,7 +204,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir)
   auto model_node = m.required("model");
   v.model = model_node.as_string();
   v.params = vehicle::load_vehicle_params(resolve_model_file(model_node, v.model, config_dir));
-  v.dynamics = m.choice("dynamics", "reduced", {"reduced"});
+  v.dynamics = m.choice("dynamics", "reduced", {"reduced", "full"});
   auto start = m.optional("start");
   if (auto c = m.optional("controller")) {
     v.controller = parse_controller(*c);
@@ -183,6 +226,11 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir)
 }
 
 }  // namespace
+
+std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& t) {
+  if (t.type == "heightmap") return std::make_shared<terrain::HeightmapTerrain>(t.heightmap);
+  return std::make_shared<terrain::FlatTerrain>(t.height_m, t.friction);
+}
 
 std::int64_t TimeConfig::steps_per_frame() const {
   return static_cast<std::int64_t>(std::llround(heartbeat_s / step_s));
@@ -230,6 +278,15 @@ Scenario parse_scenario(const YamlNode& root, const std::string& text, const Ove
   if (auto n = m.optional("coordinator")) s.coordinator = parse_coordinator(*n);
   if (auto n = m.optional("dds")) s.dds = parse_dds(*n);
   if (auto n = m.optional("terrain")) s.terrain = parse_terrain(*n);
+  if (auto n = m.optional("obstacles")) {
+    std::set<std::string> obstacle_ids;
+    for (const auto& o : n->elements()) {
+      s.obstacles.push_back(parse_obstacle(o));
+      if (!obstacle_ids.insert(s.obstacles.back().id).second) {
+        o.fail("duplicate obstacle id '" + s.obstacles.back().id + "'");
+      }
+    }
+  }
   auto vehicles = m.required("vehicles");
   std::set<std::string> ids;
   for (const auto& v : vehicles.elements()) {
@@ -239,6 +296,16 @@ Scenario parse_scenario(const YamlNode& root, const std::string& text, const Ove
     }
   }
   if (s.vehicles.empty()) vehicles.fail("needs at least one vehicle");
+  if (!s.obstacles.empty()) {
+    // Obstacles without a z rest on the ground: a sphere on its lowest point, a box or a
+    // cylinder on its base.
+    const auto ground = make_terrain(s.terrain);
+    for (auto& o : s.obstacles) {
+      if (std::isnan(o.pose.position.z())) {
+        o.pose.position.z() = ground->height(o.pose.position.x(), o.pose.position.y()) + o.size.z();
+      }
+    }
+  }
   if (auto n = m.optional("recorder")) {
     MapReader r(*n);
     s.recorder.enabled = r.get_or("enabled", true);

@@ -9,7 +9,9 @@
 
 #include "control/path_follower.hpp"
 #include "protocol/barrier.hpp"
+#include "terrain/heightmap_terrain.hpp"
 #include "vehicle/vehicle_params.hpp"
+#include "world/obstacle.hpp"
 
 namespace syndds::scenario {
 
@@ -35,9 +37,10 @@ struct DdsConfig {
 };
 
 struct TerrainConfig {
-  std::string type = "rigid";
+  std::string type = "rigid";  // rigid (flat plane) | heightmap
   double friction = 0.8;
-  double height_m = 0.0;
+  double height_m = 0.0;       // rigid: plane height
+  terrain::HeightmapSpec heightmap;  // type heightmap
 };
 
 struct ControllerConfig {
@@ -50,7 +53,7 @@ struct ControllerConfig {
 struct VehicleConfig {
   std::string id;
   std::string model;                   // as written in the scenario
-  std::string dynamics = "reduced";    // reduced | full
+  std::string dynamics = "reduced";    // reduced (kinematic bicycle) | full (ODE multibody)
   vehicle::VehicleParams params;
   Pose start;
   ControllerConfig controller;
@@ -68,6 +71,7 @@ struct Scenario {
   CoordinatorConfig coordinator;
   DdsConfig dds;
   TerrainConfig terrain;
+  world::Obstacles obstacles;
   std::vector<VehicleConfig> vehicles;
   RecorderConfig recorder;
   std::uint64_t fingerprint = 0;  // hash of the file and the overrides: every member must agree
@@ -83,6 +87,9 @@ struct Overrides {
   std::optional<bool> realtime;
   std::optional<int> domain_id;
 };
+
+/// The rigid terrain surface a terrain block describes.
+std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& terrain);
 
 /// Where vehicle model names are looked up: $SYNDDS_CONFIG_DIR, else the source tree's config/.
 std::string default_config_dir();

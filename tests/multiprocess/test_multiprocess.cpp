@@ -244,6 +244,28 @@ TEST(ExternalController, DrivesTheVehicleAndBadCommandsAreRejected) {
   }
 }
 
+// A full (ODE) vehicle driven into a wall stops there; its vehicle process reports exactly one
+// collision, which reaches the recorder over DDS.
+TEST(Obstacles, OneCollisionEventIsRecordedAndTheVehicleStops) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/obstacle_hit.yaml";
+  const std::string single = single_process_csv(run, scenario, "");
+  const std::string distributed = distributed_csv(run, scenario, "");
+  EXPECT_EQ(distributed, single);
+  const std::string events = read_file(run.dir / "distributed" / "events.csv");
+  std::size_t collisions = 0;
+  for (std::size_t at = 0; (at = events.find(",collision,a,obstacle=wall1 ", at)) != std::string::npos;
+       ++at) {
+    ++collisions;
+  }
+  EXPECT_EQ(collisions, 1u) << events;
+  const auto summary = nlohmann::json::parse(read_file(run.dir / "distributed" / "summary.json"));
+  EXPECT_EQ(summary["vehicles"][0]["collisions"], 1);
+  const double x = summary["vehicles"][0]["final_position"][0];
+  EXPECT_LT(x, 30.0 - 0.5 - 2.0);  // wall face at 29.5 m, the bumper ~2.4 m ahead of the centre
+  EXPECT_GT(x, 20.0);
+}
+
 TEST(Cli, BadScenariosGiveClearErrors) {
   TestRun run;
   struct Case {

@@ -133,3 +133,35 @@ TEST(Scenario, VehicleFileErrorsNameTheVehicleFile) {
   EXPECT_NE(err.find("bad_vehicle.yaml:2:"), std::string::npos) << err;
   EXPECT_NE(err.find("chassis.mass_kg: must be positive"), std::string::npos) << err;
 }
+
+TEST(Scenario, ObstaclesRestOnTheGroundAndAreChecked) {
+  std::string text = kMinimal + R"(terrain: {type: rigid, height_m: 2.0}
+obstacles:
+  - {id: r1, label: rock, shape: sphere, position: [5, 1], radius_m: 0.5}
+  - {id: w1, shape: box, position: [9, 0, 7], size_m: [1, 2, 3], yaw_deg: 90}
+  - {id: t1, shape: cylinder, position: [3, 3], radius_m: 0.2, height_m: 4}
+)";
+  const auto s = parse(text);
+  ASSERT_EQ(s.obstacles.size(), 3u);
+  EXPECT_DOUBLE_EQ(s.obstacles[0].pose.position.z(), 2.5);  // on the ground
+  EXPECT_DOUBLE_EQ(s.obstacles[1].pose.position.z(), 7.0);  // as given
+  EXPECT_EQ(s.obstacles[1].size, Vec3(0.5, 1.0, 1.5));      // half extents
+  EXPECT_DOUBLE_EQ(s.obstacles[2].pose.position.z(), 4.0);
+  EXPECT_EQ(s.obstacles[2].shape, world::ShapeKind::cylinder);
+
+  std::string bad = kMinimal + "obstacles:\n  - {id: r1, shape: cone, position: [5, 1]}\n";
+  EXPECT_NE(error_of(bad).find("obstacles[0].shape: must be one of [box, sphere, cylinder]"),
+            std::string::npos)
+      << error_of(bad);
+  bad = kMinimal + "obstacles:\n  - {id: r1, shape: sphere, position: [5], radius_m: 1}\n";
+  EXPECT_NE(error_of(bad).find("expected [x, y] or [x, y, z]"), std::string::npos);
+}
+
+TEST(Scenario, FullDynamicsIsAccepted) {
+  std::string text = kMinimal;
+  text.replace(text.find("model: hmmwv"), 12, "model: hmmwv\n    dynamics: full");
+  EXPECT_EQ(parse(text).vehicles[0].dynamics, "full");
+  text.replace(text.find("dynamics: full"), 14, "dynamics: magic");
+  EXPECT_NE(error_of(text).find("vehicles[0].dynamics: must be one of [reduced, full]"),
+            std::string::npos);
+}
