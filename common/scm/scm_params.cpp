@@ -167,6 +167,7 @@ void validate(const ScmParams& p) {
           "area too large for the grid spacing (indices must fit 32 bits)");
   require(nx >= 0 && ny >= 0, "area holds no grid vertex");
   require(p.patch_test_height_m >= 0.0, "patch_test_height_m must be >= 0");
+  require(p.thread_min_vertices >= 1, "thread_min_vertices must be >= 1");
   require(p.threads >= 1 && p.threads <= 64, "threads must be in [1, 64]");
 }
 

@@ -54,6 +54,9 @@ struct ScmParams {
   /// Chrono's SCM "test height" (SCMTerrain::SetTestHeight, default 0.1 m).
   double patch_test_height_m = 0.1;
   int threads = 1;  // ray-casting threads (results are bit-identical for any count)
+  /// Footprint vertices per thread below which a step runs on the calling thread only (waking
+  /// workers costs tens of microseconds). Does not change results.
+  int thread_min_vertices = 4096;
 };
 
 /// Chrono SynChrono presets (reference/ORACLES.md), the same numbers the YAML files hold.

@@ -1,6 +1,7 @@
 #include "scm/scm_terrain.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -170,6 +171,14 @@ struct StepVertex {
   bool has_level = false;     // looked up only if z_hit < the level bound
 };
 
+struct BulldozeVertex {
+  std::int32_t i = 0, j = 0;
+  std::int32_t patch = -1;                      // last patch that listed it as rim
+  std::int32_t neighbour[4] = {-1, -1, -1, -1};  // bd indices of the 4-neighbours in the domain
+  double start = 0.0;                           // level when the erosion began
+  double delta = 0.0;                           // material moved here by the erosion
+};
+
 struct ContactResult {
   Vec3 force = Vec3::Zero();
   Vec3 torque = Vec3::Zero();
@@ -193,13 +202,9 @@ struct ScmTerrain::Scratch {
   std::vector<ContactResult> results;
   std::vector<ContactBody> wheel_bodies;
   // Bulldozing.
-  KeyIndexMap bd_index;                 // key -> bd_* index
-  std::vector<std::uint64_t> bd_key;
-  std::vector<std::int32_t> bd_patch;   // last patch that listed the vertex as boundary
-  std::vector<char> bd_domain;          // in the erosion domain
-  std::vector<std::int32_t> boundary;   // bd indices, this patch
-  std::vector<std::int32_t> domain;     // bd indices of the erosion domain (in order)
-  std::vector<std::int32_t> front, next_front;
+  std::vector<std::int32_t> cells;      // dense window: -2 not free, -1 free, >= 0 bd index
+  std::vector<BulldozeVertex> bd;       // erosion domain: rims, then dilation rings
+  std::vector<std::int32_t> boundary;   // bd indices of this patch's rim
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -414,7 +419,11 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   stats_.footprint_vertices = total;
 
   // ---- 2. Ray casting: one vertical ray per footprint vertex (parallel, fixed partition) ----
-  const int parts = pool_ ? pool_->parts() : 1;
+  // Below a few thousand items per thread, waking the workers costs more than it saves, so the
+  // work then runs on the calling thread. Results never depend on the number of parts.
+  const auto grain = static_cast<std::size_t>(params_.thread_min_vertices);
+  const bool parallel_cast = pool_ && total >= grain * static_cast<std::size_t>(pool_->parts());
+  const int parts = parallel_cast ? pool_->parts() : 1;
   const double margin = params_.patch_test_height_m;
   s.part_hits.resize(static_cast<std::size_t>(parts));
   auto cast = [&](int part) {
@@ -453,7 +462,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       }
     }
   };
-  if (pool_) {
+  if (parallel_cast) {
     pool_->run(cast);
   } else {
     cast(0);
@@ -572,8 +581,11 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   s.results.assign(nc, ContactResult{});
   const SoilParams& soil = params_.soil;
   const double ke = soil.elastic_stiffness_pa_per_m;
+  const bool parallel_law =
+      pool_ && 4 * nc >= grain * static_cast<std::size_t>(pool_->parts());
+  const int law_parts = parallel_law ? pool_->parts() : 1;
   auto law = [&](int part) {
-    const auto [c0, c1] = part_range(nc, parts, part);
+    const auto [c0, c1] = part_range(nc, law_parts, part);
     for (std::size_t c = c0; c < c1; ++c) {
       const StepVertex& v = s.vertices[static_cast<std::size_t>(s.contacts[c])];
       Record& r = records_[static_cast<std::size_t>(v.record)];
@@ -615,7 +627,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       out.loaded = true;
     }
   };
-  if (pool_) {
+  if (parallel_law) {
     pool_->run(law);
   } else {
     law(0);
@@ -648,12 +660,63 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
 //     (level_initial - sinkage_plastic) is conserved for flow_factor = 1.
 void ScmTerrain::bulldoze() {
   Scratch& s = *scratch_;
+  const std::size_t patches = s.patch_oob.size();
+  stats_.bulldozing_domain = 0;
+  if (patches == 0) return;
+  // All patches share one erosion domain (as in Chrono) when their common window is of
+  // reasonable size; otherwise (bodies far apart) each patch is bulldozed in its own window.
+  const std::int32_t margin = params_.bulldozing.propagations + 2;
+  auto window_of = [&](std::size_t p0, std::size_t p1) {
+    std::int32_t i0 = std::numeric_limits<std::int32_t>::max(), j0 = i0;
+    std::int32_t i1 = std::numeric_limits<std::int32_t>::min(), j1 = i1;
+    for (auto q = s.patch_start[p0]; q < s.patch_start[p1]; ++q) {
+      const auto c = static_cast<std::size_t>(s.patch_members[static_cast<std::size_t>(q)]);
+      const StepVertex& v = s.vertices[static_cast<std::size_t>(s.contacts[c])];
+      i0 = std::min(i0, v.i);
+      i1 = std::max(i1, v.i);
+      j0 = std::min(j0, v.j);
+      j1 = std::max(j1, v.j);
+    }
+    return std::array<std::int64_t, 4>{static_cast<std::int64_t>(i0) - margin,
+                                       static_cast<std::int64_t>(i1) + margin,
+                                       static_cast<std::int64_t>(j0) - margin,
+                                       static_cast<std::int64_t>(j1) + margin};
+  };
+  const auto all = window_of(0, patches);
+  const std::int64_t cells = (all[1] - all[0] + 1) * (all[3] - all[2] + 1);
+  if (cells <= (std::int64_t{1} << 22)) {
+    bulldoze_window(0, patches, all);
+  } else {
+    for (std::size_t p = 0; p < patches; ++p) bulldoze_window(p, p + 1, window_of(p, p + 1));
+  }
+}
+
+void ScmTerrain::bulldoze_window(std::size_t p_begin, std::size_t p_end,
+                                 const std::array<std::int64_t, 4>& window) {
+  Scratch& s = *scratch_;
   const BulldozingParams& bp = params_.bulldozing;
-  s.bd_index.clear();
-  s.bd_key.clear();
-  s.bd_patch.clear();
-  s.bd_domain.clear();
-  s.domain.clear();
+  // Dense window over the patches (+ margin): cell = -2 not free (outside the area or under a
+  // body), -1 free, >= 0 index into s.bd (the erosion domain).
+  const std::int64_t wi0 = window[0], wj0 = window[2];
+  const auto ww = static_cast<std::int32_t>(window[1] - window[0] + 1);
+  const auto wh = static_cast<std::int32_t>(window[3] - window[2] + 1);
+  s.cells.assign(static_cast<std::size_t>(ww) * static_cast<std::size_t>(wh), -1);
+  auto cell_of = [&](std::int32_t i, std::int32_t j) {
+    return static_cast<std::size_t>((j - wj0) * ww + (i - wi0));
+  };
+  for (std::int32_t r = 0; r < wh; ++r) {
+    const std::int64_t j = wj0 + r;
+    for (std::int32_t c = 0; c < ww; ++c) {
+      const std::int64_t i = wi0 + c;
+      if (i < i_min_ || i > i_max_ || j < j_min_ || j > j_max_) {
+        s.cells[static_cast<std::size_t>(r) * static_cast<std::size_t>(ww) + static_cast<std::size_t>(c)] = -2;
+      }
+    }
+  }
+  for (const StepVertex& v : s.vertices) {  // covered vertices (contacts included)
+    if (v.i >= wi0 && v.i < wi0 + ww && v.j >= wj0 && v.j < wj0 + wh) s.cells[cell_of(v.i, v.j)] = -2;
+  }
+  s.bd.clear();
   auto add_material = [&](std::int32_t i, std::int32_t j, double amount) {
     const std::int32_t r = get_or_insert_record(i, j);
     Record& rec = records_[static_cast<std::size_t>(r)];
@@ -663,23 +726,18 @@ void ScmTerrain::bulldoze() {
     note_level(rec.level_initial - rec.sinkage_plastic);
     mark_dirty(r);
   };
-  // Free vertex: inside the area, not under a body (covered vertices include all contacts).
-  auto free_vertex = [&](std::int32_t i, std::int32_t j) {
-    return in_area(i, j) && s.vertex_index.find(vertex_key(i, j)) < 0;
-  };
-  auto bd_slot = [&](std::int32_t i, std::int32_t j) {
-    const auto next = static_cast<std::int32_t>(s.bd_key.size());
-    const std::int32_t at = s.bd_index.insert(vertex_key(i, j), next);
-    if (at == next) {
-      s.bd_key.push_back(vertex_key(i, j));
-      s.bd_patch.push_back(-1);
-      s.bd_domain.push_back(0);
-    }
-    return at;
+  auto add_domain = [&](std::int32_t i, std::int32_t j, std::size_t cell) {
+    const auto index = static_cast<std::int32_t>(s.bd.size());
+    s.cells[cell] = index;
+    BulldozeVertex v;
+    v.i = i;
+    v.j = j;
+    s.bd.push_back(v);
+    return index;
   };
 
-  const std::size_t patches = s.patch_oob.size();
-  for (std::size_t p = 0; p < patches; ++p) {
+  // (1) Raise the rim of each patch by its share of the patch's plastic flow.
+  for (std::size_t p = p_begin; p < p_end; ++p) {
     double flow = 0.0;
     s.boundary.clear();
     for (auto q = s.patch_start[p]; q < s.patch_start[p + 1]; ++q) {
@@ -689,69 +747,82 @@ void ScmTerrain::bulldoze() {
       flow += records_[static_cast<std::size_t>(v.record)].step_plastic_flow;
       for (int n = 0; n < 4; ++n) {
         const std::int32_t ni = v.i + kNeighbourDi[n], nj = v.j + kNeighbourDj[n];
-        if (!free_vertex(ni, nj)) continue;
-        const std::int32_t slot = bd_slot(ni, nj);
-        if (s.bd_patch[static_cast<std::size_t>(slot)] == static_cast<std::int32_t>(p)) continue;
-        s.bd_patch[static_cast<std::size_t>(slot)] = static_cast<std::int32_t>(p);
+        const std::size_t cell = cell_of(ni, nj);
+        std::int32_t slot = s.cells[cell];
+        if (slot == -2) continue;
+        if (slot == -1) slot = add_domain(ni, nj, cell);
+        auto& bv = s.bd[static_cast<std::size_t>(slot)];
+        if (bv.patch == static_cast<std::int32_t>(p)) continue;
+        bv.patch = static_cast<std::int32_t>(p);
         s.boundary.push_back(slot);
       }
     }
     if (s.boundary.empty()) continue;  // nowhere to put it: the volume is compacted instead
     const double raise = bp.flow_factor * flow / static_cast<double>(s.boundary.size());
+    if (raise == 0.0) continue;
     for (const std::int32_t slot : s.boundary) {
-      const std::uint64_t key = s.bd_key[static_cast<std::size_t>(slot)];
-      if (raise != 0.0) add_material(key_i(key), key_j(key), raise);
-      if (!s.bd_domain[static_cast<std::size_t>(slot)]) {
-        s.bd_domain[static_cast<std::size_t>(slot)] = 1;
-        s.domain.push_back(slot);
-      }
+      const auto& bv = s.bd[static_cast<std::size_t>(slot)];
+      add_material(bv.i, bv.j, raise);
     }
   }
-  if (s.domain.empty() || bp.iterations == 0) {
-    stats_.bulldozing_domain = s.domain.size();
+  const std::size_t rims = s.bd.size();
+  if (rims == 0 || bp.iterations == 0) {
+    stats_.bulldozing_domain += rims;
     return;
   }
-  s.front = s.domain;
-  for (int ring = 0; ring < bp.propagations && !s.front.empty(); ++ring) {
-    s.next_front.clear();
-    for (const std::int32_t slot : s.front) {
-      const std::uint64_t key = s.bd_key[static_cast<std::size_t>(slot)];
-      for (int n = 0; n < 4; ++n) {
-        const std::int32_t ni = key_i(key) + kNeighbourDi[n], nj = key_j(key) + kNeighbourDj[n];
-        if (!free_vertex(ni, nj)) continue;
-        const std::int32_t at = bd_slot(ni, nj);
-        if (s.bd_domain[static_cast<std::size_t>(at)]) continue;
-        s.bd_domain[static_cast<std::size_t>(at)] = 1;
-        s.next_front.push_back(at);
-      }
-    }
-    s.domain.insert(s.domain.end(), s.next_front.begin(), s.next_front.end());
-    std::swap(s.front, s.next_front);
-  }
-  stats_.bulldozing_domain = s.domain.size();
 
-  const double limit = delta_ * std::tan(deg_to_rad(bp.erosion_angle_deg));
-  for (int iter = 0; iter < bp.iterations; ++iter) {
-    for (const std::int32_t slot : s.domain) {
-      const std::uint64_t key = s.bd_key[static_cast<std::size_t>(slot)];
-      const std::int32_t i = key_i(key), j = key_j(key);
+  // (2) Erosion domain: the rims dilated `propagations` times over free vertices.
+  std::size_t front_begin = 0, front_end = rims;
+  for (int ring = 0; ring < bp.propagations && front_begin < front_end; ++ring) {
+    for (std::size_t f = front_begin; f < front_end; ++f) {
+      const std::int32_t i = s.bd[f].i, j = s.bd[f].j;
       for (int n = 0; n < 4; ++n) {
         const std::int32_t ni = i + kNeighbourDi[n], nj = j + kNeighbourDj[n];
-        const std::int32_t other = s.bd_index.find(vertex_key(ni, nj));
-        if (other < 0 || !s.bd_domain[static_cast<std::size_t>(other)]) continue;
-        const double dh = level_of(i, j) - level_of(ni, nj);
+        const std::size_t cell = cell_of(ni, nj);
+        if (s.cells[cell] == -1) add_domain(ni, nj, cell);
+      }
+    }
+    front_begin = front_end;
+    front_end = s.bd.size();
+  }
+  stats_.bulldozing_domain += s.bd.size();
+  for (auto& v : s.bd) {
+    v.start = level_of(v.i, v.j);
+    for (int n = 0; n < 4; ++n) {
+      const std::int32_t c = s.cells[cell_of(v.i + kNeighbourDi[n], v.j + kNeighbourDj[n])];
+      v.neighbour[n] = c >= 0 ? c : -1;
+    }
+  }
+
+  // (3) Erosion sweeps (Gauss-Seidel in domain order) on cached heights; stop early once a
+  // sweep moves nothing (the remaining sweeps would not either).
+  const double limit = delta_ * std::tan(deg_to_rad(bp.erosion_angle_deg));
+  for (int iter = 0; iter < bp.iterations; ++iter) {
+    bool moved = false;
+    for (auto& v : s.bd) {
+      for (int n = 0; n < 4; ++n) {
+        if (v.neighbour[n] < 0) continue;
+        auto& o = s.bd[static_cast<std::size_t>(v.neighbour[n])];
+        const double dh = (v.start + v.delta) - (o.start + o.delta);
         const double excess = std::abs(dh) - limit;
         if (!(excess > 0.0)) continue;
         const double amount = excess / 8.0;
         if (dh > 0.0) {
-          add_material(i, j, -amount);
-          add_material(ni, nj, amount);
+          v.delta -= amount;
+          o.delta += amount;
         } else {
-          add_material(ni, nj, -amount);
-          add_material(i, j, amount);
+          o.delta -= amount;
+          v.delta += amount;
         }
+        moved = true;
       }
     }
+    if (!moved) break;
+  }
+
+  // (4) Write the moved material back (records only where something changed).
+  for (const auto& v : s.bd) {
+    if (v.delta != 0.0) add_material(v.i, v.j, v.delta);
   }
 }
 

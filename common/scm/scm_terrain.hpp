@@ -14,6 +14,7 @@
 //      force = cell area (sigma n + tau t), summed with torque about the body centre;
 //   4. optionally bulldozes the plastically displaced volume to the rim of each patch.
 // See docs/scm.md for the equations, the sync rule and the limits.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -175,6 +176,8 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   double surface_of(std::int32_t i, std::int32_t j) const;
   void note_level(double level);
   void bulldoze();
+  void bulldoze_window(std::size_t p_begin, std::size_t p_end,
+                       const std::array<std::int64_t, 4>& window);
   static VertexChange to_change(const Record& r);
   void assign(Record& r, const VertexChange& c);
 

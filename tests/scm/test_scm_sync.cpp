@@ -82,7 +82,8 @@ TEST(ScmDeterminism, ThreadCountDoesNotChangeResults) {
   std::uint64_t hashes[3] = {};
   for (int threads = 1; threads <= 3; ++threads) {
     ScmParams p = sync_params(threads);
-    p.grid.spacing_m = 0.025;  // more vertices per part, so every thread has work
+    p.grid.spacing_m = 0.025;
+    p.thread_min_vertices = 1;  // always split the work, even when small
     ScmTerrain terrain(p);
     traces[threads - 1] = drive_four_wheels(terrain, 250);
     hashes[threads - 1] = terrain.grid_hash();
