@@ -1,0 +1,99 @@
+#pragma once
+// Sensor rigs (config/sensors/*.yaml): the sensors mounted on one vehicle, read strictly
+// (unknown keys are errors naming file:line:column), and VehicleSensors, which builds every
+// sensor of a rig for one vehicle with seeds derived from the scenario seed. Schema and
+// defaults: docs/sensors.md.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/yaml.hpp"
+#include "sensors/camera.hpp"
+#include "sensors/geodesy.hpp"
+#include "sensors/interoceptive.hpp"
+#include "sensors/lidar.hpp"
+#include "sensors/scene.hpp"
+
+namespace syndds::sensors {
+
+struct SensorRig {
+  std::string name;
+  std::string file;
+  Geodetic geodetic_origin = kDefaultOrigin;
+  SceneConfig scene;  // lighting and tessellation for the renderers ("scene:" block)
+  std::vector<CameraConfig> cameras;
+  std::vector<LidarConfig> lidars;
+  std::vector<GpsConfig> gps;
+  std::vector<ImuConfig> imus;
+  std::vector<MagnetometerConfig> magnetometers;
+  std::vector<TachometerConfig> tachometers;
+  std::vector<std::string> sensor_ids;  // in file order
+
+  bool has_rendered_sensors() const { return !cameras.empty() || !lidars.empty(); }
+};
+
+/// Reads a rig file; ConfigError (file:line:column: key path: message) on any problem.
+SensorRig load_sensor_rig(const std::string& file);
+SensorRig parse_sensor_rig(const YamlNode& root);
+/// Path of a rig by name ("default" -> <config_dir>/sensors/default.yaml), or the argument
+/// itself when it names an existing file.
+std::string sensor_rig_path(const std::string& name_or_path, const std::string& config_dir);
+
+/// Seed of one sensor's random stream: derive_seed(scenario_seed, "<vehicle>/<sensor>").
+std::uint64_t sensor_seed(std::uint64_t scenario_seed, const std::string& vehicle_id,
+                          const std::string& sensor_id);
+
+/// Samples of every interoceptive sensor of a rig that became available.
+struct InteroceptiveBatch {
+  std::vector<GpsSample> gps;
+  std::vector<ImuSample> imu;
+  std::vector<MagnetometerSample> magnetometer;
+  std::vector<TachometerSample> tachometer;
+  bool empty() const { return gps.empty() && imu.empty() && magnetometer.empty() && tachometer.empty(); }
+};
+
+/// Camera frames and lidar scans that became available.
+struct RenderedBatch {
+  std::vector<CameraFrame> camera;
+  std::vector<LidarScan> lidar;
+  bool empty() const { return camera.empty() && lidar.empty(); }
+};
+
+/// Every sensor of a rig on one vehicle.
+///  - interoceptive sensors: update_dynamics(snapshot) after every dynamics step (step_s);
+///  - cameras and lidars: update_rendered(scene, t) once per frame (heartbeat_s) after the
+///    scene holds every vehicle's pose and terrain change for time t and was committed;
+///  - take_*(now): samples whose available time (measurement + lag) is <= now.
+class VehicleSensors {
+ public:
+  /// Throws ConfigError (naming the rig file and sensor) when a sensor does not fit the time
+  /// grid (rate above the feed rate, exposure longer than period or lag).
+  VehicleSensors(const SensorRig& rig, std::string vehicle_id, std::uint64_t scenario_seed,
+                 double step_s, double heartbeat_s);
+  const std::string& vehicle_id() const { return vehicle_id_; }
+
+  void update_dynamics(const vehicle::VehicleSnapshot& snapshot);
+  void update_rendered(const Scene& scene, double time_s);
+  InteroceptiveBatch take_interoceptive(double now_s);
+  RenderedBatch take_rendered(double now_s);
+
+  std::vector<GpsSensor>& gps() { return gps_; }
+  std::vector<ImuSensor>& imus() { return imus_; }
+  std::vector<MagnetometerSensor>& magnetometers() { return magnetometers_; }
+  std::vector<TachometerSensor>& tachometers() { return tachometers_; }
+  std::vector<std::unique_ptr<CameraSensor>>& cameras() { return cameras_; }
+  std::vector<std::unique_ptr<LidarSensor>>& lidars() { return lidars_; }
+
+ private:
+  std::string vehicle_id_;
+  std::vector<GpsSensor> gps_;
+  std::vector<ImuSensor> imus_;
+  std::vector<MagnetometerSensor> magnetometers_;
+  std::vector<TachometerSensor> tachometers_;
+  std::vector<std::unique_ptr<CameraSensor>> cameras_;
+  std::vector<std::unique_ptr<LidarSensor>> lidars_;
+};
+
+}  // namespace syndds::sensors
