@@ -4,11 +4,10 @@
 // Barrier's decisions (grants, stop, abort).
 #include <atomic>
 #include <condition_variable>
-#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
-#include <variant>
+#include <optional>
 
 #include "dds/participant.hpp"
 #include "protocol/barrier.hpp"
@@ -33,20 +32,26 @@ class CoordinatorService {
   const proto::RunControlMsg& result() const { return result_; }
 
  private:
-  struct Joined { proto::MemberAnnounceMsg announce; };
-  struct Done { proto::FrameDoneMsg done; };
-  struct Lost { std::string guid; bool graceful; };
-  using Event = std::variant<Joined, Done, Lost>;
-
+  // Events are handled where they arrive (DDS receive threads) under mutex_, and a grant is
+  // written from there too: no thread hop per done report. The main thread only handles
+  // deadlines, signals and the end of the run.
   void setup();
-  void handle(proto::Barrier& barrier, Event& event, double now);
-  void wait_for_finished(proto::Barrier& barrier);
+  double now() const;
+  void on_join(const proto::MemberAnnounceMsg& announce);
+  void on_done(const proto::FrameDoneMsg& done);
+  void on_lost(const std::string& guid, bool graceful);
+  void advance_locked();
+  void wait_for_finished(std::unique_lock<std::mutex>& lock);
 
   CoordinatorOptions options_;
   std::unique_ptr<Participant> participant_;
   std::mutex mutex_;
   std::condition_variable cv_;
-  std::deque<Event> events_;
+  std::chrono::steady_clock::time_point t0_;
+  std::optional<proto::Barrier> barrier_;
+  std::optional<proto::Barrier::Action> end_;  // stop or abort, once decided
+  double next_wake_s_ = 0.0;
+  std::int64_t progress_every_ = 1;
   std::map<std::string, std::string> member_of_guid_;  // participant GUID prefix -> member id
   proto::RunControlMsg result_;
 
