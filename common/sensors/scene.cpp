@@ -103,6 +103,25 @@ TerrainGrid TerrainGrid::flat(const Vec2& origin, double spacing_m, int nx, int 
   return g;
 }
 
+TerrainGrid sample_terrain(const terrain::TerrainSurface& surface, double spacing_m, double x_min,
+                           double x_max, double y_min, double y_max) {
+  if (!(spacing_m > 0.0) || !(x_max > x_min) || !(y_max > y_min)) {
+    throw std::invalid_argument("sample_terrain: need spacing > 0 and a non-empty area");
+  }
+  const auto i0 = static_cast<int>(std::ceil(x_min / spacing_m - 1e-9));
+  const auto i1 = static_cast<int>(std::floor(x_max / spacing_m + 1e-9));
+  const auto j0 = static_cast<int>(std::ceil(y_min / spacing_m - 1e-9));
+  const auto j1 = static_cast<int>(std::floor(y_max / spacing_m + 1e-9));
+  TerrainGrid g = TerrainGrid::flat(Vec2(i0 * spacing_m, j0 * spacing_m), spacing_m, i1 - i0 + 1,
+                                    j1 - j0 + 1, 0.0);
+  for (int j = 0; j < g.ny; ++j) {
+    for (int i = 0; i < g.nx; ++i) {
+      g.at(i, j) = static_cast<float>(surface.height((i0 + i) * spacing_m, (j0 + j) * spacing_m));
+    }
+  }
+  return g;
+}
+
 TerrainLook terrain_look(std::string_view kind) {
   TerrainLook look;
   if (kind == "rigid") {
@@ -319,6 +338,21 @@ std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
     }
   }
   return applied;
+}
+
+std::size_t Scene::update_terrain_world(std::span<const HeightUpdate> updates) {
+  const double fi = grid_.origin.x() / grid_.spacing_m, fj = grid_.origin.y() / grid_.spacing_m;
+  const double ri = std::round(fi), rj = std::round(fj);
+  if (std::abs(fi - ri) > 1e-6 || std::abs(fj - rj) > 1e-6) {
+    throw std::logic_error("terrain grid origin is not on the world-anchored grid");
+  }
+  const auto i0 = static_cast<std::int32_t>(ri), j0 = static_cast<std::int32_t>(rj);
+  std::vector<HeightUpdate> local(updates.begin(), updates.end());
+  for (auto& u : local) {
+    u.i -= i0;
+    u.j -= j0;
+  }
+  return update_terrain(local);
 }
 
 void Scene::add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> colour) {

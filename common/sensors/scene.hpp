@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "terrain/terrain.hpp"
 #include "vehicle/vehicle_model.hpp"
 #include "vehicle/vehicle_params.hpp"
 #include "world/obstacle.hpp"
@@ -53,6 +54,12 @@ struct HeightUpdate {
   std::int32_t j = 0;
   double height_m = 0.0;
 };
+
+/// Grid sampled from any terrain surface over [x_min, x_max] x [y_min, y_max], anchored at
+/// the world origin like the SCM grid (vertex (i, j) of the world grid at (i s, j s)), so
+/// SCM vertex changes apply through Scene::update_terrain_world().
+TerrainGrid sample_terrain(const terrain::TerrainSurface& surface, double spacing_m, double x_min,
+                           double x_max, double y_min, double y_max);
 
 /// How the terrain looks: a colour per terrain type or a tiled texture image.
 struct TerrainLook {
@@ -144,8 +151,12 @@ class Scene {
   /// Replaces the terrain. Throws std::invalid_argument on a malformed grid or a texture
   /// that cannot be read.
   void set_terrain(const TerrainGrid& grid, const TerrainLook& look);
-  /// Applies changed heights; returns how many were inside the grid (others are ignored).
+  /// Applies changed heights; (i, j) index the grid from its origin. Returns how many were
+  /// inside the grid (others are ignored).
   std::size_t update_terrain(std::span<const HeightUpdate> updates);
+  /// Same with (i, j) indexing the world-anchored grid (vertex at (i s, j s), SCM's
+  /// convention). Throws std::logic_error if the grid origin is not a whole number of spacings.
+  std::size_t update_terrain_world(std::span<const HeightUpdate> updates);
   const TerrainGrid& terrain() const { return grid_; }
 
   /// Adds a static obstacle; colour defaults to obstacle_colour(label).

@@ -1,6 +1,7 @@
 #include "sensors/timing.hpp"
 
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 namespace syndds::sensors {
@@ -16,9 +17,10 @@ SampleClock::SampleClock(double rate_hz, double lag_s, double tick_s, const std:
   if (!(lag_s >= 0.0)) throw std::invalid_argument(sensor_id + ": lag_s must be >= 0");
   period_ticks_ = 1.0 / (rate_hz * tick_s);
   if (period_ticks_ < 1.0 - kTickEps) {
-    throw std::invalid_argument(sensor_id + ": rate " + std::to_string(rate_hz) +
-                                " Hz exceeds the update rate " + std::to_string(1.0 / tick_s) +
-                                " Hz it is fed at");
+    std::ostringstream msg;
+    msg << sensor_id << ": rate " << rate_hz << " Hz exceeds the update rate " << 1.0 / tick_s
+        << " Hz it is fed at";
+    throw std::invalid_argument(msg.str());
   }
   lag_ticks_ = static_cast<std::int64_t>(std::ceil(lag_s / tick_s - kTickEps));
 }
