@@ -159,10 +159,10 @@ struct BodyGeometry {
   }
 };
 
-struct StepVertex {
-  std::uint64_t key = 0;
+struct StepVertex {  // one footprint vertex of one body in this step
   std::int32_t i = 0, j = 0;
   std::int32_t body = -1;
+  std::int32_t alias = -1;    // canonical entry if an earlier body's footprint holds the vertex
   std::int32_t contact = -1;  // index in contacts, -1 if not penetrating
   std::int32_t patch = -1;    // contact patch (patch vertices reached from a contact only)
   std::int32_t record = -1;   // records_ index (contacts only)
@@ -188,9 +188,7 @@ struct ContactResult {
 
 struct ScmTerrain::Scratch {
   std::vector<BodyGeometry> bodies;
-  std::vector<std::vector<StepVertex>> part_hits;
-  std::vector<StepVertex> vertices;
-  KeyIndexMap vertex_index;  // key -> vertices index
+  std::vector<StepVertex> vertices;          // all footprint vertices (see compute_body_loads)
   std::vector<std::int32_t> contacts;       // vertices indices of contact vertices
   std::vector<std::int32_t> contact_patch;  // patch id per contact
   std::vector<std::int32_t> patch_start;    // offsets into patch_members (size patches + 1)
@@ -301,6 +299,16 @@ void ScmTerrain::assign(Record& r, const VertexChange& c) {
   r.sigma_yield = c.sigma_yield_pa;
   note_level(r.level);
   note_level(r.level_initial - r.sinkage_plastic);
+}
+
+std::int32_t ScmTerrain::find_step_vertex(std::int32_t i, std::int32_t j) const {
+  for (const BodyGeometry& g : scratch_->bodies) {
+    if (g.count == 0 || i < g.i0 || i > g.i1 || j < g.j0 || j > g.j1) continue;
+    return static_cast<std::int32_t>(g.offset + static_cast<std::size_t>(i - g.i0) *
+                                                    static_cast<std::size_t>(g.j1 - g.j0 + 1) +
+                                     static_cast<std::size_t>(j - g.j0));
+  }
+  return -1;
 }
 
 // ---- TerrainSurface --------------------------------------------------------------------------
@@ -425,10 +433,13 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   const bool parallel_cast = pool_ && total >= grain * static_cast<std::size_t>(pool_->parts());
   const int parts = parallel_cast ? pool_->parts() : 1;
   const double margin = params_.patch_test_height_m;
-  s.part_hits.resize(static_cast<std::size_t>(parts));
+  if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    throw std::invalid_argument("ScmTerrain::compute_body_loads: body footprints too large");
+  }
+  // One entry per footprint vertex, laid out body by body, row-major in each footprint box:
+  // entry g is written by exactly one part, so the result does not depend on the partition.
+  s.vertices.resize(total);
   auto cast = [&](int part) {
-    auto& hits = s.part_hits[static_cast<std::size_t>(part)];
-    hits.clear();
     const auto [g0, g1] = part_range(total, parts, part);
     for (std::size_t b = 0; b < s.bodies.size(); ++b) {
       const BodyGeometry& g = s.bodies[b];
@@ -441,19 +452,18 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       auto i = static_cast<std::int32_t>(g.i0 + static_cast<std::int32_t>(local / nj));
       auto j = static_cast<std::int32_t>(g.j0 + static_cast<std::int32_t>(local % nj));
       for (std::size_t k = lo; k < hi; ++k) {
+        StepVertex& v = s.vertices[k];
+        v = StepVertex{};
+        v.i = i;
+        v.j = j;
+        v.body = static_cast<std::int32_t>(b);
         double dz = 0.0;
         if (g.lowest_on_vertical(i * delta_, j * delta_, dz)) {
-          StepVertex v;
-          v.key = vertex_key(i, j);
-          v.i = i;
-          v.j = j;
-          v.body = static_cast<std::int32_t>(b);
           v.z_hit = g.centre.z() + dz;
           if (v.z_hit < level_bound_ + margin) {
             v.surface = surface_of(i, j);
             v.has_level = true;
           }
-          hits.push_back(v);
         }
         if (++j > g.j1) {
           j = g.j0;
@@ -468,17 +478,23 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
     cast(0);
   }
 
-  // ---- 3. Merge hits in global order; the lowest body point wins a shared vertex ----
-  s.vertices.clear();
-  s.vertex_index.clear();
-  for (const auto& hits : s.part_hits) {
-    for (const StepVertex& h : hits) {
-      const auto next = static_cast<std::int32_t>(s.vertices.size());
-      const std::int32_t at = s.vertex_index.insert(h.key, next);
-      if (at == next) {
-        s.vertices.push_back(h);
-        continue;
-      }
+  // ---- 3. Vertices in several footprint boxes: the first box's entry is canonical and takes
+  // the lowest body point (ties: the earlier body); the others become aliases ----
+  bool overlap = false;
+  for (std::size_t a = 0; a < s.bodies.size() && !overlap; ++a) {
+    for (std::size_t b = a + 1; b < s.bodies.size() && !overlap; ++b) {
+      const BodyGeometry& p = s.bodies[a];
+      const BodyGeometry& q = s.bodies[b];
+      overlap = p.count > 0 && q.count > 0 && p.i0 <= q.i1 && q.i0 <= p.i1 && p.j0 <= q.j1 &&
+                q.j0 <= p.j1;
+    }
+  }
+  if (overlap) {
+    for (std::size_t k = 0; k < total; ++k) {
+      StepVertex& h = s.vertices[k];
+      const std::int32_t at = find_step_vertex(h.i, h.j);
+      if (at == static_cast<std::int32_t>(k)) continue;
+      h.alias = at;
       StepVertex& v = s.vertices[static_cast<std::size_t>(at)];
       if (h.has_level && !v.has_level) {
         v.surface = h.surface;
@@ -490,15 +506,18 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       }
     }
   }
-  stats_.covered_vertices = s.vertices.size();
   s.contacts.clear();
-  for (std::size_t k = 0; k < s.vertices.size(); ++k) {
+  std::size_t covered = 0;
+  for (std::size_t k = 0; k < total; ++k) {
     StepVertex& v = s.vertices[k];
+    if (v.alias >= 0 || v.z_hit == kInf) continue;
+    ++covered;
     if (v.has_level && v.z_hit < v.surface) {  // elastic trial > 0
       v.contact = static_cast<std::int32_t>(s.contacts.size());
       s.contacts.push_back(static_cast<std::int32_t>(k));
     }
   }
+  stats_.covered_vertices = covered;
   stats_.contact_vertices = s.contacts.size();
   if (s.contacts.empty()) {
     ++step_;
@@ -535,8 +554,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
         s.patch_members.push_back(v.contact);
       }
       for (int n = 0; n < 4; ++n) {
-        const std::int32_t at =
-            s.vertex_index.find(vertex_key(v.i + kNeighbourDi[n], v.j + kNeighbourDj[n]));
+        const std::int32_t at = find_step_vertex(v.i + kNeighbourDi[n], v.j + kNeighbourDj[n]);
         if (at < 0) continue;
         StepVertex& nb = s.vertices[static_cast<std::size_t>(at)];
         if (nb.patch >= 0 || !patch_vertex(nb)) continue;
@@ -654,7 +672,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
 // (1) each patch's plastic flow of this step (times flow_factor) is spread evenly over its rim:
 //     the 4-neighbours of loaded contact vertices that are inside the area, not in contact and
 //     not under any body; (2) the rims are dilated `propagations` times over such vertices into
-//     the erosion domain; (3) `iterations` sweeps move (|dh| - delta tan(angle)) / 8 from the
+//     the erosion domain; (3) `iterations` sweeps move (|dh| - delta tan(angle)) / 4 from the
 //     higher to the lower of each pair of 4-neighbours in the domain. Raising or moving material
 //     shifts level and level_initial together, so the sinkage state is unchanged and the sum of
 //     (level_initial - sinkage_plastic) is conserved for flow_factor = 1.
@@ -700,20 +718,22 @@ void ScmTerrain::bulldoze_window(std::size_t p_begin, std::size_t p_end,
   const std::int64_t wi0 = window[0], wj0 = window[2];
   const auto ww = static_cast<std::int32_t>(window[1] - window[0] + 1);
   const auto wh = static_cast<std::int32_t>(window[3] - window[2] + 1);
-  s.cells.assign(static_cast<std::size_t>(ww) * static_cast<std::size_t>(wh), -1);
+  s.cells.assign(static_cast<std::size_t>(ww) * static_cast<std::size_t>(wh), -2);
   auto cell_of = [&](std::int32_t i, std::int32_t j) {
     return static_cast<std::size_t>((j - wj0) * ww + (i - wi0));
   };
-  for (std::int32_t r = 0; r < wh; ++r) {
-    const std::int64_t j = wj0 + r;
-    for (std::int32_t c = 0; c < ww; ++c) {
-      const std::int64_t i = wi0 + c;
-      if (i < i_min_ || i > i_max_ || j < j_min_ || j > j_max_) {
-        s.cells[static_cast<std::size_t>(r) * static_cast<std::size_t>(ww) + static_cast<std::size_t>(c)] = -2;
-      }
+  {  // free inside the area
+    const std::int64_t c0 = std::max<std::int64_t>(0, i_min_ - wi0);
+    const std::int64_t c1 = std::min<std::int64_t>(ww - 1, i_max_ - wi0);
+    const std::int64_t r0 = std::max<std::int64_t>(0, j_min_ - wj0);
+    const std::int64_t r1 = std::min<std::int64_t>(wh - 1, j_max_ - wj0);
+    for (std::int64_t r = r0; r <= r1; ++r) {
+      auto row = s.cells.begin() + r * ww;
+      std::fill(row + c0, row + c1 + 1, -1);
     }
   }
   for (const StepVertex& v : s.vertices) {  // covered vertices (contacts included)
+    if (v.alias >= 0 || v.z_hit == kInf) continue;
     if (v.i >= wi0 && v.i < wi0 + ww && v.j >= wj0 && v.j < wj0 + wh) s.cells[cell_of(v.i, v.j)] = -2;
   }
   s.bd.clear();
@@ -794,19 +814,20 @@ void ScmTerrain::bulldoze_window(std::size_t p_begin, std::size_t p_end,
     }
   }
 
-  // (3) Erosion sweeps (Gauss-Seidel in domain order) on cached heights; stop early once a
-  // sweep moves nothing (the remaining sweeps would not either).
+  // (3) Erosion sweeps (Gauss-Seidel in domain order) on cached heights, each pair of
+  // 4-neighbours once per sweep (east and north links); stop early once a sweep moves nothing
+  // (the remaining sweeps would not either).
   const double limit = delta_ * std::tan(deg_to_rad(bp.erosion_angle_deg));
   for (int iter = 0; iter < bp.iterations; ++iter) {
     bool moved = false;
     for (auto& v : s.bd) {
-      for (int n = 0; n < 4; ++n) {
+      for (int n = 2; n < 4; ++n) {  // kNeighbour order S, W, E, N
         if (v.neighbour[n] < 0) continue;
         auto& o = s.bd[static_cast<std::size_t>(v.neighbour[n])];
         const double dh = (v.start + v.delta) - (o.start + o.delta);
         const double excess = std::abs(dh) - limit;
         if (!(excess > 0.0)) continue;
-        const double amount = excess / 8.0;
+        const double amount = excess / 4.0;
         if (dh > 0.0) {
           v.delta -= amount;
           o.delta += amount;

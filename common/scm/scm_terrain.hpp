@@ -175,6 +175,8 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   /// Height of the unloaded soil, level_initial - sinkage_plastic: a body below it is in contact.
   double surface_of(std::int32_t i, std::int32_t j) const;
   void note_level(double level);
+  /// Footprint entry of vertex (i, j) in this step (the first body box holding it), or -1.
+  std::int32_t find_step_vertex(std::int32_t i, std::int32_t j) const;
   void bulldoze();
   void bulldoze_window(std::size_t p_begin, std::size_t p_end,
                        const std::array<std::int64_t, 4>& window);

@@ -25,6 +25,7 @@ struct Row {
   std::string preset;
   double spacing = 0.0;
   int threads = 1;
+  bool forced = false;  // threads used even for small steps (thread_min_vertices = 1)
   bool bulldozing = false;
   double us_per_call = 0.0;
   double rtf = 0.0;  // wall time of the terrain calls / simulated time
@@ -34,7 +35,8 @@ struct Row {
   std::size_t stored = 0;
 };
 
-Row run(const std::string& preset, double spacing, int threads, bool bulldozing, int steps) {
+Row run(const std::string& preset, double spacing, int threads, bool forced, bool bulldozing,
+        int steps) {
   ScmParams p;
   const SoilPreset s = load_soil_preset_file(std::string(SYNDDS_CONFIG_DIR) + "/terrain/scm_" +
                                              preset + ".yaml");
@@ -47,6 +49,7 @@ Row run(const std::string& preset, double spacing, int threads, bool bulldozing,
   p.grid.y_min_m = -10;
   p.grid.y_max_m = 10;
   p.threads = threads;
+  if (forced) p.thread_min_vertices = 1;
   ScmTerrain terrain(p);
 
   const double r = 0.467, width = 0.254, load = 6000.0, mass = 60.0, dt = 2e-3;
@@ -81,6 +84,7 @@ Row run(const std::string& preset, double spacing, int threads, bool bulldozing,
   row.preset = preset;
   row.spacing = spacing;
   row.threads = threads;
+  row.forced = forced;
   row.bulldozing = bulldozing;
   double seconds = 0.0;
   double bytes = 0.0;
@@ -153,22 +157,26 @@ int main(int argc, char** argv) {
   std::printf("SCM benchmark: 4 wheels r 0.467 m w 0.254 m, 6 kN each, 3 m/s, 10 %% slip, "
               "dt 2 ms, %d timed steps after 500 warm-up steps\n",
               steps);
-  std::printf("%-5s %7s %3s %5s %10s %9s %9s %8s %8s %8s %8s %10s %10s %8s\n", "soil",
+  std::printf("thr: worker threads (f: forced to split even small steps, thread_min_vertices 1)\n");
+  std::printf("%-5s %7s %4s %5s %10s %9s %9s %8s %8s %8s %8s %10s %10s %8s\n", "soil",
               "spacing", "thr", "bulld", "us/call", "RTF", "footprnt", "covered", "contact",
               "patchv", "domain", "B/frame", "maxB/frm", "sink_mm");
   for (const auto& preset : presets) {
     for (double spacing : spacings) {
-      for (int threads : {1, 2}) {
-        for (bool bulldozing : {false, true}) {
-          if (bulldozing && threads == 2) continue;
-          const Row r = run(preset, spacing, threads, bulldozing, steps);
-          std::printf(
-              "%-5s %7.3f %3d %5s %10.2f %9.4f %9.0f %8.0f %8.0f %8.0f %8.0f %10.0f %10.0f %8.1f\n",
-              r.preset.c_str(), r.spacing, r.threads, r.bulldozing ? "on" : "off", r.us_per_call,
-              r.rtf, r.footprint, r.covered, r.contacts, r.patch_vertices, r.domain,
-              r.bytes_per_frame, r.max_bytes_per_frame, r.sinkage_mm);
-          std::fflush(stdout);
-        }
+      struct Config {
+        int threads;
+        bool forced;
+        bool bulldozing;
+      };
+      for (const Config c : {Config{1, false, false}, Config{1, false, true},
+                             Config{2, false, false}, Config{2, true, false}}) {
+        const Row r = run(preset, spacing, c.threads, c.forced, c.bulldozing, steps);
+        std::printf(
+            "%-5s %7.3f %3d%1s %5s %10.2f %9.4f %9.0f %8.0f %8.0f %8.0f %8.0f %10.0f %10.0f %8.1f\n",
+            r.preset.c_str(), r.spacing, r.threads, r.forced ? "f" : "", r.bulldozing ? "on" : "off",
+            r.us_per_call, r.rtf, r.footprint, r.covered, r.contacts, r.patch_vertices, r.domain,
+            r.bytes_per_frame, r.max_bytes_per_frame, r.sinkage_mm);
+        std::fflush(stdout);
       }
     }
   }

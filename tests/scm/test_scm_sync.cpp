@@ -335,3 +335,42 @@ TEST(ScmBulldozing, RimGainsWhatTheRutLoses) {
     }
   }
 }
+
+namespace {
+/// Undeformed ground rising 10 % to the east.
+class Slope final : public terrain::TerrainSurface {
+ public:
+  double height(double x, double) const override { return 0.5 + 0.1 * x; }
+  Vec3 normal(double, double) const override { return Vec3(-0.1, 0, 1).normalized(); }
+  double friction(double, double) const override { return 0.8; }
+};
+}  // namespace
+
+TEST(ScmSurface, BaseSurfaceGivesTheUndeformedHeight) {
+  ScmParams p = params("mid", 0.05, 3.0);
+  ScmTerrain t(p, std::make_shared<Slope>());
+  EXPECT_NEAR(t.height(1.0, 0.3), 0.6, 1e-12);
+  EXPECT_NEAR(t.normal(1.02, 0.3).x(), Vec3(-0.1, 0, 1).normalized().x(), 1e-9);
+  // A wheel pressed 30 mm into the slope: sinkage is measured from the base surface there.
+  terrain::WheelBodyState w = kinematic_wheel(Vec3(1.0, 0.0, 0.0), Vec3::UnitX(), 0.0, 0.0, 0.0);
+  w.pose.position.z() = 0.6 + kRadius - 0.03;
+  terrain::WheelLoad l;
+  t.compute_wheel_loads(std::span(&w, 1), 2e-3, std::span(&l, 1));
+  EXPECT_TRUE(l.in_contact);
+  EXPECT_NEAR(l.sinkage_m, 0.03, 0.003);  // the lowest point meets the slope slightly off-centre
+  EXPECT_NEAR(t.vertex_height(20, 0), 0.57, 1e-9);
+  EXPECT_GT(l.force.z(), 0.0);
+}
+
+TEST(ScmSurface, NoSoilOutsideTheArea) {
+  ScmParams p = params("mid", 0.05, 1.0);
+  ScmTerrain t(p);
+  EXPECT_FALSE(t.in_area(100, 0));
+  terrain::WheelBodyState w = kinematic_wheel(Vec3(5.0, 0.0, 0.0), Vec3::UnitX(), 1.0, 0.0, 0.0);
+  terrain::WheelLoad l;
+  t.compute_wheel_loads(std::span(&w, 1), 2e-3, std::span(&l, 1));
+  EXPECT_FALSE(l.in_contact);
+  EXPECT_EQ(l.force, Vec3::Zero());
+  EXPECT_EQ(t.stored_vertices(), 0u);
+  EXPECT_EQ(t.height(5.0, 0.0), 0.0);  // the flat base height is still reported there
+}
