@@ -1,6 +1,7 @@
 #include "vehicle/ode_vehicle.hpp"
 
 #include <ode/ode.h>
+#include <ode/threading_impl.h>
 
 #include <algorithm>
 #include <cmath>
@@ -92,6 +93,10 @@ struct OdeVehicleModel::Impl {
   Powertrain powertrain;
 
   dWorldID world = nullptr;
+  // ODE's default stepping threading implementation is one process-wide object: worlds stepped
+  // from several threads at once (single-process runs, in-process tests) corrupt it and abort.
+  // Each world gets its own self-threaded implementation.
+  dThreadingImplementationID threading = nullptr;
   dJointGroupID contact_group = nullptr;
   dBodyID chassis = nullptr;
   std::array<dBodyID, 4> wheels{};
@@ -135,13 +140,20 @@ struct OdeVehicleModel::Impl {
     }
     if (chassis_geom) dGeomDestroy(chassis_geom);
     if (contact_group) dJointGroupDestroy(contact_group);
-    if (world) dWorldDestroy(world);  // bodies and joints with it
+    if (world) {
+      dWorldSetStepThreadingImplementation(world, nullptr, nullptr);
+      dWorldDestroy(world);  // bodies and joints with it
+    }
+    if (threading) dThreadingFreeImplementation(threading);
   }
 
   // --- construction ------------------------------------------------------------------------
 
   void build(const Pose& start, const world::Obstacles& obstacle_list) {
     world = dWorldCreate();
+    threading = dThreadingAllocateSelfThreadedImplementation();
+    dWorldSetStepThreadingImplementation(world, dThreadingImplementationGetFunctions(threading),
+                                         threading);
     dWorldSetGravity(world, 0, 0, -kGravity);
     dWorldSetERP(world, 0.2);
     dWorldSetCFM(world, 1e-10);

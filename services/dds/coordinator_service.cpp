@@ -21,9 +21,14 @@ double seconds_since(Clock::time_point t0) {
 CoordinatorService::CoordinatorService(CoordinatorOptions options) : options_(std::move(options)) {}
 
 CoordinatorService::~CoordinatorService() {
-  // Readers first: their callbacks use the barrier and the writers.
+  // Stop every DDS callback into this object before its members go (see MemberRuntime).
+  if (participant_) participant_->set_lost_callback(nullptr);
   announce_reader_.reset();
   done_reader_.reset();
+  announce_writer_.reset();
+  grant_writer_.reset();
+  control_writer_.reset();
+  participant_.reset();
 }
 
 double CoordinatorService::now() const { return seconds_since(t0_); }

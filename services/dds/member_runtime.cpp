@@ -39,7 +39,9 @@ MemberRuntime::MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options)
     : agent_(agent), options_(std::move(options)), inbox_(agent.subscriptions()) {}
 
 MemberRuntime::~MemberRuntime() {
-  // Readers first: their callbacks touch members of this object.
+  // Stop every DDS callback into this object before its members go: the lost-participant
+  // callback, then the readers, then the writers, and the participant last.
+  if (participant_) participant_->set_lost_callback(nullptr);
   announce_reader_.reset();
   grant_reader_.reset();
   control_reader_.reset();
@@ -47,6 +49,13 @@ MemberRuntime::~MemberRuntime() {
   command_reader_.reset();
   terrain_reader_.reset();
   collision_reader_.reset();
+  announce_writer_.reset();
+  done_writer_.reset();
+  state_writer_.reset();
+  command_writer_.reset();
+  terrain_writer_.reset();
+  collision_writer_.reset();
+  participant_.reset();
 }
 
 void MemberRuntime::setup() {

@@ -83,7 +83,7 @@ std::string Participant::guid_prefix() const {
 }
 
 void Participant::set_lost_callback(LostCallback cb) {
-  std::lock_guard lock(mutex_);
+  std::lock_guard lock(callback_mutex_);
   lost_ = std::move(cb);
 }
 
@@ -93,12 +93,8 @@ void Participant::on_participant_discovery(
   if (info.status != Info::REMOVED_PARTICIPANT && info.status != Info::DROPPED_PARTICIPANT) return;
   std::ostringstream out;
   out << info.info.m_guid.guidPrefix;
-  LostCallback cb;
-  {
-    std::lock_guard lock(mutex_);
-    cb = lost_;
-  }
-  if (cb) cb(out.str(), info.status == Info::REMOVED_PARTICIPANT);
+  std::lock_guard lock(callback_mutex_);
+  if (lost_) lost_(out.str(), info.status == Info::REMOVED_PARTICIPANT);
 }
 
 void Participant::fail(const std::string& what) const {

@@ -136,6 +136,8 @@ class Participant : private fdds::DomainParticipantListener {
 
   const DdsOptions& options() const { return options_; }
   std::string guid_prefix() const;
+  /// Sets (or with nullptr clears) the lost-participant callback. Clearing waits until a call
+  /// in progress has returned, so the owner may then be destroyed safely.
   void set_lost_callback(LostCallback cb);
 
   template <typename T>
@@ -185,6 +187,7 @@ class Participant : private fdds::DomainParticipantListener {
   fdds::Subscriber* subscriber_ = nullptr;
   std::map<std::string, fdds::Topic*> topics_;
   mutable std::mutex mutex_;
+  std::mutex callback_mutex_;  // held while lost_ runs: clearing it waits for a call in flight
   LostCallback lost_;
 };
 
