@@ -103,6 +103,7 @@ SoilPreset load_soil_preset_file(const std::string& file) {
 ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_config_dir) {
   MapReader m(node);
   ScmParams p;
+  if (m.has("type")) m.choice("type", std::nullopt, {"scm"});  // a scenario's terrain block
   const bool has_preset = m.has("preset");
   const bool has_soil = m.has("soil");
   if (has_preset == has_soil) node.fail("give exactly one of 'preset' or 'soil'");

@@ -75,6 +75,7 @@ struct SoilPreset {
 SoilPreset load_soil_preset_file(const std::string& file);
 
 /// Reads a scenario terrain block:
+///   type: scm              # optional (if present it must say scm)
 ///   preset: mid            # config/terrain/scm_<preset>.yaml under `terrain_config_dir`
 ///   soil: {...}            # instead of preset (exactly one of the two)
 ///   spacing_m: 0.05

@@ -107,6 +107,7 @@ TEST(ScmConfig, ScenarioBlockReadsPresetAreaAndOverrides) {
   const std::string terrain_dir = std::string(SYNDDS_TEST_CONFIG_DIR) + "/terrain";
   auto root = YamlNode::load_string(
       "terrain:\n"
+      "  type: scm\n"
       "  preset: soft\n"
       "  spacing_m: 0.05\n"
       "  area: {x_min_m: -10, x_max_m: 40, y_min_m: -5, y_max_m: 5}\n"
