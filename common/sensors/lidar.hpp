@@ -8,7 +8,8 @@
 // Per beam: optional divergence (beam_samples sub-rays: the centre plus a ring at half the
 // divergence angle), reduced by return mode (nearest, strongest intensity, or mean range);
 // intensity = reflectance of the surface * |cos(incidence)| (mean mode: summed over sub-rays
-// / beam_samples). Noise: Gaussian on the range and on the reported azimuth and elevation.
+// / beam_samples). Noise: Gaussian on the range and on the reported azimuth and elevation,
+// a pure function of (seed, scan index, beam), hence identical for any thread count.
 // A scan is taken at one instant (no rolling-shutter motion within the turn).
 #include <cstdint>
 #include <string>
@@ -79,10 +80,16 @@ class LidarRenderer {
   /// Traces every beam from `pose`; out[sample * channels + channel].
   void render(const Scene& scene, const Pose& pose, std::vector<BeamReturn>& out,
               int hidden_vehicle_slot = -1);
+  double cos_elevation(int channel) const { return cos_el_[static_cast<std::size_t>(channel)]; }
+  double sin_elevation(int channel) const { return sin_el_[static_cast<std::size_t>(channel)]; }
+  double cos_azimuth(int sample) const { return cos_az_[static_cast<std::size_t>(sample)]; }
+  double sin_azimuth(int sample) const { return sin_az_[static_cast<std::size_t>(sample)]; }
+  ThreadPool& pool() { return pool_; }
 
  private:
   LidarConfig config_;
   ThreadPool pool_;
+  std::vector<double> cos_el_, sin_el_, cos_az_, sin_az_;
   std::vector<float> directions_;  // per ray (beam-major, sub-rays inner), sensor frame xyz
   std::vector<float> hits_range_;
   std::vector<float> hits_intensity_;
@@ -109,6 +116,7 @@ class LidarSensor {
   SampleClock clock_;
   LagQueue<LidarScan> queue_;
   std::vector<BeamReturn> returns_;
+  std::vector<LidarPoint> points_;
 };
 
 }  // namespace syndds::sensors
