@@ -109,8 +109,7 @@ ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_conf
   if (has_preset == has_soil) node.fail("give exactly one of 'preset' or 'soil'");
   if (has_preset) {
     const std::string name = m.choice("preset", std::nullopt, {"soft", "mid", "hard"});
-    const SoilPreset preset =
-        load_soil_preset_file(terrain_config_dir + "/scm_" + name + ".yaml");
+    const SoilPreset preset = load_soil_preset_file(terrain_config_dir + "/scm_" + name + ".yaml");
     p.soil = preset.soil;
     p.bulldozing = preset.bulldozing;
   } else {

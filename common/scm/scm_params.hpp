@@ -13,12 +13,12 @@ namespace syndds::scm {
 
 /// Bekker-Wong / Mohr-Coulomb / Janosi-Hanamoto soil parameters (SI units).
 struct SoilParams {
-  double bekker_kphi = 2e6;       // Pa / m^n        frictional modulus
-  double bekker_kc = 0.0;         // Pa / m^(n-1)    cohesive modulus (divided by b)
-  double bekker_n = 1.1;          // -               sinkage exponent
-  double cohesion_pa = 0.0;       // Pa              Mohr cohesion c
-  double friction_angle_deg = 30; // deg             Mohr friction angle phi
-  double janosi_shear_m = 0.01;   // m               Janosi shear modulus K
+  double bekker_kphi = 2e6;                 // Pa / m^n        frictional modulus
+  double bekker_kc = 0.0;                   // Pa / m^(n-1)    cohesive modulus (divided by b)
+  double bekker_n = 1.1;                    // -               sinkage exponent
+  double cohesion_pa = 0.0;                 // Pa              Mohr cohesion c
+  double friction_angle_deg = 30;           // deg             Mohr friction angle phi
+  double janosi_shear_m = 0.01;             // m               Janosi shear modulus K
   double elastic_stiffness_pa_per_m = 2e8;  // Pa/m  Ke, unloading/reloading stiffness
   double damping_pa_s_per_m = 3e4;          // Pa s/m R, normal-velocity damping
 };

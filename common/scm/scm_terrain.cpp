@@ -18,7 +18,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr std::int32_t kNeighbourDi[4] = {0, -1, 1, 0};
 constexpr std::int32_t kNeighbourDj[4] = {-1, 0, 0, 1};
 
-bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+bool finite(const Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
 
 /// Total order over records of one vertex: true if (a, sa) beats (b, sb) (see docs/scm.md).
 bool beats(const VertexChange& a, std::uint32_t sa, const VertexChange& b, std::uint32_t sb) {
@@ -49,7 +51,8 @@ void hull_of_cells(std::vector<std::pair<std::int64_t, std::int64_t>>& pts, doub
   std::vector<std::pair<std::int64_t, std::int64_t>> h;
   if (pts.size() >= 3) {
     auto cross = [](const auto& o, const auto& a, const auto& b) {
-      return (a.first - o.first) * (b.second - o.second) - (a.second - o.second) * (b.first - o.first);
+      return (a.first - o.first) * (b.second - o.second) -
+             (a.second - o.second) * (b.first - o.first);
     };
     h.resize(2 * pts.size());
     std::size_t k = 0;
@@ -173,10 +176,10 @@ struct StepVertex {  // one footprint vertex of one body in this step
 
 struct BulldozeVertex {
   std::int32_t i = 0, j = 0;
-  std::int32_t patch = -1;                      // last patch that listed it as rim
+  std::int32_t patch = -1;                       // last patch that listed it as rim
   std::int32_t neighbour[4] = {-1, -1, -1, -1};  // bd indices of the 4-neighbours in the domain
-  double start = 0.0;                           // level when the erosion began
-  double delta = 0.0;                           // material moved here by the erosion
+  double start = 0.0;                            // level when the erosion began
+  double delta = 0.0;                            // material moved here by the erosion
 };
 
 struct ContactResult {
@@ -189,20 +192,20 @@ struct ContactResult {
 struct ScmTerrain::Scratch {
   std::vector<BodyGeometry> bodies;
   std::vector<StepVertex> vertices;          // all footprint vertices (see compute_body_loads)
-  std::vector<std::int32_t> contacts;       // vertices indices of contact vertices
-  std::vector<std::int32_t> contact_patch;  // patch id per contact
-  std::vector<std::int32_t> patch_start;    // offsets into patch_members (size patches + 1)
-  std::vector<std::int32_t> patch_members;  // contact indices grouped by patch
-  std::vector<std::int32_t> patch_vertices; // vertices indices of all patch vertices
-  std::vector<double> patch_oob;            // 1 / b per patch
+  std::vector<std::int32_t> contacts;        // vertices indices of contact vertices
+  std::vector<std::int32_t> contact_patch;   // patch id per contact
+  std::vector<std::int32_t> patch_start;     // offsets into patch_members (size patches + 1)
+  std::vector<std::int32_t> patch_members;   // contact indices grouped by patch
+  std::vector<std::int32_t> patch_vertices;  // vertices indices of all patch vertices
+  std::vector<double> patch_oob;             // 1 / b per patch
   std::vector<std::pair<std::int64_t, std::int64_t>> hull_points;
   std::vector<std::int32_t> row_min, row_max;
   std::vector<ContactResult> results;
   std::vector<ContactBody> wheel_bodies;
   // Bulldozing.
-  std::vector<std::int32_t> cells;      // dense window: -2 not free, -1 free, >= 0 bd index
-  std::vector<BulldozeVertex> bd;       // erosion domain: rims, then dilation rings
-  std::vector<std::int32_t> boundary;   // bd indices of this patch's rim
+  std::vector<std::int32_t> cells;     // dense window: -2 not free, -1 free, >= 0 bd index
+  std::vector<BulldozeVertex> bd;      // erosion domain: rims, then dilation rings
+  std::vector<std::int32_t> boundary;  // bd indices of this patch's rim
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -304,9 +307,9 @@ void ScmTerrain::assign(Record& r, const VertexChange& c) {
 std::int32_t ScmTerrain::find_step_vertex(std::int32_t i, std::int32_t j) const {
   for (const BodyGeometry& g : scratch_->bodies) {
     if (g.count == 0 || i < g.i0 || i > g.i1 || j < g.j0 || j > g.j1) continue;
-    return static_cast<std::int32_t>(g.offset + static_cast<std::size_t>(i - g.i0) *
-                                                    static_cast<std::size_t>(g.j1 - g.j0 + 1) +
-                                     static_cast<std::size_t>(j - g.j0));
+    return static_cast<std::int32_t>(
+        g.offset + static_cast<std::size_t>(i - g.i0) * static_cast<std::size_t>(g.j1 - g.j0 + 1) +
+        static_cast<std::size_t>(j - g.j0));
   }
   return -1;
 }
@@ -402,7 +405,8 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       g.half_width = 0.5 * cyl->width_m;
       for (int k = 0; k < 3; ++k) {
         const double ak = g.axis[k];
-        extent[k] = g.radius * std::sqrt(std::max(0.0, 1.0 - ak * ak)) + g.half_width * std::abs(ak);
+        extent[k] =
+            g.radius * std::sqrt(std::max(0.0, 1.0 - ak * ak)) + g.half_width * std::abs(ak);
       }
     } else {
       const auto& box = std::get<BoxShape>(body.shape);
@@ -413,13 +417,19 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       extent = rot.cwiseAbs() * box.half_extents_m;
     }
     if (g.centre.z() - extent.z() >= level_bound_) continue;  // above all soil
-    const double xl = (g.centre.x() - extent.x()) / delta_, xh = (g.centre.x() + extent.x()) / delta_;
-    const double yl = (g.centre.y() - extent.y()) / delta_, yh = (g.centre.y() + extent.y()) / delta_;
+    const double xl = (g.centre.x() - extent.x()) / delta_,
+                 xh = (g.centre.x() + extent.x()) / delta_;
+    const double yl = (g.centre.y() - extent.y()) / delta_,
+                 yh = (g.centre.y() + extent.y()) / delta_;
     if (!(xh >= i_min_ && xl <= i_max_ && yh >= j_min_ && yl <= j_max_)) continue;
-    g.i0 = std::max(i_min_, static_cast<std::int32_t>(std::ceil(std::max(xl, static_cast<double>(i_min_)))));
-    g.i1 = std::min(i_max_, static_cast<std::int32_t>(std::floor(std::min(xh, static_cast<double>(i_max_)))));
-    g.j0 = std::max(j_min_, static_cast<std::int32_t>(std::ceil(std::max(yl, static_cast<double>(j_min_)))));
-    g.j1 = std::min(j_max_, static_cast<std::int32_t>(std::floor(std::min(yh, static_cast<double>(j_max_)))));
+    g.i0 = std::max(
+        i_min_, static_cast<std::int32_t>(std::ceil(std::max(xl, static_cast<double>(i_min_)))));
+    g.i1 = std::min(
+        i_max_, static_cast<std::int32_t>(std::floor(std::min(xh, static_cast<double>(i_max_)))));
+    g.j0 = std::max(
+        j_min_, static_cast<std::int32_t>(std::ceil(std::max(yl, static_cast<double>(j_min_)))));
+    g.j1 = std::min(
+        j_max_, static_cast<std::int32_t>(std::floor(std::min(yh, static_cast<double>(j_max_)))));
     if (g.i0 > g.i1 || g.j0 > g.j1) continue;
     g.count = static_cast<std::size_t>(g.i1 - g.i0 + 1) * static_cast<std::size_t>(g.j1 - g.j0 + 1);
     total += g.count;
@@ -599,8 +609,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   s.results.assign(nc, ContactResult{});
   const SoilParams& soil = params_.soil;
   const double ke = soil.elastic_stiffness_pa_per_m;
-  const bool parallel_law =
-      pool_ && 4 * nc >= grain * static_cast<std::size_t>(pool_->parts());
+  const bool parallel_law = pool_ && 4 * nc >= grain * static_cast<std::size_t>(pool_->parts());
   const int law_parts = parallel_law ? pool_->parts() : 1;
   auto law = [&](int part) {
     const auto [c0, c1] = part_range(nc, law_parts, part);
@@ -629,8 +638,8 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
         r.step_plastic_flow = r.sinkage_plastic - old_plastic;
       }
       sigma = std::max(0.0, sigma - vn * soil.damping_pa_s_per_m);
-      const double tau = (soil.cohesion_pa + sigma * tan_phi_) *
-                         (1.0 - std::exp(-kshear / soil.janosi_shear_m));
+      const double tau =
+          (soil.cohesion_pa + sigma * tan_phi_) * (1.0 - std::exp(-kshear / soil.janosi_shear_m));
       Vec3 force(0.0, 0.0, cell_area_ * sigma);
       if (vt > 1e-12) {
         force.x() -= cell_area_ * tau * vel.x() / vt;
@@ -695,10 +704,9 @@ void ScmTerrain::bulldoze() {
       j0 = std::min(j0, v.j);
       j1 = std::max(j1, v.j);
     }
-    return std::array<std::int64_t, 4>{static_cast<std::int64_t>(i0) - margin,
-                                       static_cast<std::int64_t>(i1) + margin,
-                                       static_cast<std::int64_t>(j0) - margin,
-                                       static_cast<std::int64_t>(j1) + margin};
+    return std::array<std::int64_t, 4>{
+        static_cast<std::int64_t>(i0) - margin, static_cast<std::int64_t>(i1) + margin,
+        static_cast<std::int64_t>(j0) - margin, static_cast<std::int64_t>(j1) + margin};
   };
   const auto all = window_of(0, patches);
   const std::int64_t cells = (all[1] - all[0] + 1) * (all[3] - all[2] + 1);
@@ -734,7 +742,8 @@ void ScmTerrain::bulldoze_window(std::size_t p_begin, std::size_t p_end,
   }
   for (const StepVertex& v : s.vertices) {  // covered vertices (contacts included)
     if (v.alias >= 0 || v.z_hit == kInf) continue;
-    if (v.i >= wi0 && v.i < wi0 + ww && v.j >= wj0 && v.j < wj0 + wh) s.cells[cell_of(v.i, v.j)] = -2;
+    if (v.i >= wi0 && v.i < wi0 + ww && v.j >= wj0 && v.j < wj0 + wh)
+      s.cells[cell_of(v.i, v.j)] = -2;
   }
   s.bd.clear();
   auto add_material = [&](std::int32_t i, std::int32_t j, double amount) {

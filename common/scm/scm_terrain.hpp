@@ -75,8 +75,8 @@ struct ScmStepStats {
   std::size_t covered_vertices = 0;    // of those, under a body (vertical ray hits it)
   std::size_t contact_vertices = 0;    // of those, penetrated (body below the surface)
   std::size_t patches = 0;
-  std::size_t patch_vertices = 0;      // vertices of the patches (contacts + test-height ring)
-  std::size_t bulldozing_domain = 0;   // vertices in the erosion domain
+  std::size_t patch_vertices = 0;     // vertices of the patches (contacts + test-height ring)
+  std::size_t bulldozing_domain = 0;  // vertices in the erosion domain
 };
 
 class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTerrainContact {
@@ -161,7 +161,7 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
     std::int64_t contact_step = -2;  // index of the last step in contact
     std::int32_t i = 0;
     std::int32_t j = 0;
-    bool dirty = false;              // in dirty_ (changed since take_local_changes)
+    bool dirty = false;  // in dirty_ (changed since take_local_changes)
   };
 
   struct Scratch;  // per-step work arrays, kept between calls to avoid allocations
@@ -194,8 +194,8 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   KeyIndexMap index_;            // vertex key -> records_ index
   std::vector<Record> records_;  // stored vertices (insertion order)
   std::vector<std::int32_t> dirty_;
-  KeyIndexMap claims_;           // vertex key -> claim_source_ index (this frame's winners)
-  double level_bound_ = 0.0;     // no level or unloaded surface is above this (flat base only)
+  KeyIndexMap claims_;        // vertex key -> claim_source_ index (this frame's winners)
+  double level_bound_ = 0.0;  // no level or unloaded surface is above this (flat base only)
   std::int64_t step_ = 0;
   ScmStepStats stats_;
 

@@ -41,8 +41,8 @@ struct Row {
 Row run(const std::string& preset, double spacing, int threads, bool forced, bool bulldozing,
         int steps) {
   ScmParams p;
-  const SoilPreset s = load_soil_preset_file(std::string(SYNDDS_CONFIG_DIR) + "/terrain/scm_" +
-                                             preset + ".yaml");
+  const SoilPreset s =
+      load_soil_preset_file(std::string(SYNDDS_CONFIG_DIR) + "/terrain/scm_" + preset + ".yaml");
   p.soil = s.soil;
   p.bulldozing = s.bulldozing;
   p.bulldozing.enabled = bulldozing;
@@ -148,7 +148,8 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[a], "--quick")) {
       quick = true;
     } else {
-      std::fprintf(stderr, "usage: bench_scm [--steps N] [--repeat R] [--preset soft|mid|hard|all] "
+      std::fprintf(stderr,
+                   "usage: bench_scm [--steps N] [--repeat R] [--preset soft|mid|hard|all] "
                    "[--quick]\n");
       return 2;
     }
@@ -159,15 +160,16 @@ int main(int argc, char** argv) {
   } else {
     presets = {which};
   }
-  const std::vector<double> spacings = quick ? std::vector<double>{0.05}
-                                             : std::vector<double>{0.1, 0.05, 0.025};
-  std::printf("SCM benchmark: 4 wheels r 0.467 m w 0.254 m, 6 kN each, 3 m/s, 10 %% slip, "
-              "dt 2 ms, %d timed steps after 500 warm-up steps, best of %d\n",
-              steps, repeat);
+  const std::vector<double> spacings =
+      quick ? std::vector<double>{0.05} : std::vector<double>{0.1, 0.05, 0.025};
+  std::printf(
+      "SCM benchmark: 4 wheels r 0.467 m w 0.254 m, 6 kN each, 3 m/s, 10 %% slip, "
+      "dt 2 ms, %d timed steps after 500 warm-up steps, best of %d\n",
+      steps, repeat);
   std::printf("thr: worker threads (f: forced to split even small steps, thread_min_vertices 1)\n");
-  std::printf("%-5s %7s %4s %5s %10s %9s %9s %8s %8s %8s %8s %10s %10s %8s\n", "soil",
-              "spacing", "thr", "bulld", "us/call", "RTF", "footprnt", "covered", "contact",
-              "patchv", "domain", "B/frame", "maxB/frm", "sink_mm");
+  std::printf("%-5s %7s %4s %5s %10s %9s %9s %8s %8s %8s %8s %10s %10s %8s\n", "soil", "spacing",
+              "thr", "bulld", "us/call", "RTF", "footprnt", "covered", "contact", "patchv",
+              "domain", "B/frame", "maxB/frm", "sink_mm");
   for (const auto& preset : presets) {
     for (double spacing : spacings) {
       struct Config {
@@ -183,10 +185,11 @@ int main(int argc, char** argv) {
           if (again.us_per_call < r.us_per_call) r = again;
         }
         std::printf(
-            "%-5s %7.3f %3d%1s %5s %10.2f %9.4f %9.0f %8.0f %8.0f %8.0f %8.0f %10.0f %10.0f %8.1f\n",
-            r.preset.c_str(), r.spacing, r.threads, r.forced ? "f" : "", r.bulldozing ? "on" : "off",
-            r.us_per_call, r.rtf, r.footprint, r.covered, r.contacts, r.patch_vertices, r.domain,
-            r.bytes_per_frame, r.max_bytes_per_frame, r.sinkage_mm);
+            "%-5s %7.3f %3d%1s %5s %10.2f %9.4f %9.0f %8.0f %8.0f %8.0f %8.0f %10.0f %10.0f "
+            "%8.1f\n",
+            r.preset.c_str(), r.spacing, r.threads, r.forced ? "f" : "",
+            r.bulldozing ? "on" : "off", r.us_per_call, r.rtf, r.footprint, r.covered, r.contacts,
+            r.patch_vertices, r.domain, r.bytes_per_frame, r.max_bytes_per_frame, r.sinkage_mm);
         std::fflush(stdout);
       }
     }

@@ -76,8 +76,7 @@ TEST(ScmConfig, PresetFilesHoldTheOracleNumbers) {
 
 TEST(ScmConfig, UnknownKeyNamesFileAndLine) {
   const auto dir = temp_dir("unknown");
-  const std::string file =
-      write_file(dir / "bad.yaml", std::string(kSoil) + "  bekker_kphii: 3\n");
+  const std::string file = write_file(dir / "bad.yaml", std::string(kSoil) + "  bekker_kphii: 3\n");
   const std::string err = error_of([&] { load_soil_preset_file(file); });
   EXPECT_NE(err.find(file + ":10:3"), std::string::npos) << err;
   EXPECT_NE(err.find("unknown key 'bekker_kphii'"), std::string::npos) << err;

@@ -152,7 +152,8 @@ TEST(ScmOracle, JanosiShearPlateForceFollowsSlip) {
     const double f = (area * p.soil.cohesion_pa + w * tan_phi) *
                      (1.0 - std::exp(-slips[k] / p.soil.janosi_shear_m));
     EXPECT_NEAR(f, expected_worked[k], 1.0);
-    const std::string what = "Janosi force at j = " + std::to_string(slips[k] * 1e3).substr(0, 4) + " mm (N)";
+    const std::string what =
+        "Janosi force at j = " + std::to_string(slips[k] * 1e3).substr(0, 4) + " mm (N)";
     report(what.c_str(), f, -rig.last.force.x());
     EXPECT_NEAR(-rig.last.force.x(), f, 0.02 * f) << "j " << slips[k];
     EXPECT_NEAR(rig.last.force.y(), 0.0, 1e-9);
