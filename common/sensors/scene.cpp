@@ -317,6 +317,10 @@ std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
   std::size_t applied = 0;
   const int t = config_.terrain_tile_cells;
   for (const auto& u : updates) {
+    if (!std::isfinite(u.height_m)) {
+      throw std::invalid_argument("terrain update (" + std::to_string(u.i) + ", " +
+                                  std::to_string(u.j) + "): height is not finite");
+    }
     if (u.i < 0 || u.j < 0 || u.i >= grid_.nx || u.j >= grid_.ny) continue;
     grid_.at(u.i, u.j) = static_cast<float>(u.height_m);
     ++applied;
@@ -460,6 +464,14 @@ void Scene::set_vehicle_pose(const std::string& id, const Pose& chassis,
                              std::span<const Pose> wheels) {
   auto it = vehicles_.find(id);
   if (it == vehicles_.end()) throw std::invalid_argument("no vehicle '" + id + "' in scene");
+  auto finite = [](const Pose& p) {
+    return p.position.allFinite() && p.orientation.coeffs().allFinite() &&
+           std::abs(p.orientation.norm() - 1.0) < 1e-3;
+  };
+  if (!finite(chassis)) throw std::invalid_argument("vehicle '" + id + "': invalid chassis pose");
+  for (const auto& w : wheels) {
+    if (!finite(w)) throw std::invalid_argument("vehicle '" + id + "': invalid wheel pose");
+  }
   VehicleEntry& e = it->second;
   e.chassis = chassis;
   for (std::size_t k = 0; k < 8; ++k) {

@@ -152,7 +152,7 @@ class Scene {
   /// that cannot be read.
   void set_terrain(const TerrainGrid& grid, const TerrainLook& look);
   /// Applies changed heights; (i, j) index the grid from its origin. Returns how many were
-  /// inside the grid (others are ignored).
+  /// inside the grid (others are ignored). A non-finite height throws std::invalid_argument.
   std::size_t update_terrain(std::span<const HeightUpdate> updates);
   /// Same with (i, j) indexing the world-anchored grid (vertex at (i s, j s), SCM's
   /// convention). Throws std::logic_error if the grid origin is not a whole number of spacings.
@@ -168,6 +168,7 @@ class Scene {
   void remove_vehicle(const std::string& id);
   bool has_vehicle(const std::string& id) const { return vehicles_.contains(id); }
   /// Poses a vehicle: chassis reference frame + wheel centres (empty: nominal positions).
+  /// Non-finite positions or non-unit quaternions throw std::invalid_argument.
   void set_vehicle_pose(const std::string& id, const Pose& chassis, std::span<const Pose> wheels);
   void set_vehicle_pose(const std::string& id, const vehicle::VehicleSnapshot& snapshot);
   std::optional<Pose> vehicle_pose(const std::string& id) const;

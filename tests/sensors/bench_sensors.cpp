@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
   struct Res {
     int w, h;
   };
-  for (const Res res : {Res{80, 45}, Res{1280, 720}, Res{1920, 1080}}) {
+  for (const Res res : {Res{80, 45}, Res{1280, 720}, Res{1920, 1080}, Res{3840, 2160}}) {
     if (!only.empty() && only != "camera" + std::to_string(res.w)) continue;
     for (int threads : {1, 2}) {
       CameraConfig cfg;
@@ -118,7 +118,7 @@ int main(int argc, char** argv) {
       cfg.mount.pose.position = Vec3(-30.0, 0.0, 2.0);
       cfg.mount.pose.orientation = Quat(Eigen::AngleAxisd(0.1, Vec3::UnitY()));
       CameraSensor cam(cfg, "", 1, 0.01);
-      const int n = res.w <= 80 ? frames * 50 : frames;
+      const int n = res.w <= 80 ? frames * 50 : (res.w > 2000 ? std::max(3, frames / 4) : frames);
       cam.capture(scene, 0);  // warm-up
       const Timing t =
           median_seconds(n, [&](int f) { cam.capture(scene, static_cast<std::uint64_t>(f)); });

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <cmath>
 #include <fstream>
 #include <numbers>
 
@@ -49,6 +50,15 @@ TEST(SceneTerrain, SampledGridIsWorldAnchoredForScmUpdates) {
   EXPECT_FLOAT_EQ(scene.terrain().at(6, 2), -0.2f);
   scene.commit();
   EXPECT_EQ(scene.dirty_tiles_last_commit(), 1u);
+  const std::vector<HeightUpdate> bad{{1, 1, std::nan("")}};
+  EXPECT_THROW(scene.update_terrain(bad), std::invalid_argument);
+  scene.add_vehicle("v", VehicleShape{});
+  EXPECT_THROW(scene.set_vehicle_pose("v", Pose{Vec3(0, std::nan(""), 0), Quat::Identity()}, {}),
+               std::invalid_argument);
+  EXPECT_THROW(scene.set_vehicle_pose("v", Pose{Vec3::Zero(), Quat(2, 0, 0, 0)}, {}),
+               std::invalid_argument);
+  EXPECT_THROW(scene.set_vehicle_pose("w", Pose{}, {}), std::invalid_argument);
+  EXPECT_THROW(scene.add_vehicle("v", VehicleShape{}), std::invalid_argument);
   TerrainGrid off = TerrainGrid::flat(Vec2(0.25, 0.0), 0.5, 4, 4, 0.0);
   scene.set_terrain(off, terrain_look("rigid"));
   EXPECT_THROW(scene.update_terrain_world(u), std::logic_error);
