@@ -11,8 +11,8 @@
 namespace syndds::sensors {
 namespace {
 
-constexpr int kTile = 16;          // pixels per tile side
-constexpr int kPacketSide = 4;     // 4 x 4 pixels per 16-ray packet
+constexpr int kTile = 16;       // pixels per tile side
+constexpr int kPacketSide = 4;  // 4 x 4 pixels per 16-ray packet
 constexpr float kShadowOffset = 2e-3f;
 // Below this focal length (pixels per radian; 80 px over 90 deg gives 40) neighbouring rays
 // diverge too much for packet traversal to pay off.
@@ -56,8 +56,7 @@ CameraModel::CameraModel(const CameraIntrinsics& intrinsics) : intrinsics_(intri
   }
   focal_ = 0.5 * intrinsics.width / std::tan(0.5 * intrinsics.hfov_rad);
   // Distortion must stay monotonic over the image (else the inverse is ambiguous).
-  const double half_diag =
-      0.5 * std::hypot(intrinsics.width, intrinsics.height) / focal_ * 1.5;
+  const double half_diag = 0.5 * std::hypot(intrinsics.width, intrinsics.height) / focal_ * 1.5;
   for (int i = 1; i <= 100; ++i) {
     const double r = half_diag * i / 100.0, r2 = r * r;
     if (1.0 + 3.0 * intrinsics.k1 * r2 + 5.0 * intrinsics.k2 * r2 * r2 <= 0.0) {
@@ -262,10 +261,15 @@ namespace {
 std::vector<std::pair<std::int64_t, int>> exposure_offsets(const CameraConfig& c, double tick_s) {
   std::vector<double> instants;
   switch (c.exposure_mode) {
-    case ExposureMode::instant: instants = {0.0}; break;
-    case ExposureMode::midpoint: instants = {0.5 * c.exposure_s}; break;
+    case ExposureMode::instant:
+      instants = {0.0};
+      break;
+    case ExposureMode::midpoint:
+      instants = {0.5 * c.exposure_s};
+      break;
     case ExposureMode::average:
-      for (int i = 0; i < c.subframes; ++i) instants.push_back(c.exposure_s * (i + 0.5) / c.subframes);
+      for (int i = 0; i < c.subframes; ++i)
+        instants.push_back(c.exposure_s * (i + 0.5) / c.subframes);
       break;
   }
   std::vector<std::pair<std::int64_t, int>> out;
@@ -311,7 +315,8 @@ CameraSensor::CameraSensor(const CameraConfig& config, std::string vehicle_id, s
   if (offsets_.size() > 1) accum_.resize(n);
   gamma_lut_.resize(4097);
   for (std::size_t i = 0; i < gamma_lut_.size(); ++i) {
-    gamma_lut_[i] = static_cast<float>(std::pow(static_cast<double>(i) / 4096.0, 1.0 / config.gamma));
+    gamma_lut_[i] =
+        static_cast<float>(std::pow(static_cast<double>(i) / 4096.0, 1.0 / config.gamma));
   }
 }
 
@@ -323,7 +328,8 @@ int CameraSensor::hidden_slot(const Scene& scene) const {
 Pose CameraSensor::camera_pose(const Scene& scene) const {
   if (config_.mode == CameraMode::fixed) return config_.mount.pose;
   const auto vehicle = scene.vehicle_pose(vehicle_id_);
-  if (!vehicle) throw std::runtime_error(config_.id + ": vehicle '" + vehicle_id_ + "' not in scene");
+  if (!vehicle)
+    throw std::runtime_error(config_.id + ": vehicle '" + vehicle_id_ + "' not in scene");
   if (config_.mode == CameraMode::chase) return chase_camera_pose(*vehicle, config_.chase);
   Pose p;
   p.position = vehicle->position + vehicle->orientation * config_.mount.pose.position;
@@ -353,8 +359,8 @@ RgbImage CameraSensor::finish(std::span<const float> radiance, std::uint64_t noi
       const float x = std::clamp(gain * radiance[i], 0.0f, 1.0f) * 4096.0f;
       const auto k = static_cast<std::size_t>(x);
       float v = k >= 4096 ? gamma_lut_[4096]
-                          : gamma_lut_[k] + (x - static_cast<float>(k)) *
-                                                (gamma_lut_[k + 1] - gamma_lut_[k]);
+                          : gamma_lut_[k] +
+                                (x - static_cast<float>(k)) * (gamma_lut_[k + 1] - gamma_lut_[k]);
       if (model != PixelNoiseModel::none) {
         const float sigma = model == PixelNoiseModel::gaussian
                                 ? std_dev

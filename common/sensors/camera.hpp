@@ -92,7 +92,7 @@ struct CameraConfig {
   std::string id = "camera";
   double rate_hz = 30.0;
   double lag_s = 0.05;
-  Mount mount;                   // mounted: on the chassis; fixed: world pose
+  Mount mount;  // mounted: on the chassis; fixed: world pose
   CameraIntrinsics intrinsics;
   CameraMode mode = CameraMode::mounted;
   ChaseConfig chase;
@@ -105,17 +105,17 @@ struct CameraConfig {
   double gamma = 2.2;
   double gain = 1.0;
   PixelNoiseModel noise = PixelNoiseModel::gaussian;
-  double noise_std = 0.0004;         // on display values in [0, 1]
-  double noise_slope = 0.0;          // pixel-dependent: sigma^2 = slope v + intercept
+  double noise_std = 0.0004;  // on display values in [0, 1]
+  double noise_slope = 0.0;   // pixel-dependent: sigma^2 = slope v + intercept
   double noise_intercept = 0.0;
-  bool hide_own_vehicle = true;      // ignored in chase mode (the vehicle is the subject)
+  bool hide_own_vehicle = true;  // ignored in chase mode (the vehicle is the subject)
   int threads = 1;
 };
 
 struct CameraFrame {
   std::string sensor_id;
   SampleStamp stamp;
-  Pose pose;                         // world pose of the camera at the (last) render
+  Pose pose;  // world pose of the camera at the (last) render
   RgbImage image;
 };
 

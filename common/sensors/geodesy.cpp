@@ -20,9 +20,12 @@ GeodeticModel parse_geodetic_model(std::string_view name) {
 
 std::string_view to_string(GeodeticModel model) {
   switch (model) {
-    case GeodeticModel::wgs84: return "wgs84";
-    case GeodeticModel::wgs84_flat: return "wgs84_flat";
-    case GeodeticModel::sphere: break;
+    case GeodeticModel::wgs84:
+      return "wgs84";
+    case GeodeticModel::wgs84_flat:
+      return "wgs84_flat";
+    case GeodeticModel::sphere:
+      break;
   }
   return "sphere";
 }
@@ -111,8 +114,8 @@ Geodetic sphere_enu_to_geodetic(const Geodetic& origin, const Vec3& enu) {
   Geodetic g;
   g.lat_deg = origin.lat_deg + rad_to_deg(enu.y() / kChronoEarthRadius);
   // Chrono divides by the cosine of the new latitude.
-  g.lon_deg = origin.lon_deg +
-              rad_to_deg(enu.x() / (kChronoEarthRadius * std::cos(deg_to_rad(g.lat_deg))));
+  g.lon_deg =
+      origin.lon_deg + rad_to_deg(enu.x() / (kChronoEarthRadius * std::cos(deg_to_rad(g.lat_deg))));
   g.alt_m = origin.alt_m + enu.z();
   return g;
 }

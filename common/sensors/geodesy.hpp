@@ -69,23 +69,28 @@ Vec3 sphere_geodetic_to_enu(const Geodetic& origin, const Geodetic& g);
 /// Either model behind one interface (what the GPS uses).
 class GeodeticConverter {
  public:
-  GeodeticConverter(const Geodetic& origin, GeodeticModel model)
-      : model_(model), plane_(origin) {}
+  GeodeticConverter(const Geodetic& origin, GeodeticModel model) : model_(model), plane_(origin) {}
   GeodeticModel model() const { return model_; }
   const Geodetic& origin() const { return plane_.origin(); }
   Geodetic to_geodetic(const Vec3& enu) const {
     switch (model_) {
-      case GeodeticModel::wgs84: return plane_.enu_to_geodetic(enu);
-      case GeodeticModel::wgs84_flat: return flat_enu_to_geodetic(plane_.origin(), enu);
-      case GeodeticModel::sphere: break;
+      case GeodeticModel::wgs84:
+        return plane_.enu_to_geodetic(enu);
+      case GeodeticModel::wgs84_flat:
+        return flat_enu_to_geodetic(plane_.origin(), enu);
+      case GeodeticModel::sphere:
+        break;
     }
     return sphere_enu_to_geodetic(plane_.origin(), enu);
   }
   Vec3 to_enu(const Geodetic& g) const {
     switch (model_) {
-      case GeodeticModel::wgs84: return plane_.geodetic_to_enu(g);
-      case GeodeticModel::wgs84_flat: return flat_geodetic_to_enu(plane_.origin(), g);
-      case GeodeticModel::sphere: break;
+      case GeodeticModel::wgs84:
+        return plane_.geodetic_to_enu(g);
+      case GeodeticModel::wgs84_flat:
+        return flat_geodetic_to_enu(plane_.origin(), g);
+      case GeodeticModel::sphere:
+        break;
     }
     return sphere_geodetic_to_enu(plane_.origin(), g);
   }

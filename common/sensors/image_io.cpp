@@ -77,8 +77,8 @@ void write_ply(const std::string& path, const LidarScan& scan) {
   make_parent(path);
   std::ofstream out(path);
   if (!out) throw std::runtime_error("cannot write " + path);
-  out << "ply\nformat ascii 1.0\ncomment sensor " << scan.sensor_id << " time "
-      << scan.stamp.time_s << "\nelement vertex " << scan.points.size()
+  out << "ply\nformat ascii 1.0\ncomment sensor " << scan.sensor_id << " time " << scan.stamp.time_s
+      << "\nelement vertex " << scan.points.size()
       << "\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\n"
          "property float range\nproperty ushort channel\nproperty ushort sample\nend_header\n";
   for (const auto& p : scan.points) {

@@ -55,8 +55,8 @@ void ImuSensor::update(const vehicle::VehicleSnapshot& state) {
     const Vec3 r = q * config_.mount.pose.position;  // lever arm, world frame
     const Vec3& w = state.angular_velocity;
     // Acceleration of the mounting point, then specific force f = a - g_vec (g_vec = -g z).
-    const Vec3 a_point = state.linear_acceleration + state.angular_acceleration.cross(r) +
-                         w.cross(w.cross(r));
+    const Vec3 a_point =
+        state.linear_acceleration + state.angular_acceleration.cross(r) + w.cross(w.cross(r));
     const Vec3 specific_force = a_point + Vec3(0.0, 0.0, kGravity);
     ImuSample s;
     s.sensor_id = config_.id;
@@ -68,9 +68,7 @@ void ImuSensor::update(const vehicle::VehicleSnapshot& state) {
 
 MagnetometerSensor::MagnetometerSensor(const MagnetometerConfig& config, std::uint64_t seed,
                                        double tick_s)
-    : PeriodicSensor(config.rate_hz, config.lag_s, tick_s, config.id),
-      config_(config),
-      rng_(seed) {
+    : PeriodicSensor(config.rate_hz, config.lag_s, tick_s, config.id), config_(config), rng_(seed) {
   const double dec = deg_to_rad(config.declination_deg);
   const double inc = deg_to_rad(config.inclination_deg);
   world_field_ = config.field_strength_ut *

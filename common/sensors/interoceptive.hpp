@@ -49,9 +49,9 @@ struct GpsConfig {
   std::string id = "gps";
   double rate_hz = 10.0;
   double lag_s = 0.1;
-  Mount mount;                              // antenna position (orientation unused)
+  Mount mount;  // antenna position (orientation unused)
   GeodeticModel model = GeodeticModel::wgs84;
-  NoiseConfig noise;                        // on the ENU position, metres
+  NoiseConfig noise;  // on the ENU position, metres
 };
 
 struct ImuConfig {
@@ -59,8 +59,8 @@ struct ImuConfig {
   double rate_hz = 100.0;
   double lag_s = 0.0;
   Mount mount;
-  NoiseConfig accelerometer;                // m/s2
-  NoiseConfig gyroscope;                    // rad/s
+  NoiseConfig accelerometer;  // m/s2
+  NoiseConfig gyroscope;      // rad/s
 };
 
 struct MagnetometerConfig {
@@ -69,9 +69,9 @@ struct MagnetometerConfig {
   double lag_s = 0.0;
   Mount mount;
   double heading_noise_std_rad = 0.0;
-  double field_strength_ut = 50.0;          // Earth's field magnitude (microtesla)
-  double declination_deg = 0.0;             // magnetic north east of true north
-  double inclination_deg = 60.0;            // dip below the horizontal
+  double field_strength_ut = 50.0;  // Earth's field magnitude (microtesla)
+  double declination_deg = 0.0;     // magnetic north east of true north
+  double inclination_deg = 60.0;    // dip below the horizontal
   double field_noise_std_ut = 0.0;
 };
 
@@ -85,30 +85,30 @@ struct TachometerConfig {
 struct GpsSample {
   std::string sensor_id;
   SampleStamp stamp;
-  Geodetic position;                        // noisy
-  Vec3 enu_m = Vec3::Zero();                // noisy local position
-  Vec3 true_enu_m = Vec3::Zero();           // ground truth (for recording, not for controllers)
+  Geodetic position;               // noisy
+  Vec3 enu_m = Vec3::Zero();       // noisy local position
+  Vec3 true_enu_m = Vec3::Zero();  // ground truth (for recording, not for controllers)
 };
 
 struct ImuSample {
   std::string sensor_id;
   SampleStamp stamp;
-  Vec3 accel_mps2 = Vec3::Zero();           // specific force in the sensor frame (rest: +g up)
-  Vec3 gyro_rad_s = Vec3::Zero();           // angular velocity in the sensor frame
+  Vec3 accel_mps2 = Vec3::Zero();  // specific force in the sensor frame (rest: +g up)
+  Vec3 gyro_rad_s = Vec3::Zero();  // angular velocity in the sensor frame
 };
 
 struct MagnetometerSample {
   std::string sensor_id;
   SampleStamp stamp;
-  double heading_rad = 0.0;                 // compass heading of the sensor x axis, clockwise
-                                            // from true north, [0, 2 pi)
-  Vec3 field_ut = Vec3::Zero();             // magnetic field in the sensor frame
+  double heading_rad = 0.0;      // compass heading of the sensor x axis, clockwise
+                                 // from true north, [0, 2 pi)
+  Vec3 field_ut = Vec3::Zero();  // magnetic field in the sensor frame
 };
 
 struct TachometerSample {
   std::string sensor_id;
   SampleStamp stamp;
-  std::vector<double> wheel_spin_rad_s;     // in the snapshot's wheel order (FL, FR, RL, RR)
+  std::vector<double> wheel_spin_rad_s;  // in the snapshot's wheel order (FL, FR, RL, RR)
 };
 
 /// Common scheduling of the sensors below (rate, lag, queue).

@@ -71,8 +71,8 @@ double LidarRenderer::elevation_rad(int channel) const {
 double LidarRenderer::azimuth_rad(int sample) const {
   const double span = config_.hfov_max_deg - config_.hfov_min_deg;
   const bool full = span >= 360.0 - 1e-9;
-  const double step = full || config_.samples == 1 ? span / config_.samples
-                                                   : span / (config_.samples - 1);
+  const double step =
+      full || config_.samples == 1 ? span / config_.samples : span / (config_.samples - 1);
   return deg_to_rad(config_.hfov_min_deg + sample * step);
 }
 
@@ -108,7 +108,8 @@ void LidarRenderer::render(const Scene& scene, const Pose& pose, std::vector<Bea
         valid[l] = r < r1 ? -1 : 0;
         if (!valid[l]) continue;
         const float* d = &directions_[3 * r];
-        for (int i = 0; i < 3; ++i) dir[l][i] = m[3 * i] * d[0] + m[3 * i + 1] * d[1] + m[3 * i + 2] * d[2];
+        for (int i = 0; i < 3; ++i)
+          dir[l][i] = m[3 * i] * d[0] + m[3 * i + 1] * d[1] + m[3 * i + 2] * d[2];
         rh.ray.org_x[l] = o[0];
         rh.ray.org_y[l] = o[1];
         rh.ray.org_z[l] = o[2];
@@ -176,10 +177,15 @@ void LidarRenderer::render(const Scene& scene, const Pose& pose, std::vector<Bea
             ret = {-1.0f, 0.0f};
           } else {
             switch (config_.return_mode) {
-              case LidarReturnMode::nearest: ret = {best_range, nearest_intensity}; break;
-              case LidarReturnMode::strongest: ret = {strongest_range, best_intensity}; break;
+              case LidarReturnMode::nearest:
+                ret = {best_range, nearest_intensity};
+                break;
+              case LidarReturnMode::strongest:
+                ret = {strongest_range, best_intensity};
+                break;
               case LidarReturnMode::mean:
-                ret = {sum_range / static_cast<float>(hits), sum_intensity / static_cast<float>(sub)};
+                ret = {sum_range / static_cast<float>(hits),
+                       sum_intensity / static_cast<float>(sub)};
                 break;
             }
           }
@@ -204,7 +210,8 @@ LidarSensor::LidarSensor(const LidarConfig& config, std::string vehicle_id, std:
 Pose LidarSensor::sensor_pose(const Scene& scene) const {
   if (vehicle_id_.empty()) return config_.mount.pose;
   const auto vehicle = scene.vehicle_pose(vehicle_id_);
-  if (!vehicle) throw std::runtime_error(config_.id + ": vehicle '" + vehicle_id_ + "' not in scene");
+  if (!vehicle)
+    throw std::runtime_error(config_.id + ": vehicle '" + vehicle_id_ + "' not in scene");
   Pose p;
   p.position = vehicle->position + vehicle->orientation * config_.mount.pose.position;
   p.orientation = vehicle->orientation * config_.mount.pose.orientation;

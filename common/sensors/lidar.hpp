@@ -41,16 +41,16 @@ struct LidarConfig {
   double range_noise_std_m = 0.01;
   double angle_noise_std_rad = 0.001;
   double divergence_rad = 0.003;
-  int beam_samples = 1;              // 1: one ray per beam (divergence ignored)
+  int beam_samples = 1;  // 1: one ray per beam (divergence ignored)
   LidarReturnMode return_mode = LidarReturnMode::nearest;
   bool hide_own_vehicle = true;
   int threads = 1;
 };
 
 struct LidarPoint {
-  float x = 0, y = 0, z = 0;         // sensor frame, metres
-  float intensity = 0;               // [0, 1]
-  float range = 0;                   // metres
+  float x = 0, y = 0, z = 0;  // sensor frame, metres
+  float intensity = 0;        // [0, 1]
+  float range = 0;            // metres
   std::uint16_t channel = 0;
   std::uint16_t sample = 0;
 };
@@ -58,10 +58,10 @@ struct LidarPoint {
 struct LidarScan {
   std::string sensor_id;
   SampleStamp stamp;
-  Pose pose;                         // world pose of the sensor
+  Pose pose;  // world pose of the sensor
   int channels = 0;
   int samples = 0;
-  std::vector<LidarPoint> points;    // beams with a return, in (sample, channel) order
+  std::vector<LidarPoint> points;  // beams with a return, in (sample, channel) order
 };
 
 /// Noiseless return of one beam (range <= 0: nothing within range).
@@ -97,8 +97,7 @@ class LidarRenderer {
 
 class LidarSensor {
  public:
-  LidarSensor(const LidarConfig& config, std::string vehicle_id, std::uint64_t seed,
-              double tick_s);
+  LidarSensor(const LidarConfig& config, std::string vehicle_id, std::uint64_t seed, double tick_s);
   /// Feed once per frame after the scene holds that frame's state (committed).
   void update(const Scene& scene, double time_s);
   std::vector<LidarScan> take_available(double now_s);

@@ -9,8 +9,8 @@ namespace syndds::sensors {
 std::uint64_t derive_seed(std::uint64_t scenario_seed, std::string_view stream) {
   const std::uint64_t h = fnv1a64(stream);
   std::seed_seq seq{static_cast<std::uint32_t>(scenario_seed),
-                    static_cast<std::uint32_t>(scenario_seed >> 32),
-                    static_cast<std::uint32_t>(h), static_cast<std::uint32_t>(h >> 32)};
+                    static_cast<std::uint32_t>(scenario_seed >> 32), static_cast<std::uint32_t>(h),
+                    static_cast<std::uint32_t>(h >> 32)};
   std::array<std::uint32_t, 2> out{};
   seq.generate(out.begin(), out.end());
   return (static_cast<std::uint64_t>(out[1]) << 32) | out[0];

@@ -8,7 +8,7 @@ namespace syndds::sensors {
 // (low-resolution cameras: neighbouring pixels diverge by a degree or more and Embree's
 // single-ray traversal is about 20 % faster there; at 720p packets are twice as fast).
 inline void intersect(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
-               RTCRayHit16& rh) {
+                      RTCRayHit16& rh) {
   if (packets) {
     rtcIntersect16(valid, scene, ctx, &rh);
     return;
@@ -41,7 +41,7 @@ inline void intersect(bool packets, const int* valid, RTCScene scene, RTCInterse
 }
 
 inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
-              RTCRay16& rays) {
+                     RTCRay16& rays) {
   if (packets) {
     rtcOccluded16(valid, scene, ctx, &rays);
     return;

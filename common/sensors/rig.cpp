@@ -2,10 +2,10 @@
 
 #include <cmath>
 #include <filesystem>
-#include <tuple>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 namespace syndds::sensors {
 namespace {
@@ -21,8 +21,8 @@ int integer(MapReader& m, std::string_view key, int fallback, int lo, int hi) {
   if (!n) return fallback;
   const auto v = n->as_int();
   if (v < lo || v > hi) {
-    n->fail("must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-            "], got " + std::to_string(v));
+    n->fail("must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+            std::to_string(v));
   }
   return static_cast<int>(v);
 }
@@ -114,9 +114,9 @@ void parse_camera(MapReader& m, CameraConfig& c) {
     MapReader k(*e);
     c.exposure_s = non_negative(k, "window_s", c.exposure_s);
     const auto mode = k.choice("mode", std::string("midpoint"), {"instant", "midpoint", "average"});
-    c.exposure_mode = mode == "instant" ? ExposureMode::instant
-                                        : (mode == "midpoint" ? ExposureMode::midpoint
-                                                              : ExposureMode::average);
+    c.exposure_mode = mode == "instant"
+                          ? ExposureMode::instant
+                          : (mode == "midpoint" ? ExposureMode::midpoint : ExposureMode::average);
     c.subframes = integer(k, "subframes", 1, 1, 64);
     k.finish();
   }
@@ -221,8 +221,8 @@ SensorRig parse_sensor_rig(const YamlNode& root) {
       m.required("id").fail("sensor id must be non-empty and without '/'");
     }
     if (!ids.insert(id).second) m.required("id").fail("duplicate sensor id '" + id + "'");
-    const std::string type =
-        m.choice("type", std::nullopt, {"camera", "lidar", "gps", "imu", "magnetometer", "tachometer"});
+    const std::string type = m.choice(
+        "type", std::nullopt, {"camera", "lidar", "gps", "imu", "magnetometer", "tachometer"});
     auto rate_and_lag = [&](double rate, double lag) {
       return std::pair{m.positive("rate_hz", rate), non_negative(m, "lag_s", lag)};
     };
@@ -249,7 +249,8 @@ SensorRig parse_sensor_rig(const YamlNode& root) {
       c.id = id;
       std::tie(c.rate_hz, c.lag_s) = rate_and_lag(c.rate_hz, c.lag_s);
       c.mount = mount(c.mount);
-      c.model = parse_geodetic_model(m.choice("model", std::string("wgs84"), {"wgs84", "wgs84_flat", "sphere"}));
+      c.model = parse_geodetic_model(
+          m.choice("model", std::string("wgs84"), {"wgs84", "wgs84_flat", "sphere"}));
       if (auto n = m.optional("noise")) c.noise = parse_noise(*n, c.rate_hz);
       rig.gps.push_back(c);
     } else if (type == "imu") {
@@ -324,9 +325,8 @@ VehicleSensors::VehicleSensors(const SensorRig& rig, std::string vehicle_id,
       lidars_.push_back(std::make_unique<LidarSensor>(c, vehicle_id_, seed(c.id), heartbeat_s));
     }
   } catch (const std::invalid_argument& e) {
-    throw ConfigError(rig.file + ": sensor '" + current + "' on vehicle '" + vehicle_id_ +
-                      "': " + e.what() + " (step " + fmt(step_s) + " s, frame " +
-                      fmt(heartbeat_s) + " s)");
+    throw ConfigError(rig.file + ": sensor '" + current + "' on vehicle '" + vehicle_id_ + "': " +
+                      e.what() + " (step " + fmt(step_s) + " s, frame " + fmt(heartbeat_s) + " s)");
   }
 }
 

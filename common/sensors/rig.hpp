@@ -51,7 +51,9 @@ struct InteroceptiveBatch {
   std::vector<ImuSample> imu;
   std::vector<MagnetometerSample> magnetometer;
   std::vector<TachometerSample> tachometer;
-  bool empty() const { return gps.empty() && imu.empty() && magnetometer.empty() && tachometer.empty(); }
+  bool empty() const {
+    return gps.empty() && imu.empty() && magnetometer.empty() && tachometer.empty();
+  }
 };
 
 /// Camera frames and lidar scans that became available.

@@ -146,19 +146,17 @@ VehicleShape vehicle_shape(const vehicle::VehicleParams& p, const Rgb& body_colo
   s.box_centre_m = p.chassis.box_centre_m;
   s.wheel_radius_m = p.wheels.radius_m;
   s.wheel_width_m = p.wheels.width_m;
-  s.wheel_positions_m = {Vec3(p.front.x_m, p.front.half_track_m, 0.0),
-                         Vec3(p.front.x_m, -p.front.half_track_m, 0.0),
-                         Vec3(p.rear.x_m, p.rear.half_track_m, 0.0),
-                         Vec3(p.rear.x_m, -p.rear.half_track_m, 0.0)};
+  s.wheel_positions_m = {
+      Vec3(p.front.x_m, p.front.half_track_m, 0.0), Vec3(p.front.x_m, -p.front.half_track_m, 0.0),
+      Vec3(p.rear.x_m, p.rear.half_track_m, 0.0), Vec3(p.rear.x_m, -p.rear.half_track_m, 0.0)};
   s.body_colour = body_colour;
   return s;
 }
 
 Rgb vehicle_palette(std::size_t index) {
   static constexpr Rgb palette[] = {
-      {0.10f, 0.25f, 0.80f}, {0.80f, 0.10f, 0.10f}, {0.90f, 0.75f, 0.05f},
-      {0.10f, 0.65f, 0.20f}, {0.60f, 0.15f, 0.70f}, {0.05f, 0.70f, 0.75f},
-      {0.95f, 0.45f, 0.05f}, {0.85f, 0.85f, 0.85f}};
+      {0.10f, 0.25f, 0.80f}, {0.80f, 0.10f, 0.10f}, {0.90f, 0.75f, 0.05f}, {0.10f, 0.65f, 0.20f},
+      {0.60f, 0.15f, 0.70f}, {0.05f, 0.70f, 0.75f}, {0.95f, 0.45f, 0.05f}, {0.85f, 0.85f, 0.85f}};
   return palette[index % std::size(palette)];
 }
 
@@ -229,14 +227,16 @@ void Scene::clear_terrain() {
 
 void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
   if (grid.nx < 2 || grid.ny < 2 || !(grid.spacing_m > 0.0) ||
-      grid.heights.size() != static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny)) {
+      grid.heights.size() !=
+          static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny)) {
     throw std::invalid_argument("terrain grid: need nx, ny >= 2, spacing > 0 and nx*ny heights");
   }
   std::vector<float> texture;
   int tw = 0, th = 0;
   if (!look.texture_file.empty()) {
     const cv::Mat img = cv::imread(look.texture_file, cv::IMREAD_COLOR);
-    if (img.empty()) throw std::invalid_argument("cannot read terrain texture " + look.texture_file);
+    if (img.empty())
+      throw std::invalid_argument("cannot read terrain texture " + look.texture_file);
     if (!(look.texture_size_m > 0.0)) throw std::invalid_argument("texture_size_m must be > 0");
     tw = img.cols;
     th = img.rows;
@@ -369,8 +369,8 @@ void Scene::add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> col
   switch (obstacle.shape) {
     case world::ShapeKind::sphere: {
       g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-      auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                            RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+      auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+          g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
       v[0] = static_cast<float>(pose.position.x());
       v[1] = static_cast<float>(pose.position.y());
       v[2] = static_cast<float>(pose.position.z());
@@ -386,8 +386,8 @@ void Scene::add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> col
         local = box_vertices(obstacle.size);
         box_triangles(0, tris);
       } else {
-        local = cylinder_vertices(obstacle.size.x(), obstacle.size.z(), 2,
-                                  config_.cylinder_segments);
+        local =
+            cylinder_vertices(obstacle.size.x(), obstacle.size.z(), 2, config_.cylinder_segments);
         cylinder_triangles(0, config_.cylinder_segments, tris);
       }
       float* v = nullptr;

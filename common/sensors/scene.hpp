@@ -39,8 +39,8 @@ struct Rgb {
 struct TerrainGrid {
   Vec2 origin = Vec2::Zero();
   double spacing_m = 0.1;
-  int nx = 0;  // vertices along x
-  int ny = 0;  // vertices along y
+  int nx = 0;                  // vertices along x
+  int ny = 0;                  // vertices along y
   std::vector<float> heights;  // nx * ny, index j * nx + i
 
   static TerrainGrid flat(const Vec2& origin, double spacing_m, int nx, int ny, double height_m);
@@ -64,9 +64,9 @@ TerrainGrid sample_terrain(const terrain::TerrainSurface& surface, double spacin
 /// How the terrain looks: a colour per terrain type or a tiled texture image.
 struct TerrainLook {
   Rgb colour{0.5f, 0.5f, 0.5f};
-  float reflectance = 0.3f;       // lidar reflectance
-  std::string texture_file;       // optional image (PNG/JPEG), sRGB; replaces `colour`
-  double texture_size_m = 10.0;   // ground size of one texture repeat
+  float reflectance = 0.3f;      // lidar reflectance
+  std::string texture_file;      // optional image (PNG/JPEG), sRGB; replaces `colour`
+  double texture_size_m = 10.0;  // ground size of one texture repeat
 };
 
 /// Presets: "rigid" (neutral grey), "silt" (brown, also "scm"/"soil"), "snow" (white).
@@ -77,12 +77,12 @@ TerrainLook terrain_look(std::string_view kind);
 /// Defaults: an HMMWV-class vehicle (config/vehicles/hmmwv.yaml).
 struct VehicleShape {
   Vec3 half_extents_m = Vec3(2.35, 1.08, 0.55);
-  Vec3 box_centre_m = Vec3(0.0, 0.0, 0.45);     // in the chassis reference frame
+  Vec3 box_centre_m = Vec3(0.0, 0.0, 0.45);  // in the chassis reference frame
   double wheel_radius_m = 0.467;
   double wheel_width_m = 0.254;
-  std::array<Vec3, 4> wheel_positions_m{        // FL, FR, RL, RR: used when no wheel poses
-      Vec3(1.689, 0.9095, 0.0), Vec3(1.689, -0.9095, 0.0), Vec3(-1.689, 0.9095, 0.0),
-      Vec3(-1.689, -0.9095, 0.0)};
+  std::array<Vec3, 4> wheel_positions_m{// FL, FR, RL, RR: used when no wheel poses
+                                        Vec3(1.689, 0.9095, 0.0), Vec3(1.689, -0.9095, 0.0),
+                                        Vec3(-1.689, 0.9095, 0.0), Vec3(-1.689, -0.9095, 0.0)};
   Rgb body_colour{0.15f, 0.3f, 0.75f};
   Rgb wheel_colour{0.06f, 0.06f, 0.06f};
   float body_reflectance = 0.6f;
@@ -97,18 +97,18 @@ Rgb vehicle_palette(std::size_t index);
 Rgb obstacle_colour(std::string_view label);
 
 struct SceneConfig {
-  double sun_azimuth_deg = 135.0;    // compass azimuth of the sun (clockwise from north)
+  double sun_azimuth_deg = 135.0;  // compass azimuth of the sun (clockwise from north)
   double sun_elevation_deg = 50.0;
   float sun_intensity = 0.85f;
-  float ambient_intensity = 0.3f;    // sky light on an upward surface (half on a vertical one)
-  float ground_bounce = 0.3f;        // share of the ambient light reaching downward surfaces
+  float ambient_intensity = 0.3f;  // sky light on an upward surface (half on a vertical one)
+  float ground_bounce = 0.3f;      // share of the ambient light reaching downward surfaces
   Rgb sky_horizon{0.78f, 0.86f, 0.95f};
   Rgb sky_zenith{0.35f, 0.55f, 0.88f};
   double shadow_max_distance_m = std::numeric_limits<double>::infinity();
   float obstacle_reflectance = 0.5f;
-  int terrain_tile_cells = 64;       // tile = 64 x 64 cells (8192 triangles)
+  int terrain_tile_cells = 64;  // tile = 64 x 64 cells (8192 triangles)
   int cylinder_segments = 32;
-  int embree_threads = 0;            // BVH build threads (0: Embree's default)
+  int embree_threads = 0;  // BVH build threads (0: Embree's default)
 
   /// Unit vector towards the sun (world ENU).
   Vec3 sun_direction() const;
@@ -119,7 +119,7 @@ enum class SurfaceKind : std::uint8_t { terrain, obstacle, vehicle };
 struct Surface {
   SurfaceKind kind = SurfaceKind::terrain;
   Rgb colour;
-  Rgb secondary_colour;           // vehicles: wheels
+  Rgb secondary_colour;  // vehicles: wheels
   float reflectance = 0.5f;
   float secondary_reflectance = 0.5f;
   unsigned secondary_first_prim = std::numeric_limits<unsigned>::max();
@@ -191,7 +191,7 @@ class Scene {
   struct Tile {
     RTCGeometry geometry = nullptr;
     unsigned id = 0;
-    int i0 = 0, j0 = 0;      // first vertex
+    int i0 = 0, j0 = 0;  // first vertex
     int cells_x = 0, cells_y = 0;
     float* vertices = nullptr;  // (cells_x + 1) * (cells_y + 1) float3
     bool dirty = false;
@@ -202,8 +202,8 @@ class Scene {
     int slot = 0;
     VehicleShape shape;
     Pose chassis;
-    std::vector<Vec3> box_local;     // 8 corners in the chassis frame
-    std::vector<Vec3> wheel_local;   // one wheel's vertices in the wheel frame
+    std::vector<Vec3> box_local;    // 8 corners in the chassis frame
+    std::vector<Vec3> wheel_local;  // one wheel's vertices in the wheel frame
     float* vertices = nullptr;
   };
 

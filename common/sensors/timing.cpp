@@ -8,7 +8,7 @@ namespace syndds::sensors {
 namespace {
 // Ratios that are whole numbers up to floating-point noise count as whole.
 constexpr double kTickEps = 1e-7;
-}
+}  // namespace
 
 SampleClock::SampleClock(double rate_hz, double lag_s, double tick_s, const std::string& sensor_id)
     : rate_hz_(rate_hz), tick_s_(tick_s) {

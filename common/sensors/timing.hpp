@@ -17,9 +17,9 @@ namespace syndds::sensors {
 
 /// Stamps every sample carries.
 struct SampleStamp {
-  std::uint64_t sequence = 0;   // measurement index k (0, 1, 2, ...)
-  double time_s = 0.0;          // measurement time (start of the collection window)
-  double available_s = 0.0;     // time_s + lag: when a consumer may see it
+  std::uint64_t sequence = 0;  // measurement index k (0, 1, 2, ...)
+  double time_s = 0.0;         // measurement time (start of the collection window)
+  double available_s = 0.0;    // time_s + lag: when a consumer may see it
 };
 
 class SampleClock {

@@ -2,8 +2,8 @@
 // triangles), 4 vehicles, 30 obstacles. Run: build-sensors/tests/sensors/bench_sensors
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -78,8 +78,8 @@ int main(int argc, char** argv) {
   for (int v = 0; v < 4; ++v) {
     VehicleShape shape;
     shape.body_colour = vehicle_palette(static_cast<std::size_t>(v));
-    shape.wheel_positions_m = {Vec3(1.689, 0.91, 0), Vec3(1.689, -0.91, 0),
-                               Vec3(-1.689, 0.91, 0), Vec3(-1.689, -0.91, 0)};
+    shape.wheel_positions_m = {Vec3(1.689, 0.91, 0), Vec3(1.689, -0.91, 0), Vec3(-1.689, 0.91, 0),
+                               Vec3(-1.689, -0.91, 0)};
     scene.add_vehicle(vehicle_name(v), shape);
   }
   pose_vehicles(scene, 0.0);
@@ -135,8 +135,8 @@ int main(int argc, char** argv) {
     cfg.mount.pose.position = Vec3(2.4, 0.0, 0.5);
     cfg.mount.pose.orientation = Quat(Eigen::AngleAxisd(deg_to_rad(5.0), Vec3::UnitY()));
     CameraSensor cam(cfg, "v0", 1, 0.01);
-    const Timing t =
-        median_seconds(frames * 50, [&](int f) { cam.capture(scene, static_cast<std::uint64_t>(f)); });
+    const Timing t = median_seconds(
+        frames * 50, [&](int f) { cam.capture(scene, static_cast<std::uint64_t>(f)); });
     std::printf("bumper camera 80x45 threads %d: %8.3f ms/frame, caller CPU %8.3f ms\n", threads,
                 1e3 * t.wall, 1e3 * t.cpu);
   }
@@ -152,9 +152,10 @@ int main(int argc, char** argv) {
     const double per = median_seconds(n, [&](int f) {
                          points += lidar.scan(scene, static_cast<std::uint64_t>(f)).points.size();
                        }).wall;
-    std::printf("lidar 900x16 threads %d: %.3f ms/scan, %.2f M beams/s, %.2f M points/s (%zu pts/scan)\n",
-                threads, 1e3 * per, 14400 / per * 1e-6, static_cast<double>(points) / n / per * 1e-6,
-                points / static_cast<std::size_t>(n));
+    std::printf(
+        "lidar 900x16 threads %d: %.3f ms/scan, %.2f M beams/s, %.2f M points/s (%zu pts/scan)\n",
+        threads, 1e3 * per, 14400 / per * 1e-6, static_cast<double>(points) / n / per * 1e-6,
+        points / static_cast<std::size_t>(n));
     cfg.beam_samples = 5;
     LidarSensor div(cfg, "", 1, 0.01);
     const double per2 =

@@ -60,18 +60,19 @@ int main(int argc, char** argv) {
         for (double dy = -0.15; dy <= 0.15; dy += 0.1) {
           const int i = static_cast<int>(std::lround((x - 1.7 + dx - g.origin.x()) / g.spacing_m));
           const int j = static_cast<int>(std::lround((track + dy - g.origin.y()) / g.spacing_m));
-          rut.push_back({i, j, g.at(i, j) > height_at(x - 1.7 + dx, track + dy) - 0.08
-                                   ? height_at(x - 1.7 + dx, track + dy) - 0.08
-                                   : g.at(i, j)});
+          rut.push_back({i, j,
+                         g.at(i, j) > height_at(x - 1.7 + dx, track + dy) - 0.08
+                             ? height_at(x - 1.7 + dx, track + dy) - 0.08
+                             : g.at(i, j)});
         }
       }
     }
     scene.update_terrain(rut);
     scene.set_vehicle_pose("v0", Pose{Vec3(x, 0, height_at(x, 0) + 0.467), Quat::Identity()}, {});
-    scene.set_vehicle_pose("v1", Pose{Vec3(x + 12.0, 0.5, height_at(x + 12.0, 0.5) + 0.467),
-                                      quat_from_yaw(0.1)}, {});
-    scene.set_vehicle_pose("v2", Pose{Vec3(x + 6.0, -6.0, height_at(x + 6.0, -6.0) + 0.467),
-                                      quat_from_yaw(0.3)}, {});
+    scene.set_vehicle_pose(
+        "v1", Pose{Vec3(x + 12.0, 0.5, height_at(x + 12.0, 0.5) + 0.467), quat_from_yaw(0.1)}, {});
+    scene.set_vehicle_pose(
+        "v2", Pose{Vec3(x + 6.0, -6.0, height_at(x + 6.0, -6.0) + 0.467), quat_from_yaw(0.3)}, {});
     scene.commit();
     const RgbImage c = chase_cam.capture(scene, static_cast<std::uint64_t>(frame));
     video.write(c);

@@ -2,8 +2,8 @@
 // Scenes shared by the sensor tests and the benchmark.
 #include <cmath>
 
-#include "sensors/scene.hpp"
 #include "sensors/random.hpp"
+#include "sensors/scene.hpp"
 
 namespace syndds::sensors::fixture {
 
@@ -40,7 +40,8 @@ inline world::Obstacles scattered_obstacles(int count, double size_m, std::uint6
       y = (rng.uniform() - 0.5) * (size_m - 10.0);
     } while (std::abs(y) < 6.0);
     const double r = 0.5 + 1.5 * rng.uniform();
-    o.size = kind == 0 ? Vec3(r, r * 0.7, r * 0.5) : (kind == 1 ? Vec3(r, 0, 0) : Vec3(0.3 * r, 0, 3.0));
+    o.size =
+        kind == 0 ? Vec3(r, r * 0.7, r * 0.5) : (kind == 1 ? Vec3(r, 0, 0) : Vec3(0.3 * r, 0, 3.0));
     o.pose.position = Vec3(x, y, kind == 2 ? 3.0 : 0.3 * r);
     o.pose.orientation = quat_from_yaw(rng.uniform() * 3.0);
     out.push_back(o);

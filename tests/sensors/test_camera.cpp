@@ -74,8 +74,8 @@ Box2 pixel_box(const RgbImage& img, Pred&& pred, int* count = nullptr) {
 
 // Expected 8-bit value of a lit, unshadowed flat surface of albedo `a` (see camera.hpp).
 double flat_lit_value(float albedo, const SceneConfig& sc, double gamma = 2.2) {
-  const double e = sc.sun_intensity * std::sin(deg_to_rad(sc.sun_elevation_deg)) +
-                   sc.ambient_intensity;
+  const double e =
+      sc.sun_intensity * std::sin(deg_to_rad(sc.sun_elevation_deg)) + sc.ambient_intensity;
   return 255.0 * std::pow(std::min(1.0, albedo * e), 1.0 / gamma);
 }
 
@@ -164,7 +164,8 @@ TEST(Camera, ObstacleLandsWherePinholeWithDistortionProjectsIt) {
   Box2 predicted;
   for (int k = 0; k < 256; ++k) {
     const double a = 2.0 * std::numbers::pi * k / 256;
-    const auto px = cam.model().project(rim_centre + rim_radius * (std::cos(a) * e1 + std::sin(a) * e2));
+    const auto px =
+        cam.model().project(rim_centre + rim_radius * (std::cos(a) * e1 + std::sin(a) * e2));
     predicted.add(px->x(), px->y());
   }
   int count = 0;
@@ -212,7 +213,8 @@ TEST(Camera, RutInTerrainChangesTheImageWhereItIs) {
   for (double x : {3.9, 6.1}) {
     for (double y : {-0.4, 0.4}) {
       for (double z : {0.0, -0.15}) {
-        const auto px = cam.model().project(pose.orientation.conjugate() * (Vec3(x, y, z) - pose.position));
+        const auto px =
+            cam.model().project(pose.orientation.conjugate() * (Vec3(x, y, z) - pose.position));
         predicted.add(px->x(), px->y());
       }
     }
@@ -222,7 +224,8 @@ TEST(Camera, RutInTerrainChangesTheImageWhereItIs) {
   for (int v = 0; v < 90; ++v) {
     for (int u = 0; u < 160; ++u) {
       int diff = 0;
-      for (int c = 0; c < 3; ++c) diff = std::max(diff, std::abs(before.at(u, v)[c] - after.at(u, v)[c]));
+      for (int c = 0; c < 3; ++c)
+        diff = std::max(diff, std::abs(before.at(u, v)[c] - after.at(u, v)[c]));
       if (diff > 8) {
         ++changed;
         seen.add(u + 0.5, v + 0.5);
@@ -257,8 +260,9 @@ TEST(Camera, AnotherVehiclePosedInViewAppears) {
   const Box2 seen = pixel_box(img, is_red, &count);
   Box2 predicted;
   for (int k = 0; k < 8; ++k) {
-    const Vec3 corner = shape.box_centre_m + Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1)
-                                                 .cwiseProduct(shape.half_extents_m);
+    const Vec3 corner =
+        shape.box_centre_m + Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1)
+                                 .cwiseProduct(shape.half_extents_m);
     const Vec3 w = vehicle.position + vehicle.orientation * corner;
     const auto px = cam.model().project(pose.orientation.conjugate() * (w - pose.position));
     predicted.add(px->x(), px->y());
@@ -313,8 +317,9 @@ TEST(Camera, MountedCameraHidesItsOwnVehicleChaseCameraSeesIt) {
   cfg.hide_own_vehicle = false;
   CameraSensor inside(cfg, "ego", 1, kFrame);
   int body = 0;
-  pixel_box(inside.capture(scene, 0),
-            [](const std::uint8_t* p) { return is_blue(p) || is_dark(p); }, &body);
+  pixel_box(
+      inside.capture(scene, 0), [](const std::uint8_t* p) { return is_blue(p) || is_dark(p); },
+      &body);
   EXPECT_EQ(body, 64 * 36);  // every ray hits the inside of the box (or a wheel in it)
 
   cfg.mode = CameraMode::chase;
@@ -358,9 +363,9 @@ TEST(Camera, NoiseStatisticsMatchConfiguration) {
     }
     const double n = static_cast<double>(img.pixels.size());
     const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
-    const double expected =
-        255.0 * (k.model == PixelNoiseModel::gaussian ? k.std
-                                                       : std::sqrt(k.slope * v0 / 255.0 + k.intercept));
+    const double expected = 255.0 * (k.model == PixelNoiseModel::gaussian
+                                         ? k.std
+                                         : std::sqrt(k.slope * v0 / 255.0 + k.intercept));
     EXPECT_NEAR(sd, expected, 0.05 * expected);
     EXPECT_NEAR(mean, 0.0, 4.0 * expected / std::sqrt(n) + 0.5);  // + quantisation of v0
     // Another frame index gives another pattern; the same index the same one.

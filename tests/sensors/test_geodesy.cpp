@@ -33,8 +33,7 @@ TEST(Geodesy, Wgs84ExactChainAgreesWithOracleUpToAltitudeTerm) {
   // A point 141 m away on the tangent plane sits h = d^2 / (2 R) ~ 1.6 mm above the ellipsoid.
   EXPECT_NEAR(g.alt_m - 260.0, 141.42 * 141.42 / (2.0 * 6.37e6), 3e-4);
   // With the origin on the ellipsoid the latitude agrees with the oracle to 1e-8 deg.
-  const Geodetic g0 =
-      LocalTangentPlane({43.070, -89.400, 0.0}).enu_to_geodetic(Vec3(100, 100, 0));
+  const Geodetic g0 = LocalTangentPlane({43.070, -89.400, 0.0}).enu_to_geodetic(Vec3(100, 100, 0));
   EXPECT_NEAR(g0.lat_deg, 43.070900138, 1e-8);
 }
 
@@ -50,10 +49,10 @@ TEST(Geodesy, EcefOfKnownPoints) {
 
 TEST(Geodesy, RoundTripsEnuEcefGeodetic) {
   for (const Geodetic& origin : {kDefaultOrigin, Geodetic{-33.9, 151.2, 40.0},
-                                Geodetic{78.2, 15.6, 0.0}, Geodetic{0.0, 0.0, -20.0}}) {
+                                 Geodetic{78.2, 15.6, 0.0}, Geodetic{0.0, 0.0, -20.0}}) {
     const LocalTangentPlane plane(origin);
-    for (const Vec3& enu : {Vec3(0, 0, 0), Vec3(100, 100, 0), Vec3(-2500, 1200, 35),
-                           Vec3(40000, -30000, 800)}) {
+    for (const Vec3& enu :
+         {Vec3(0, 0, 0), Vec3(100, 100, 0), Vec3(-2500, 1200, 35), Vec3(40000, -30000, 800)}) {
       const Geodetic g = plane.enu_to_geodetic(enu);
       const Vec3 back = plane.geodetic_to_enu(g);
       EXPECT_LT((back - enu).norm(), 1e-6) << enu.transpose();

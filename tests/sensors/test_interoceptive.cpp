@@ -63,8 +63,8 @@ TEST(Imu, TiltedAndTurningVehicleReadsRotatedGravityAndBodyRate) {
   const double pitch = deg_to_rad(10.0);  // nose down (positive pitch about y)
   const auto samples = run_collect<ImuSensor, ImuSample>(imu, 0.1, [&](double t) {
     auto s = at_rest(t);
-    s.pose.orientation = Quat(Eigen::AngleAxisd(0.7, Vec3::UnitZ())) *
-                         Quat(Eigen::AngleAxisd(pitch, Vec3::UnitY()));
+    s.pose.orientation =
+        Quat(Eigen::AngleAxisd(0.7, Vec3::UnitZ())) * Quat(Eigen::AngleAxisd(pitch, Vec3::UnitY()));
     s.angular_velocity = Vec3(0, 0, 0.25);  // yaw rate, world frame
     return s;
   });
@@ -108,7 +108,8 @@ TEST(Imu, WhiteNoiseStdMatchesConfiguration) {
       g.push_back(s.gyro_rad_s[axis]);
     }
     const Stats sa = stats(a), sg = stats(g);
-    EXPECT_NEAR(sa.std, cfg.accelerometer.white_std[axis], 0.05 * cfg.accelerometer.white_std[axis]);
+    EXPECT_NEAR(sa.std, cfg.accelerometer.white_std[axis],
+                0.05 * cfg.accelerometer.white_std[axis]);
     EXPECT_NEAR(sg.std, cfg.gyroscope.white_std[axis], 0.05 * cfg.gyroscope.white_std[axis]);
     // Mean within 4 standard errors of zero.
     EXPECT_LT(std::abs(sa.mean), 4.0 * sa.std / 100.0);
@@ -228,7 +229,7 @@ TEST(Timing, GpsRateAndLagHonouredExactly) {
     EXPECT_EQ(g.stamp.sequence, k);
     EXPECT_NEAR(g.stamp.time_s, 0.1 * static_cast<double>(k), 1e-12);
     EXPECT_NEAR(g.stamp.available_s, g.stamp.time_s + 0.1, 1e-12);
-    EXPECT_NEAR(out_time, g.stamp.available_s, 1e-12);  // released at that step, not later
+    EXPECT_NEAR(out_time, g.stamp.available_s, 1e-12);     // released at that step, not later
     EXPECT_NEAR(g.true_enu_m.x(), g.stamp.time_s, 1e-12);  // measured the state at time_s
   }
 }

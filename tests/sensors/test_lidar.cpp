@@ -80,8 +80,8 @@ TEST(Lidar, WallRangesMatchWithinConfiguredNoise) {
     const LidarScan s = lidar.scan(scene, scan);
     ASSERT_EQ(s.points.size(), 3200u);  // every beam hits the wall
     for (const auto& p : s.points) {
-      const double expected = 20.0 / (std::cos(r.elevation_rad(p.channel)) *
-                                       std::cos(r.azimuth_rad(p.sample)));
+      const double expected =
+          20.0 / (std::cos(r.elevation_rad(p.channel)) * std::cos(r.azimuth_rad(p.sample)));
       residual.push_back(p.range - expected);
       // Without angle noise the point lies on the wall plane up to the range noise.
       EXPECT_NEAR(p.x, 20.0, 6.0 * 0.01);

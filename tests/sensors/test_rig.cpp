@@ -62,36 +62,35 @@ TEST(SensorRig, DefaultRigHasThePapersSensors) {
 }
 
 TEST(SensorRig, ErrorsNameFileLineAndKey) {
-  const std::string unknown = error_of([] {
-    parse("name: r\nsensors:\n  - id: cam\n    type: camera\n    widht_px: 80\n");
-  });
+  const std::string unknown = error_of(
+      [] { parse("name: r\nsensors:\n  - id: cam\n    type: camera\n    widht_px: 80\n"); });
   EXPECT_NE(unknown.find("rig.yaml:5:5"), std::string::npos) << unknown;
   EXPECT_NE(unknown.find("unknown key 'widht_px'"), std::string::npos) << unknown;
 
   const std::string nested = error_of([] {
-    parse("name: r\nsensors:\n  - id: l\n    type: lidar\n    beam: {divergence_rad: 0.003, "
-          "retrun: mean}\n");
+    parse(
+        "name: r\nsensors:\n  - id: l\n    type: lidar\n    beam: {divergence_rad: 0.003, "
+        "retrun: mean}\n");
   });
   EXPECT_NE(nested.find("rig.yaml:5:"), std::string::npos) << nested;
   EXPECT_NE(nested.find("retrun"), std::string::npos) << nested;
 
-  const std::string dup = error_of([] {
-    parse("name: r\nsensors:\n  - {id: a, type: gps}\n  - {id: a, type: imu}\n");
-  });
+  const std::string dup = error_of(
+      [] { parse("name: r\nsensors:\n  - {id: a, type: gps}\n  - {id: a, type: imu}\n"); });
   EXPECT_NE(dup.find("rig.yaml:4:"), std::string::npos) << dup;
   EXPECT_NE(dup.find("duplicate sensor id 'a'"), std::string::npos) << dup;
 
   const std::string type = error_of([] { parse("name: r\nsensors:\n  - {id: a, type: radar}\n"); });
   EXPECT_NE(type.find("must be one of"), std::string::npos) << type;
 
-  const std::string range = error_of([] {
-    parse("name: r\nsensors:\n  - id: c\n    type: camera\n    width_px: 8000\n");
-  });
+  const std::string range = error_of(
+      [] { parse("name: r\nsensors:\n  - id: c\n    type: camera\n    width_px: 8000\n"); });
   EXPECT_NE(range.find("rig.yaml:5:15: sensors[0].width_px"), std::string::npos) << range;
 
   const std::string both = error_of([] {
-    parse("name: r\nsensors:\n  - id: i\n    type: imu\n    gyroscope: {std: 0.1, "
-          "density_per_sqrt_hz: 0.01}\n");
+    parse(
+        "name: r\nsensors:\n  - id: i\n    type: imu\n    gyroscope: {std: 0.1, "
+        "density_per_sqrt_hz: 0.01}\n");
   });
   EXPECT_NE(both.find("not both"), std::string::npos) << both;
 
@@ -139,11 +138,11 @@ TEST(VehicleSensors, DefaultRigRunsOneSecondWithRatesAndLags) {
       for (auto& l : r.lidar) rendered.lidar.push_back(std::move(l));
     }
   }
-  EXPECT_EQ(intero.gps.size(), 10u);          // measured 0.0 .. 0.9, lag 0.1
-  EXPECT_EQ(intero.imu.size(), 101u);         // 0.00 .. 1.00, no lag
+  EXPECT_EQ(intero.gps.size(), 10u);   // measured 0.0 .. 0.9, lag 0.1
+  EXPECT_EQ(intero.imu.size(), 101u);  // 0.00 .. 1.00, no lag
   EXPECT_EQ(intero.magnetometer.size(), 51u);
   EXPECT_EQ(intero.tachometer.size(), 101u);
-  EXPECT_EQ(rendered.camera.size(), 29u);     // 30 Hz, the 30th still within its 0.05 s lag
+  EXPECT_EQ(rendered.camera.size(), 29u);  // 30 Hz, the 30th still within its 0.05 s lag
   EXPECT_EQ(rendered.lidar.size(), 10u);
   for (const auto& g : intero.gps) {
     EXPECT_NEAR(g.stamp.available_s - g.stamp.time_s, 0.1, 1e-12);
