@@ -91,8 +91,9 @@ void MemberRuntime::setup() {
       topics::kFrameGrant, profiles::kProtocolReader, [this, guard](msg::FrameGrant&& m) {
         guard("frame_grant", [&] {
           auto g = from_dds(m);
-          std::lock_guard lock(mutex_);
+          std::unique_lock lock(mutex_);
           grants_.push_back(std::move(g));
+          pump_locked(lock);
           cv_.notify_all();
         });
       });
@@ -119,8 +120,11 @@ void MemberRuntime::setup() {
         topics::data(topic), profiles::kDataReader, [this, guard, topic](T&& m) {
           guard(std::string(proto::to_string(topic)).c_str(), [&] {
             auto s = from_dds(m);
-            std::lock_guard lock(mutex_);
-            if (inbox_.add(std::move(s))) cv_.notify_all();
+            std::unique_lock lock(mutex_);
+            if (inbox_.add(std::move(s))) {
+              pump_locked(lock);
+              cv_.notify_all();
+            }
           });
         });
   };
@@ -219,6 +223,13 @@ bool MemberRuntime::wait_inputs(std::int64_t frame, const proto::Manifest& manif
   return true;
 }
 
+void MemberRuntime::flush_writers(double timeout_s) {
+  if (state_writer_) state_writer_->wait_for_acknowledgments(timeout_s);
+  if (command_writer_) command_writer_->wait_for_acknowledgments(timeout_s);
+  if (terrain_writer_) terrain_writer_->wait_for_acknowledgments(timeout_s);
+  if (collision_writer_) collision_writer_->wait_for_acknowledgments(timeout_s);
+}
+
 void MemberRuntime::publish(const proto::FrameSamples& out) {
   write_all(state_writer_, out.vehicle_states, "vehicle_state");
   write_all(command_writer_, out.driver_commands, "driver_command");
@@ -256,12 +267,76 @@ int MemberRuntime::finish(const proto::RunControlMsg& control,
   agent_.finish(proto::RunEnd{control}, final_inputs);
   if (end_reason_.empty()) end_reason_ = control.reason;
   try {
+    // Whatever this member wrote must reach its readers before the process (and its shared
+    // memory segments) goes away: a sample still in flight when the writer disappears is lost.
+    flush_writers(2.0);
     send_done(control.final_frame, {}, 0.0, true);
     done_writer_->wait_for_acknowledgments(2.0);
   } catch (const std::exception& e) {
     spdlog::warn("{}: could not confirm the end of the run: {}", agent_.member_id(), e.what());
   }
   return control.status == proto::RunStatus::completed ? kExitCompleted : kExitAborted;
+}
+
+// Runs every granted frame whose inputs are complete, in the calling thread: the DDS receive
+// thread that delivered the last missing piece (grant or sample), or the main thread. This saves
+// a thread hop per frame. One frame runs at a time (stepping_); called with mutex_ held.
+void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
+  while (ready_ && !stepping_ && !control_ && failure_.empty() && !grants_.empty()) {
+    proto::FrameGrantMsg& front = grants_.front();
+    if (front.frame < next_frame_) {  // duplicate
+      grants_.pop_front();
+      continue;
+    }
+    if (front.frame > next_frame_) {
+      failure_ = "protocol error: granted frame " + std::to_string(front.frame) +
+                 " while frame " + std::to_string(next_frame_) + " was expected";
+      cv_.notify_all();
+      return;
+    }
+    const std::int64_t input_frame = front.frame - 1;
+    if (!options_.debug_skip_data_barrier && !inbox_.complete(input_frame, front.manifest)) {
+      return;  // the data barrier: the last announced sample will call us again
+    }
+    proto::FrameGrantMsg grant = std::move(front);
+    grants_.pop_front();
+    proto::FrameSamples inputs = inbox_.take(input_frame, grant.manifest);
+    stepping_ = true;
+    lock.unlock();
+    std::string error;
+    try {
+      run_frame(grant, inputs);
+    } catch (const std::exception& e) {
+      error = "frame " + std::to_string(grant.frame) + ": " + e.what();
+    }
+    lock.lock();
+    stepping_ = false;
+    next_frame_ = grant.frame + 1;
+    if (!error.empty()) failure_ = error;
+    cv_.notify_all();
+  }
+}
+
+void MemberRuntime::run_frame(const proto::FrameGrantMsg& grant,
+                              const proto::FrameSamples& inputs) {
+  const auto t0 = Clock::now();
+  proto::FrameSamples outputs;
+  const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s};
+  agent_.step(ctx, inputs, outputs);
+  proto::check_outputs(outputs, grant.frame, agent_.member_id());
+  if (options_.debug_frame_delay_ms > 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_frame_delay_ms));
+  }
+  const double compute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const proto::Manifest published = outputs.manifest(agent_.member_id());
+  if (options_.debug_publish_delay_ms > 0) {
+    send_done(grant.frame, published, compute_s, false);
+    std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_publish_delay_ms));
+    publish(outputs);
+  } else {
+    publish(outputs);
+    send_done(grant.frame, published, compute_s, false);
+  }
 }
 
 int MemberRuntime::run(const std::atomic<bool>& interrupt) {
@@ -284,74 +359,53 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   spdlog::info("{}: joined run '{}' (coordinator on {})", agent_.member_id(), options_.dds.run_id,
                coordinator_->host);
 
-  std::int64_t next_frame = 0;
+  // Frames run in pump_locked(); this thread watches for the end, failures and deadlines.
+  std::unique_lock lock(mutex_);
+  ready_ = true;
+  pump_locked(lock);
+  std::int64_t waiting_frame = -1;
+  auto waiting_since = Clock::now();
   while (true) {
-    proto::FrameGrantMsg grant;
-    {
-      std::unique_lock lock(mutex_);
-      while (grants_.empty() && !control_ && !coordinator_lost_ && !interrupt.load()) {
-        cv_.wait_for(lock, kPollInterval);
-      }
-      if (control_) {
-        const proto::RunControlMsg control = *control_;
-        lock.unlock();
-        return finish(control, interrupt);
-      }
-      if (interrupt.load()) {
-        lock.unlock();
-        return local_abort("interrupted", kExitInterrupted);
-      }
-      if (coordinator_lost_) {
-        lock.unlock();
-        return local_abort("the coordinator was lost (its process exited or stopped answering)",
-                           kExitFailed);
-      }
-      grant = std::move(grants_.front());
-      grants_.pop_front();
+    cv_.wait_for(lock, kPollInterval);
+    if (stepping_) continue;  // let the running frame finish first
+    if (control_) {
+      const proto::RunControlMsg control = *control_;
+      lock.unlock();
+      return finish(control, interrupt);
     }
-    if (grant.frame < next_frame) continue;  // duplicate
-    if (grant.frame > next_frame) {
-      return local_abort("protocol error: granted frame " + std::to_string(grant.frame) +
-                             " while frame " + std::to_string(next_frame) + " was expected",
+    if (!failure_.empty()) {
+      const std::string failure = failure_;
+      lock.unlock();
+      return local_abort(failure, kExitFailed);
+    }
+    if (interrupt.load()) {
+      lock.unlock();
+      return local_abort("interrupted", kExitInterrupted);
+    }
+    if (coordinator_lost_) {
+      lock.unlock();
+      return local_abort("the coordinator was lost (its process exited or stopped answering)",
                          kExitFailed);
     }
-
-    const std::int64_t input_frame = grant.frame - 1;
-    if (!options_.debug_skip_data_barrier &&
-        !wait_inputs(input_frame, grant.manifest, options_.input_timeout_s, interrupt)) {
-      std::unique_lock lock(mutex_);
-      if (control_ || interrupt.load() || coordinator_lost_) continue;  // handled above
-      const std::string missing = inbox_.describe_missing(input_frame, grant.manifest);
+    pump_locked(lock);
+    // A granted frame whose announced inputs do not arrive in time.
+    if (grants_.empty()) {
+      waiting_frame = -1;
+      continue;
+    }
+    const proto::FrameGrantMsg& grant = grants_.front();
+    if (grant.frame != waiting_frame) {
+      waiting_frame = grant.frame;
+      waiting_since = Clock::now();
+    } else if (std::chrono::duration<double>(Clock::now() - waiting_since).count() >
+               options_.input_timeout_s) {
+      const std::string missing = inbox_.describe_missing(grant.frame - 1, grant.manifest);
       lock.unlock();
-      return local_abort("frame " + std::to_string(grant.frame) + ": announced inputs missing after " +
+      return local_abort("frame " + std::to_string(grant.frame) +
+                             ": announced inputs missing after " +
                              std::to_string(options_.input_timeout_s) + " s: " + missing,
                          kExitFailed);
     }
-    proto::FrameSamples inputs;
-    {
-      std::lock_guard lock(mutex_);
-      inputs = inbox_.take(input_frame, grant.manifest);
-    }
-
-    const auto t0 = Clock::now();
-    proto::FrameSamples outputs;
-    const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s};
-    agent_.step(ctx, inputs, outputs);
-    proto::check_outputs(outputs, grant.frame, agent_.member_id());
-    if (options_.debug_frame_delay_ms > 0) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_frame_delay_ms));
-    }
-    const double compute_s = std::chrono::duration<double>(Clock::now() - t0).count();
-    const proto::Manifest published = outputs.manifest(agent_.member_id());
-    if (options_.debug_publish_delay_ms > 0) {
-      send_done(grant.frame, published, compute_s, false);
-      std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_publish_delay_ms));
-      publish(outputs);
-    } else {
-      publish(outputs);
-      send_done(grant.frame, published, compute_s, false);
-    }
-    next_frame = grant.frame + 1;
   }
 }
 

@@ -57,7 +57,10 @@ class MemberRuntime {
   bool wait_for_coordinator(const std::atomic<bool>& interrupt);
   bool wait_inputs(std::int64_t frame, const proto::Manifest& manifest, double timeout_s,
                    const std::atomic<bool>& interrupt);
+  void pump_locked(std::unique_lock<std::mutex>& lock);
+  void run_frame(const proto::FrameGrantMsg& grant, const proto::FrameSamples& inputs);
   void publish(const proto::FrameSamples& out);
+  void flush_writers(double timeout_s);
   void send_done(std::int64_t frame, const proto::Manifest& published, double compute_s,
                  bool finished);
   int finish(const proto::RunControlMsg& control, const std::atomic<bool>& interrupt);
@@ -73,7 +76,10 @@ class MemberRuntime {
   std::optional<proto::RunControlMsg> control_;
   std::optional<proto::MemberAnnounceMsg> coordinator_;
   bool coordinator_lost_ = false;
-  std::string protocol_error_;
+  bool ready_ = false;        // the coordinator was checked: frames may run
+  bool stepping_ = false;     // a frame is running (in some thread)
+  std::int64_t next_frame_ = 0;
+  std::string failure_;       // set when a frame failed; the main thread ends the run
 
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
   std::unique_ptr<Writer<msg::FrameDone>> done_writer_;

@@ -153,4 +153,5 @@ TEST(InProcessDds, RunMatchesTheLocalRunner) {
   agents.clear();  // closes the recorder's files
   EXPECT_EQ(read_file(dir / "dds" / "vehicles.csv"), read_file(dir / "local" / "vehicles.csv"));
   EXPECT_EQ(read_file(dir / "dds" / "commands.csv"), read_file(dir / "local" / "commands.csv"));
+  if (!HasFailure()) fs::remove_all(dir);
 }

@@ -119,6 +119,16 @@ struct TestRun {
     domain = 20 + static_cast<int>(std::hash<std::string>{}(name) % 180);
     run_id = "test-" + std::to_string(getpid()) + "-" + info->name();
   }
+  ~TestRun() {
+    // Keep the logs of a failed test for inspection; remove the rest.
+    if (!testing::Test::HasFailure()) {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  }
+  TestRun(const TestRun&) = delete;
+  TestRun& operator=(const TestRun&) = delete;
+
   /// Arguments every process of this run gets.
   std::string common_args() const {
     return " --domain " + std::to_string(domain) + " --run-id " + run_id;
