@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.hpp"
@@ -11,14 +12,16 @@
 namespace syndds::agents {
 
 std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(const scenario::Scenario& s,
-                                                          const scenario::VehicleConfig& config) {
-  auto terrain = scenario::make_terrain(s.terrain);
+                                                          const scenario::VehicleConfig& config,
+                                                          std::shared_ptr<scm::ScmTerrain> scm) {
+  std::shared_ptr<const terrain::TerrainSurface> terrain =
+      scm ? std::shared_ptr<const terrain::TerrainSurface>(scm) : scenario::make_terrain(s.terrain);
   if (config.dynamics == "reduced") {
     return std::make_unique<vehicle::BicycleModel>(config.params, config.start, std::move(terrain));
   }
   if (config.dynamics == "full") {
     return std::make_unique<vehicle::OdeVehicleModel>(config.params, config.start,
-                                                      std::move(terrain), s.obstacles);
+                                                      std::move(terrain), s.obstacles, scm);
   }
   throw ConfigError("vehicle '" + config.id + "': unknown dynamics '" + config.dynamics + "'");
 }
@@ -40,20 +43,70 @@ std::string validate_command(const proto::DriverCommandMsg& cmd) {
   return "";
 }
 
+proto::TerrainVertexMsg to_message(const scm::VertexChange& v) {
+  return {v.i, v.j, v.level_m, v.level_initial_m, v.sinkage_plastic_m, v.sigma_yield_pa};
+}
+
+scm::VertexChange from_message(const proto::TerrainVertexMsg& v) {
+  return {v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield};
+}
+
+std::uint32_t member_rank(const scenario::Scenario& s, const std::string& member_id) {
+  const auto members = s.member_ids();
+  const auto it = std::find(members.begin(), members.end(), member_id);
+  return static_cast<std::uint32_t>(it - members.begin());
+}
+
 VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
                            const scenario::VehicleConfig& vehicle)
     : vehicle_id_(vehicle.id),
       member_id_(scenario::vehicle_member(vehicle.id)),
       step_s_(scenario.time.step_s),
-      steps_per_frame_(scenario.time.steps_per_frame()),
-      model_(make_vehicle_model(scenario, vehicle)) {}
+      steps_per_frame_(scenario.time.steps_per_frame()) {
+  if (scenario.terrain.deformable()) {
+    soil_ = std::make_shared<scm::ScmTerrain>(scenario.terrain.scm);
+    rank_ = member_rank(scenario, member_id_);
+    soil_->set_source_id(rank_);
+    spacing_m_ = scenario.terrain.scm.grid.spacing_m;
+  }
+  model_ = make_vehicle_model(scenario, vehicle, soil_);
+}
 
 std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
-  return {{proto::Topic::driver_command, vehicle_id_}};
+  std::vector<proto::Subscription> subs = {{proto::Topic::driver_command, vehicle_id_}};
+  if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  return subs;
+}
+
+std::vector<proto::Topic> VehicleAgent::publications() const {
+  std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event};
+  if (soil_) pubs.push_back(proto::Topic::terrain_deformation);
+  return pubs;
+}
+
+void VehicleAgent::log_terrain_hashes(const std::string& file) {
+  hash_log_.reset(std::fopen(file.c_str(), "w"));
+  if (!hash_log_) throw ConfigError(file + ": cannot create terrain hash log");
 }
 
 void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                         proto::FrameSamples& outputs) {
+  if (soil_) {
+    // The other vehicles' deformations of frame k-1, merged by the SCM rule (order-free).
+    std::vector<scm::VertexChange> changes;
+    for (const auto& d : inputs.terrain_deformations) {
+      if (d.vehicle_id == vehicle_id_) continue;  // our own, applied in place already
+      changes.clear();
+      changes.reserve(d.vertices.size());
+      for (const auto& v : d.vertices) changes.push_back(from_message(v));
+      soil_->apply_remote_changes(d.source_index, changes);
+    }
+    if (hash_log_ && ctx.frame > 0) {
+      std::fprintf(hash_log_.get(), "%lld %016llx\n", static_cast<long long>(ctx.frame - 1),
+                   static_cast<unsigned long long>(soil_->grid_hash()));
+      std::fflush(hash_log_.get());
+    }
+  }
   // The newest valid command stamped k-1 (several writers: the last in canonical order wins).
   for (const auto& cmd : inputs.driver_commands) {
     const std::string error = validate_command(cmd);
@@ -69,6 +122,21 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     for (std::int64_t i = 0; i < steps_per_frame_; ++i) model_->advance(step_s_);
   }
   outputs.vehicle_states.push_back(state_message(ctx.frame, ctx.sim_time_s));
+  if (soil_) {
+    // Every frame opens a new merge window; only non-empty lists travel.
+    const auto changes = soil_->take_local_changes();
+    if (!changes.empty()) {
+      proto::TerrainDeformationMsg d;
+      d.vehicle_id = vehicle_id_;
+      d.source = member_id_;
+      d.frame = ctx.frame;
+      d.source_index = rank_;
+      d.spacing_m = spacing_m_;
+      d.vertices.reserve(changes.size());
+      for (const auto& c : changes) d.vertices.push_back(to_message(c));
+      outputs.terrain_deformations.push_back(std::move(d));
+    }
+  }
   for (const auto& c : model_->take_collisions()) {
     proto::CollisionEventMsg e;
     e.vehicle_id = vehicle_id_;

@@ -1,18 +1,29 @@
 #pragma once
 // The vehicle member: owns one dynamics model, applies the DriverCommand stamped k-1, steps
 // steps_per_frame dynamics steps in frame k and publishes its VehicleState stamped k.
+#include <cstdio>
 #include <memory>
 
 #include "protocol/agent.hpp"
+#include "scm/scm_terrain.hpp"
 #include "scenario/scenario.hpp"
 #include "vehicle/vehicle_model.hpp"
 
 namespace syndds::agents {
 
 /// Builds the dynamics model a vehicle entry of the scenario asks for, on the scenario's terrain
-/// and among its obstacles.
-std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(const scenario::Scenario& scenario,
-                                                          const scenario::VehicleConfig& config);
+/// and among its obstacles. On SCM terrain pass the vehicle's copy of the soil as `scm`: the full
+/// model takes its wheel forces from it and deforms it; the reduced model only rides on it.
+std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(
+    const scenario::Scenario& scenario, const scenario::VehicleConfig& config,
+    std::shared_ptr<scm::ScmTerrain> scm = nullptr);
+
+/// Converts between the SCM library's vertex records and the wire message.
+proto::TerrainVertexMsg to_message(const scm::VertexChange& v);
+scm::VertexChange from_message(const proto::TerrainVertexMsg& v);
+
+/// The rank of a member in the scenario's member list: the tie-break of the SCM merge rule.
+std::uint32_t member_rank(const scenario::Scenario& scenario, const std::string& member_id);
 
 /// Checks a received command; returns an empty string if valid, else which field is wrong.
 std::string validate_command(const proto::DriverCommandMsg& cmd);
@@ -24,12 +35,17 @@ class VehicleAgent final : public proto::Agent {
   const std::string& member_id() const override { return member_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::vehicle; }
   std::vector<proto::Subscription> subscriptions() const override;
-  std::vector<proto::Topic> publications() const override { return {proto::Topic::vehicle_state, proto::Topic::collision_event}; }
+  std::vector<proto::Topic> publications() const override;
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
 
   const vehicle::VehicleModel& model() const { return *model_; }
   std::uint64_t rejected_commands() const { return rejected_; }
+  /// This vehicle's copy of the deformable terrain (null on rigid ground).
+  const scm::ScmTerrain* soil() const { return soil_.get(); }
+  /// Test aid: append "frame hash" of the soil grid at every frame boundary (after the other
+  /// vehicles' changes of that frame were merged) to `file`.
+  void log_terrain_hashes(const std::string& file);
 
  private:
   proto::VehicleStateMsg state_message(std::int64_t frame, double sim_time_s) const;
@@ -38,8 +54,12 @@ class VehicleAgent final : public proto::Agent {
   std::string member_id_;
   double step_s_;
   std::int64_t steps_per_frame_;
+  std::shared_ptr<scm::ScmTerrain> soil_;
+  std::uint32_t rank_ = 0;
+  double spacing_m_ = 0.0;
   std::unique_ptr<vehicle::VehicleModel> model_;
   std::uint64_t rejected_ = 0;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> hash_log_{nullptr, &std::fclose};
 };
 
 }  // namespace syndds::agents

@@ -70,13 +70,17 @@ struct DriverCommandMsg {
 struct TerrainVertexMsg {
   std::int32_t i = 0;
   std::int32_t j = 0;
-  double height = 0.0;
+  double height = 0.0;           // current surface level
+  double level_initial = 0.0;    // undeformed level incl. bulldozed material
+  double sinkage_plastic = 0.0;  // permanent sinkage below level_initial
+  double sigma_yield = 0.0;      // highest Bekker stress reached
 };
 
 struct TerrainDeformationMsg {
   std::string vehicle_id;
   std::string source;
   std::int64_t frame = 0;
+  std::uint32_t source_index = 0;  // the writer's rank in the member list (merge tie-break)
   double spacing_m = 0.0;
   std::vector<TerrainVertexMsg> vertices;
 };

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "scm/scm_images.hpp"
 
 namespace syndds::record {
 namespace fs = std::filesystem;
@@ -49,6 +50,10 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
     vehicle_ids_.push_back(v.id);
     totals_[v.id];
   }
+  if (scenario.terrain.deformable()) {
+    soil_ = std::make_unique<scm::ScmTerrain>(scenario.terrain.scm);
+    soil_->set_source_id(static_cast<std::uint32_t>(members_.size()));  // never wins a tie
+  }
   const fs::path dir(options_.output_dir);
   std::error_code ec;
   fs::create_directories(dir, ec);
@@ -69,14 +74,17 @@ RecorderAgent::~RecorderAgent() {
 }
 
 std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
-  return {{proto::Topic::vehicle_state, ""},
-          {proto::Topic::driver_command, ""},
-          {proto::Topic::collision_event, ""}};
+  std::vector<proto::Subscription> subs = {{proto::Topic::vehicle_state, ""},
+                                           {proto::Topic::driver_command, ""},
+                                           {proto::Topic::collision_event, ""}};
+  if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  return subs;
 }
 
 void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                          proto::FrameSamples& outputs) {
   if (ctx.frame > 0) record(inputs);  // inputs are stamped ctx.frame - 1
+  if (soil_) soil_->take_local_changes();  // opens the merge window of this frame's lists
 }
 
 void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
@@ -87,6 +95,13 @@ void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& 
     note_event(last_frame_, "run_completed", "", "");
   }
   flush();
+  if (soil_) {
+    try {
+      scm::write_terrain_images(*soil_, (fs::path(options_.output_dir) / "terrain").string());
+    } catch (const std::exception& e) {
+      note_event(last_frame_, "error", "", std::string("terrain images: ") + e.what());
+    }
+  }
   write_summary(&end.control);
   finished_ = true;
 }
@@ -129,6 +144,20 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
   }
   std::fwrite(out.data(), 1, out.size(), events_);
   flush();
+  if (soil_) {
+    std::uint64_t frame_bytes = 0;
+    std::vector<scm::VertexChange> changes;
+    for (const auto& d : samples.terrain_deformations) {
+      changes.clear();
+      for (const auto& v : d.vertices) {
+        changes.push_back({v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield});
+      }
+      soil_->apply_remote_changes(d.source_index, changes);
+      frame_bytes += d.vertices.size() * sizeof(proto::TerrainVertexMsg);
+    }
+    terrain_bytes_ += frame_bytes;
+    terrain_max_frame_bytes_ = std::max(terrain_max_frame_bytes_, frame_bytes);
+  }
 }
 
 void RecorderAgent::note_event(std::int64_t frame, const std::string& kind,
@@ -188,6 +217,13 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                                             t.last_position.z()}}});
   }
   j["vehicles"] = vehicles;
+  if (soil_) {
+    const double frames = static_cast<double>(std::max<std::int64_t>(1, last_frame_ + 1));
+    j["terrain"] = {{"deformation_bytes_total", terrain_bytes_},
+                    {"deformation_bytes_per_frame_mean", static_cast<double>(terrain_bytes_) / frames},
+                    {"deformation_bytes_per_frame_max", terrain_max_frame_bytes_},
+                    {"grid_hash", fmt::format("{:016x}", soil_->grid_hash())}};
+  }
   const fs::path dir(options_.output_dir);
   write_text_atomically(dir / "summary.json", j.dump(2) + "\n");
 

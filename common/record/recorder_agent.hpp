@@ -2,13 +2,14 @@
 // The recorder member: writes the run directory as the run goes. Every frame is appended and
 // flushed as soon as it is complete, so a failure anywhere else loses nothing that was
 // complete. Files (docs/outputs.md): vehicles.csv, commands.csv, events.csv, summary.json,
-// summary.txt.
+// summary.txt, and on deformable terrain terrain_height.png, terrain_rut.png, terrain_images.json.
 #include <cstdio>
 #include <map>
 #include <string>
 
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
+#include "scm/scm_terrain.hpp"
 
 namespace syndds::record {
 
@@ -67,6 +68,9 @@ class RecorderAgent final : public proto::Agent {
   std::FILE* commands_ = nullptr;
   std::FILE* events_ = nullptr;
   std::map<std::string, VehicleTotals> totals_;
+  std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
+  std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)
+  std::uint64_t terrain_max_frame_bytes_ = 0;
   std::int64_t last_frame_ = -1;
   bool finished_ = false;
 };

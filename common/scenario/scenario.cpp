@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/hash.hpp"
+#include "scm/scm_terrain.hpp"
 
 #ifndef SYNDDS_DEFAULT_CONFIG_DIR
 #define SYNDDS_DEFAULT_CONFIG_DIR "config"
@@ -64,10 +65,16 @@ DdsConfig parse_dds(const YamlNode& node) {
   return d;
 }
 
-TerrainConfig parse_terrain(const YamlNode& node) {
+TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir) {
   MapReader m(node);
   TerrainConfig t;
-  t.type = m.choice("type", "rigid", {"rigid", "heightmap"});
+  t.type = m.choice("type", "rigid", {"rigid", "heightmap", "scm"});
+  if (t.type == "scm") {
+    // The SCM reader owns the whole block (preset, soil, area, spacing, bulldozing...).
+    t.scm = scm::parse_scm_params(node, (fs::path(config_dir) / "terrain").string());
+    t.friction = std::tan(deg_to_rad(t.scm.soil.friction_angle_deg));
+    return t;
+  }
   if (t.type == "rigid") {
     t.friction = m.number("friction", 0.8, 0.01, 2.0);
     t.height_m = m.number("height_m", 0.0, -1e4, 1e4);
@@ -228,6 +235,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir)
 }  // namespace
 
 std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& t) {
+  if (t.type == "scm") return std::make_shared<scm::ScmTerrain>(t.scm);
   if (t.type == "heightmap") return std::make_shared<terrain::HeightmapTerrain>(t.heightmap);
   return std::make_shared<terrain::FlatTerrain>(t.height_m, t.friction);
 }
@@ -277,7 +285,7 @@ Scenario parse_scenario(const YamlNode& root, const std::string& text, const Ove
   s.time = parse_time(m.required("time"));
   if (auto n = m.optional("coordinator")) s.coordinator = parse_coordinator(*n);
   if (auto n = m.optional("dds")) s.dds = parse_dds(*n);
-  if (auto n = m.optional("terrain")) s.terrain = parse_terrain(*n);
+  if (auto n = m.optional("terrain")) s.terrain = parse_terrain(*n, config_dir);
   if (auto n = m.optional("obstacles")) {
     std::set<std::string> obstacle_ids;
     for (const auto& o : n->elements()) {

@@ -9,6 +9,7 @@
 
 #include "control/path_follower.hpp"
 #include "protocol/barrier.hpp"
+#include "scm/scm_params.hpp"
 #include "terrain/heightmap_terrain.hpp"
 #include "vehicle/vehicle_params.hpp"
 #include "world/obstacle.hpp"
@@ -37,10 +38,12 @@ struct DdsConfig {
 };
 
 struct TerrainConfig {
-  std::string type = "rigid";  // rigid (flat plane) | heightmap
+  std::string type = "rigid";  // rigid (flat plane) | heightmap | scm (deformable soil)
   double friction = 0.8;
   double height_m = 0.0;       // rigid: plane height
   terrain::HeightmapSpec heightmap;  // type heightmap
+  scm::ScmParams scm;                // type scm
+  bool deformable() const { return type == "scm"; }
 };
 
 struct ControllerConfig {
@@ -88,7 +91,7 @@ struct Overrides {
   std::optional<int> domain_id;
 };
 
-/// The rigid terrain surface a terrain block describes.
+/// The terrain surface a terrain block describes (for scm: a fresh, undeformed ScmTerrain).
 std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& terrain);
 
 /// Where vehicle model names are looked up: $SYNDDS_CONFIG_DIR, else the source tree's config/.

@@ -236,6 +236,7 @@ msg::TerrainDeformation to_dds(const proto::TerrainDeformationMsg& m) {
   o.vehicle_id(m.vehicle_id);
   o.source(m.source);
   o.frame(m.frame);
+  o.source_index(m.source_index);
   o.spacing_m(m.spacing_m);
   o.vertices().reserve(m.vertices.size());
   for (const auto& v : m.vertices) {
@@ -243,6 +244,9 @@ msg::TerrainDeformation to_dds(const proto::TerrainDeformationMsg& m) {
     x.i(v.i);
     x.j(v.j);
     x.height(v.height);
+    x.level_initial(v.level_initial);
+    x.sinkage_plastic(v.sinkage_plastic);
+    x.sigma_yield(v.sigma_yield);
     o.vertices().push_back(x);
   }
   return o;
@@ -252,15 +256,22 @@ proto::TerrainDeformationMsg from_dds(const msg::TerrainDeformation& m) {
   o.vehicle_id = m.vehicle_id();
   o.source = m.source();
   o.frame = m.frame();
+  o.source_index = m.source_index();
   o.spacing_m = m.spacing_m();
   o.vertices.reserve(m.vertices().size());
   for (const auto& v : m.vertices()) {
-    if (!std::isfinite(v.height())) {
-      throw ProtocolError("terrain_deformation from " + m.source() + ": vertex (" +
-                          std::to_string(v.i()) + ", " + std::to_string(v.j()) +
-                          ") height is not finite");
+    for (const auto& [name, value] :
+         {std::pair{"height", v.height()}, std::pair{"level_initial", v.level_initial()},
+          std::pair{"sinkage_plastic", v.sinkage_plastic()},
+          std::pair{"sigma_yield", v.sigma_yield()}}) {
+      if (!std::isfinite(value)) {
+        throw ProtocolError("terrain_deformation from " + m.source() + ": vertex (" +
+                            std::to_string(v.i()) + ", " + std::to_string(v.j()) + ") " + name +
+                            " is not finite");
+      }
     }
-    o.vertices.push_back({v.i(), v.j(), v.height()});
+    o.vertices.push_back(
+        {v.i(), v.j(), v.height(), v.level_initial(), v.sinkage_plastic(), v.sigma_yield()});
   }
   return o;
 }
