@@ -13,7 +13,8 @@ inline int member_main(const char* name, const char* description, int argc, char
                        const std::function<std::string(const scenario::Scenario&)>& make_member_id,
                        const std::function<record::RecorderOptions(const scenario::Scenario&,
                                                                    const std::string&)>&
-                           recorder_options = {}) {
+                           recorder_options = {},
+                       const std::function<void(proto::Agent&)>& configure = {}) {
   CLI::App app{description};
   CommonArgs common;
   DebugArgs debug;
@@ -27,6 +28,7 @@ inline int member_main(const char* name, const char* description, int argc, char
     record::RecorderOptions ro;
     if (recorder_options) ro = recorder_options(s, options.dds.run_id);
     auto agent = agents::make_agent(s, member, ro);
+    if (configure) configure(*agent);
     dds::MemberRuntime runtime(*agent, options);
     const int code = runtime.run(interrupted());
     if (code == dds::kExitCompleted) {

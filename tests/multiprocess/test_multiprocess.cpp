@@ -266,6 +266,51 @@ TEST(Obstacles, OneCollisionEventIsRecordedAndTheVehicleStops) {
   EXPECT_GT(x, 20.0);
 }
 
+// Deformable terrain shared between processes: each vehicle process holds its own copy of the
+// SCM grid and they must agree bit for bit at every frame boundary; the rut vehicle a lays is
+// felt by vehicle b in another process (a vertical jolt it does not get without the rut).
+TEST(DeformableTerrain, CopiesAgreeEveryFrameAndTheRutJoltsTheOtherVehicle) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/scm_rut.yaml";
+  const std::string alone = kSource + "/tests/multiprocess/scenarios/scm_rut_alone.yaml";
+  const std::string single = single_process_csv(run, scenario, "");
+  const std::string distributed = distributed_csv(run, scenario, "", false, [&](const Planned& p) {
+    if (p.member.rfind("vehicle/", 0) != 0) return p.command;
+    return p.command + " --debug-terrain-hash-log " +
+           (run.dir / (p.member.substr(8) + ".hashes")).string();
+  });
+  EXPECT_EQ(distributed, single);
+  const std::string hashes_a = read_file(run.dir / "a.hashes");
+  EXPECT_EQ(count_lines(hashes_a), 1500u);  // boundaries of frames 0..1499
+  EXPECT_EQ(hashes_a, read_file(run.dir / "b.hashes"));
+
+  // Vehicle b's largest vertical acceleration while its wheels cross y = 0 (from vz per frame).
+  auto max_vertical_accel = [](const std::string& csv) {
+    std::istringstream in(csv);
+    std::string line;
+    std::getline(in, line);
+    double best = 0.0, previous_vz = 0.0;
+    bool has_previous = false;
+    while (std::getline(in, line)) {
+      std::vector<std::string> f;
+      std::stringstream ss(line);
+      for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+      if (f[2] != "b") continue;
+      const double y = std::stod(f[4]), vz = std::stod(f[12]);
+      if (has_previous && y > -4.0 && y < 4.0) best = std::max(best, std::abs(vz - previous_vz) / 0.01);
+      previous_vz = vz;
+      has_previous = true;
+    }
+    return best;
+  };
+  const double with_rut = max_vertical_accel(distributed);
+  const double without = max_vertical_accel(single_process_csv(run, alone, ""));
+  std::printf("vehicle b max |a_z| crossing y = 0: %.3f m/s2 with the rut, %.3f without\n",
+              with_rut, without);
+  EXPECT_GT(with_rut, 0.5);
+  EXPECT_GT(with_rut, 10.0 * without);
+}
+
 TEST(Cli, BadScenariosGiveClearErrors) {
   TestRun run;
   struct Case {
