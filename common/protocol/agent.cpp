@@ -33,26 +33,15 @@ void filter_into(const std::vector<T>& in, std::vector<T>& out, Topic topic,
   }
 }
 
-template <typename T>
-void append_all(std::vector<T>& to, const std::vector<T>& from) {
-  to.insert(to.end(), from.begin(), from.end());
-}
-
 }  // namespace
 
 void FrameSamples::sort() {
-  sort_by_key_source(vehicle_states);
-  sort_by_key_source(driver_commands);
-  sort_by_key_source(terrain_deformations);
-  sort_by_key_source(collision_events);
+  for_each_topic([&](auto t) { sort_by_key_source(list<decltype(t)::value>()); });
 }
 
 Manifest FrameSamples::manifest(const std::string& writer) const {
   std::map<std::tuple<Topic, std::string, std::string>, std::uint32_t> counts;
-  count_into(counts, Topic::vehicle_state, vehicle_states, writer);
-  count_into(counts, Topic::driver_command, driver_commands, writer);
-  count_into(counts, Topic::terrain_deformation, terrain_deformations, writer);
-  count_into(counts, Topic::collision_event, collision_events, writer);
+  for_each_topic([&](auto t) { count_into(counts, t.value, list<decltype(t)::value>(), writer); });
   Manifest out;
   out.reserve(counts.size());
   for (const auto& [k, n] : counts) {
@@ -63,18 +52,16 @@ Manifest FrameSamples::manifest(const std::string& writer) const {
 
 FrameSamples FrameSamples::filtered(const std::vector<Subscription>& subs) const {
   FrameSamples out;
-  filter_into(vehicle_states, out.vehicle_states, Topic::vehicle_state, subs);
-  filter_into(driver_commands, out.driver_commands, Topic::driver_command, subs);
-  filter_into(terrain_deformations, out.terrain_deformations, Topic::terrain_deformation, subs);
-  filter_into(collision_events, out.collision_events, Topic::collision_event, subs);
+  for_each_topic([&](auto t) { filter_into(list<decltype(t)::value>(), out.list<decltype(t)::value>(), t.value, subs); });
   return out;
 }
 
 void FrameSamples::append(const FrameSamples& other) {
-  append_all(vehicle_states, other.vehicle_states);
-  append_all(driver_commands, other.driver_commands);
-  append_all(terrain_deformations, other.terrain_deformations);
-  append_all(collision_events, other.collision_events);
+  for_each_topic([&](auto t) {
+    auto& to = list<decltype(t)::value>();
+    const auto& from = other.list<decltype(t)::value>();
+    to.insert(to.end(), from.begin(), from.end());
+  });
 }
 
 }  // namespace syndds::proto

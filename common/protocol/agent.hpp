@@ -26,10 +26,36 @@ struct FrameSamples {
   std::vector<DriverCommandMsg> driver_commands;
   std::vector<TerrainDeformationMsg> terrain_deformations;
   std::vector<CollisionEventMsg> collision_events;
+  std::vector<GpsFixMsg> gps_fixes;
+  std::vector<ImuMsg> imus;
+  std::vector<MagnetometerMsg> magnetometers;
+  std::vector<WheelSpeedsMsg> wheel_speeds;
+  std::vector<ImageMsg> images;
+  std::vector<PointCloudMsg> point_clouds;
+
+  /// The list of one topic, for code that handles every topic alike.
+  template <Topic T>
+  std::vector<typename TopicTraits<T>::Msg>& list() {
+    if constexpr (T == Topic::vehicle_state) return vehicle_states;
+    else if constexpr (T == Topic::driver_command) return driver_commands;
+    else if constexpr (T == Topic::terrain_deformation) return terrain_deformations;
+    else if constexpr (T == Topic::collision_event) return collision_events;
+    else if constexpr (T == Topic::gps_fix) return gps_fixes;
+    else if constexpr (T == Topic::imu) return imus;
+    else if constexpr (T == Topic::magnetometer) return magnetometers;
+    else if constexpr (T == Topic::wheel_speeds) return wheel_speeds;
+    else if constexpr (T == Topic::image) return images;
+    else return point_clouds;
+  }
+  template <Topic T>
+  const std::vector<typename TopicTraits<T>::Msg>& list() const {
+    return const_cast<FrameSamples*>(this)->list<T>();
+  }
 
   bool empty() const {
-    return vehicle_states.empty() && driver_commands.empty() && terrain_deformations.empty() &&
-           collision_events.empty();
+    bool all_empty = true;
+    for_each_topic([&](auto t) { all_empty = all_empty && list<decltype(t)::value>().empty(); });
+    return all_empty;
   }
   void clear() { *this = FrameSamples{}; }
   /// Sorts every list by (key, source): the canonical order agents see.

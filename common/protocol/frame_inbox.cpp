@@ -48,27 +48,6 @@ bool FrameInbox::wants(Topic topic, const std::string& key) const {
   return false;
 }
 
-template <typename T>
-bool FrameInbox::store(Topic topic, T sample, std::vector<T> FrameSamples::*list) {
-  if (!wants(topic, sample.vehicle_id)) return false;
-  if (sample.frame <= last_taken_) return false;  // late duplicate of a frame already consumed
-  (pending_[sample.frame].*list).push_back(std::move(sample));
-  return true;
-}
-
-bool FrameInbox::add(VehicleStateMsg s) {
-  return store(Topic::vehicle_state, std::move(s), &FrameSamples::vehicle_states);
-}
-bool FrameInbox::add(DriverCommandMsg s) {
-  return store(Topic::driver_command, std::move(s), &FrameSamples::driver_commands);
-}
-bool FrameInbox::add(TerrainDeformationMsg s) {
-  return store(Topic::terrain_deformation, std::move(s), &FrameSamples::terrain_deformations);
-}
-bool FrameInbox::add(CollisionEventMsg s) {
-  return store(Topic::collision_event, std::move(s), &FrameSamples::collision_events);
-}
-
 Manifest FrameInbox::needed(const Manifest& manifest) const {
   Manifest out;
   for (const auto& e : manifest) {
@@ -80,14 +59,11 @@ Manifest FrameInbox::needed(const Manifest& manifest) const {
 std::uint32_t FrameInbox::held(std::int64_t frame, const TopicCount& e) const {
   auto it = pending_.find(frame);
   if (it == pending_.end()) return 0;
-  const FrameSamples& f = it->second;
-  switch (e.topic) {
-    case Topic::vehicle_state: return count_matching(f.vehicle_states, e);
-    case Topic::driver_command: return count_matching(f.driver_commands, e);
-    case Topic::terrain_deformation: return count_matching(f.terrain_deformations, e);
-    case Topic::collision_event: return count_matching(f.collision_events, e);
-  }
-  return 0;
+  std::uint32_t n = 0;
+  for_each_topic([&](auto t) {
+    if (t.value == e.topic) n = count_matching(it->second.list<decltype(t)::value>(), e);
+  });
+  return n;
 }
 
 bool FrameInbox::complete(std::int64_t frame, const Manifest& manifest) const {
@@ -114,14 +90,10 @@ FrameSamples FrameInbox::take(std::int64_t frame, const Manifest& manifest) {
   auto it = pending_.find(frame);
   if (it != pending_.end()) {
     FrameSamples& in = it->second;
-    unexpected_ += take_announced(in.vehicle_states, out.vehicle_states, Topic::vehicle_state,
-                                  manifest);
-    unexpected_ += take_announced(in.driver_commands, out.driver_commands,
-                                  Topic::driver_command, manifest);
-    unexpected_ += take_announced(in.terrain_deformations, out.terrain_deformations,
-                                  Topic::terrain_deformation, manifest);
-    unexpected_ += take_announced(in.collision_events, out.collision_events,
-                                  Topic::collision_event, manifest);
+    for_each_topic([&](auto t) {
+      constexpr Topic T = decltype(t)::value;
+      unexpected_ += take_announced(in.list<T>(), out.list<T>(), T, manifest);
+    });
   }
   pending_.erase(pending_.begin(), pending_.upper_bound(frame));
   last_taken_ = std::max(last_taken_, frame);

@@ -20,12 +20,19 @@ class FrameInbox {
   const std::vector<Subscription>& subscriptions() const { return subscriptions_; }
   bool wants(Topic topic, const std::string& key) const;
 
-  /// Stores a sample if it is subscribed and not older than the frames still to be taken.
-  /// Returns false when the sample was not kept.
-  bool add(VehicleStateMsg sample);
-  bool add(DriverCommandMsg sample);
-  bool add(TerrainDeformationMsg sample);
-  bool add(CollisionEventMsg sample);
+  /// Stores a sample of topic T if it is subscribed and not older than the frames still to be
+  /// taken. Returns false when the sample was not kept.
+  template <Topic T>
+  bool add(typename TopicTraits<T>::Msg sample) {
+    if (!wants(T, sample.vehicle_id)) return false;
+    if (sample.frame <= last_taken_) return false;  // late duplicate of a frame already consumed
+    pending_[sample.frame].template list<T>().push_back(std::move(sample));
+    return true;
+  }
+  template <typename Msg>
+  bool add(Msg sample) {
+    return add<TopicOf<Msg>::value>(std::move(sample));
+  }
 
   /// The entries of `manifest` this inbox depends on.
   Manifest needed(const Manifest& manifest) const;
@@ -44,8 +51,6 @@ class FrameInbox {
   std::int64_t last_taken_frame() const { return last_taken_; }
 
  private:
-  template <typename T>
-  bool store(Topic topic, T sample, std::vector<T> FrameSamples::*list);
   std::uint32_t held(std::int64_t frame, const TopicCount& entry) const;
 
   std::vector<Subscription> subscriptions_;

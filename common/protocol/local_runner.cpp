@@ -29,10 +29,10 @@ void check_list(const std::vector<T>& v, std::string_view topic, std::int64_t fr
 }  // namespace
 
 void check_outputs(const FrameSamples& out, std::int64_t frame, const std::string& source) {
-  check_list(out.vehicle_states, "vehicle_state", frame, source);
-  check_list(out.driver_commands, "driver_command", frame, source);
-  check_list(out.terrain_deformations, "terrain_deformation", frame, source);
-  check_list(out.collision_events, "collision_event", frame, source);
+  for_each_topic([&](auto t) {
+    constexpr Topic T = decltype(t)::value;
+    check_list(out.list<T>(), TopicTraits<T>::name, frame, source);
+  });
 }
 
 LocalRunner::LocalRunner(std::vector<AgentPtr> agents, LocalRunOptions options)

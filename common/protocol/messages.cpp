@@ -15,13 +15,11 @@ std::string_view to_string(MemberKind kind) {
 }
 
 std::string_view to_string(Topic topic) {
-  switch (topic) {
-    case Topic::vehicle_state: return "vehicle_state";
-    case Topic::driver_command: return "driver_command";
-    case Topic::terrain_deformation: return "terrain_deformation";
-    case Topic::collision_event: return "collision_event";
-  }
-  return "unknown";
+  std::string_view name = "unknown";
+  for_each_topic([&](auto t) {
+    if (t.value == topic) name = TopicTraits<decltype(t)::value>::name;
+  });
+  return name;
 }
 
 bool topic_from_string(std::string_view name, Topic& topic) {

@@ -7,7 +7,10 @@
 // k >= 1 vehicles advance from t_{k-1} to t_k. A sample "stamped k" was produced in frame k.
 #include <cstdint>
 #include <string>
+#include <iterator>
 #include <string_view>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "core/math.hpp"
@@ -19,15 +22,25 @@ inline constexpr std::int32_t kProtocolVersion = 1;
 enum class MemberKind : std::uint8_t { vehicle, controller, recorder, sensor, external, coordinator };
 std::string_view to_string(MemberKind kind);
 
-/// Data topics that take part in the frame manifest.
+/// Data topics that take part in the frame manifest. Adding one: a message struct below, a
+/// TopicTraits specialisation, a list in FrameSamples (agent.hpp), an IDL type and its
+/// conversions (services/dds/convert.*) and DdsType (services/dds/topics.hpp).
 enum class Topic : std::uint8_t {
   vehicle_state,
   driver_command,
   terrain_deformation,
   collision_event,
+  gps_fix,
+  imu,
+  magnetometer,
+  wheel_speeds,
+  image,
+  point_cloud,
 };
-inline constexpr Topic kAllDataTopics[] = {Topic::vehicle_state, Topic::driver_command,
-                                           Topic::terrain_deformation, Topic::collision_event};
+inline constexpr Topic kAllDataTopics[] = {
+    Topic::vehicle_state, Topic::driver_command, Topic::terrain_deformation,
+    Topic::collision_event, Topic::gps_fix, Topic::imu, Topic::magnetometer,
+    Topic::wheel_speeds, Topic::image, Topic::point_cloud};
 /// Stable short name used in manifests, logs and DDS topic names ("vehicle_state").
 std::string_view to_string(Topic topic);
 /// Inverse of to_string; returns false for unknown names.
@@ -94,6 +107,118 @@ struct CollisionEventMsg {
   double impulse_ns = 0.0;
   Vec3 position = Vec3::Zero();
 };
+
+/// Stamp of a synthetic sensor sample: which sensor, its sample number, when it was measured
+/// and when it became available (measurement time + modelled lag).
+struct SensorStampMsg {
+  std::string sensor_id;
+  std::uint64_t sequence = 0;
+  double time_s = 0.0;
+  double available_s = 0.0;
+};
+
+struct GpsFixMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  double latitude_deg = 0.0;
+  double longitude_deg = 0.0;
+  double altitude_m = 0.0;
+  Vec3 enu_m = Vec3::Zero();  // the same fix in the scenario's local frame
+};
+
+struct ImuMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  Vec3 accel_mps2 = Vec3::Zero();  // specific force in the sensor frame (at rest: +g up)
+  Vec3 gyro_rad_s = Vec3::Zero();
+};
+
+struct MagnetometerMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  double heading_rad = 0.0;  // compass heading, clockwise from true north, [0, 2 pi)
+  Vec3 field_ut = Vec3::Zero();
+};
+
+struct WheelSpeedsMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  std::vector<double> wheel_spin_rad_s;  // FL, FR, RL, RR
+};
+
+struct ImageMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  Pose pose;                   // camera pose in the world (x forward, y left, z up)
+  std::int32_t width = 0;
+  std::int32_t height = 0;
+  std::string encoding = "rgb8";
+  std::vector<std::uint8_t> data;  // row-major, top row first
+};
+
+struct PointMsg {
+  float x = 0, y = 0, z = 0;  // sensor frame, metres
+  float intensity = 0;
+  float range = 0;
+  std::uint16_t channel = 0;
+  std::uint16_t sample = 0;
+};
+
+struct PointCloudMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  Pose pose;  // lidar pose in the world
+  std::int32_t channels = 0;
+  std::int32_t samples = 0;
+  std::vector<PointMsg> points;
+};
+
+/// Message type and stable name of each data topic, and the topic of each message type.
+template <Topic T>
+struct TopicTraits;
+template <typename Msg>
+struct TopicOf;
+#define SYNDDS_TOPIC(TOPIC, MSG)                                     \
+  template <>                                                        \
+  struct TopicTraits<Topic::TOPIC> {                                 \
+    using Msg = MSG;                                                 \
+    static constexpr const char* name = #TOPIC;                      \
+  };                                                                 \
+  template <>                                                        \
+  struct TopicOf<MSG> {                                              \
+    static constexpr Topic value = Topic::TOPIC;                     \
+  };
+SYNDDS_TOPIC(vehicle_state, VehicleStateMsg)
+SYNDDS_TOPIC(driver_command, DriverCommandMsg)
+SYNDDS_TOPIC(terrain_deformation, TerrainDeformationMsg)
+SYNDDS_TOPIC(collision_event, CollisionEventMsg)
+SYNDDS_TOPIC(gps_fix, GpsFixMsg)
+SYNDDS_TOPIC(imu, ImuMsg)
+SYNDDS_TOPIC(magnetometer, MagnetometerMsg)
+SYNDDS_TOPIC(wheel_speeds, WheelSpeedsMsg)
+SYNDDS_TOPIC(image, ImageMsg)
+SYNDDS_TOPIC(point_cloud, PointCloudMsg)
+#undef SYNDDS_TOPIC
+
+/// Calls f(std::integral_constant<Topic, T>{}) for every data topic, in enum order.
+template <typename F>
+void for_each_topic(F&& f) {
+  [&]<std::size_t... I>(std::index_sequence<I...>) {
+    (f(std::integral_constant<Topic, kAllDataTopics[I]>{}), ...);
+  }(std::make_index_sequence<std::size(kAllDataTopics)>{});
+}
 
 /// One manifest entry: member `writer` wrote `count` samples on `topic` with key `key`.
 struct TopicCount {

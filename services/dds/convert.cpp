@@ -63,6 +63,34 @@ proto::Manifest manifest(const std::vector<msg::TopicCount>& m) {
   return out;
 }
 
+msg::SensorStamp stamp(const proto::SensorStampMsg& s) {
+  msg::SensorStamp o;
+  o.sensor_id(s.sensor_id);
+  o.number(s.sequence);
+  o.time_s(s.time_s);
+  o.available_s(s.available_s);
+  return o;
+}
+proto::SensorStampMsg stamp(const msg::SensorStamp& s) {
+  return {s.sensor_id(), s.number(), s.time_s(), s.available_s()};
+}
+
+// Common header of the sensor samples: key, writer, frame, stamp.
+template <typename D, typename P>
+void header_to(D& o, const P& m) {
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.stamp(stamp(m.stamp));
+}
+template <typename P, typename D>
+void header_from(P& o, const D& m) {
+  o.vehicle_id = m.vehicle_id();
+  o.source = m.source();
+  o.frame = m.frame();
+  o.stamp = stamp(m.stamp());
+}
+
 }  // namespace
 
 msg::MemberAnnounce to_dds(const proto::MemberAnnounceMsg& m) {
@@ -291,6 +319,128 @@ proto::CollisionEventMsg from_dds(const msg::CollisionEvent& m) {
   return proto::CollisionEventMsg{m.vehicle_id(), m.source(),     m.frame(),
                                   m.sim_time_s(), m.obstacle_id(), m.impulse_ns(),
                                   v3(m.position())};
+}
+
+msg::GpsFix to_dds(const proto::GpsFixMsg& m) {
+  msg::GpsFix o;
+  header_to(o, m);
+  o.latitude_deg(m.latitude_deg);
+  o.longitude_deg(m.longitude_deg);
+  o.altitude_m(m.altitude_m);
+  o.enu_m(v3(m.enu_m));
+  return o;
+}
+proto::GpsFixMsg from_dds(const msg::GpsFix& m) {
+  proto::GpsFixMsg o;
+  header_from(o, m);
+  o.latitude_deg = m.latitude_deg();
+  o.longitude_deg = m.longitude_deg();
+  o.altitude_m = m.altitude_m();
+  o.enu_m = v3(m.enu_m());
+  return o;
+}
+
+msg::Imu to_dds(const proto::ImuMsg& m) {
+  msg::Imu o;
+  header_to(o, m);
+  o.accel_mps2(v3(m.accel_mps2));
+  o.gyro_rad_s(v3(m.gyro_rad_s));
+  return o;
+}
+proto::ImuMsg from_dds(const msg::Imu& m) {
+  proto::ImuMsg o;
+  header_from(o, m);
+  o.accel_mps2 = v3(m.accel_mps2());
+  o.gyro_rad_s = v3(m.gyro_rad_s());
+  return o;
+}
+
+msg::Magnetometer to_dds(const proto::MagnetometerMsg& m) {
+  msg::Magnetometer o;
+  header_to(o, m);
+  o.heading_rad(m.heading_rad);
+  o.field_ut(v3(m.field_ut));
+  return o;
+}
+proto::MagnetometerMsg from_dds(const msg::Magnetometer& m) {
+  proto::MagnetometerMsg o;
+  header_from(o, m);
+  o.heading_rad = m.heading_rad();
+  o.field_ut = v3(m.field_ut());
+  return o;
+}
+
+msg::WheelSpeeds to_dds(const proto::WheelSpeedsMsg& m) {
+  msg::WheelSpeeds o;
+  header_to(o, m);
+  o.wheel_spin_rad_s(m.wheel_spin_rad_s);
+  return o;
+}
+proto::WheelSpeedsMsg from_dds(const msg::WheelSpeeds& m) {
+  proto::WheelSpeedsMsg o;
+  header_from(o, m);
+  o.wheel_spin_rad_s = m.wheel_spin_rad_s();
+  return o;
+}
+
+msg::Image to_dds(const proto::ImageMsg& m) {
+  msg::Image o;
+  header_to(o, m);
+  o.pose(pose(m.pose));
+  o.width(m.width);
+  o.height(m.height);
+  o.encoding(m.encoding);
+  o.data(m.data);
+  return o;
+}
+proto::ImageMsg from_dds(const msg::Image& m) {
+  proto::ImageMsg o;
+  header_from(o, m);
+  o.pose = pose(m.pose());
+  o.width = m.width();
+  o.height = m.height();
+  o.encoding = m.encoding();
+  if (o.width < 0 || o.height < 0 ||
+      m.data().size() != static_cast<std::size_t>(o.width) * o.height * 3) {
+    throw ProtocolError("image from " + m.source() + ": " + std::to_string(m.data().size()) +
+                        " bytes for " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                        " rgb8");
+  }
+  o.data = m.data();
+  return o;
+}
+
+msg::PointCloud to_dds(const proto::PointCloudMsg& m) {
+  msg::PointCloud o;
+  header_to(o, m);
+  o.pose(pose(m.pose));
+  o.channels(m.channels);
+  o.samples(m.samples);
+  o.points().reserve(m.points.size());
+  for (const auto& p : m.points) {
+    msg::LidarPoint x;
+    x.x(p.x);
+    x.y(p.y);
+    x.z(p.z);
+    x.intensity(p.intensity);
+    x.range(p.range);
+    x.channel(p.channel);
+    x.sample(p.sample);
+    o.points().push_back(x);
+  }
+  return o;
+}
+proto::PointCloudMsg from_dds(const msg::PointCloud& m) {
+  proto::PointCloudMsg o;
+  header_from(o, m);
+  o.pose = pose(m.pose());
+  o.channels = m.channels();
+  o.samples = m.samples();
+  o.points.reserve(m.points().size());
+  for (const auto& p : m.points()) {
+    o.points.push_back({p.x(), p.y(), p.z(), p.intensity(), p.range(), p.channel(), p.sample()});
+  }
+  return o;
 }
 
 }  // namespace syndds::dds

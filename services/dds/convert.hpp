@@ -31,4 +31,35 @@ proto::TerrainDeformationMsg from_dds(const msg::TerrainDeformation& m);
 msg::CollisionEvent to_dds(const proto::CollisionEventMsg& m);
 proto::CollisionEventMsg from_dds(const msg::CollisionEvent& m);
 
+msg::GpsFix to_dds(const proto::GpsFixMsg& m);
+proto::GpsFixMsg from_dds(const msg::GpsFix& m);
+msg::Imu to_dds(const proto::ImuMsg& m);
+proto::ImuMsg from_dds(const msg::Imu& m);
+msg::Magnetometer to_dds(const proto::MagnetometerMsg& m);
+proto::MagnetometerMsg from_dds(const msg::Magnetometer& m);
+msg::WheelSpeeds to_dds(const proto::WheelSpeedsMsg& m);
+proto::WheelSpeedsMsg from_dds(const msg::WheelSpeeds& m);
+msg::Image to_dds(const proto::ImageMsg& m);
+proto::ImageMsg from_dds(const msg::Image& m);
+msg::PointCloud to_dds(const proto::PointCloudMsg& m);
+proto::PointCloudMsg from_dds(const msg::PointCloud& m);
+
+/// The generated type of each data topic.
+template <proto::Topic T>
+struct DdsType;
+#define SYNDDS_DDS_TOPIC(TOPIC, TYPE) \
+  template <>                         \
+  struct DdsType<proto::Topic::TOPIC> { using type = msg::TYPE; };
+SYNDDS_DDS_TOPIC(vehicle_state, VehicleState)
+SYNDDS_DDS_TOPIC(driver_command, DriverCommand)
+SYNDDS_DDS_TOPIC(terrain_deformation, TerrainDeformation)
+SYNDDS_DDS_TOPIC(collision_event, CollisionEvent)
+SYNDDS_DDS_TOPIC(gps_fix, GpsFix)
+SYNDDS_DDS_TOPIC(imu, Imu)
+SYNDDS_DDS_TOPIC(magnetometer, Magnetometer)
+SYNDDS_DDS_TOPIC(wheel_speeds, WheelSpeeds)
+SYNDDS_DDS_TOPIC(image, Image)
+SYNDDS_DDS_TOPIC(point_cloud, PointCloud)
+#undef SYNDDS_DDS_TOPIC
+
 }  // namespace syndds::dds

@@ -45,16 +45,10 @@ MemberRuntime::~MemberRuntime() {
   announce_reader_.reset();
   grant_reader_.reset();
   control_reader_.reset();
-  state_reader_.reset();
-  command_reader_.reset();
-  terrain_reader_.reset();
-  collision_reader_.reset();
+  std::apply([](auto&... r) { (r.reset(), ...); }, data_readers_);
   announce_writer_.reset();
   done_writer_.reset();
-  state_writer_.reset();
-  command_writer_.reset();
-  terrain_writer_.reset();
-  collision_writer_.reset();
+  std::apply([](auto&... w) { (w.reset(), ...); }, data_writers_);
   participant_.reset();
 }
 
@@ -113,45 +107,29 @@ void MemberRuntime::setup() {
     }
     return false;
   };
-  auto data_reader = [&](auto& reader, proto::Topic topic, auto tag) {
-    using T = decltype(tag);
-    if (!subscribes(topic)) return;
-    reader = participant_->make_reader<T>(
-        topics::data(topic), profiles::kDataReader, [this, guard, topic](T&& m) {
-          guard(std::string(proto::to_string(topic)).c_str(), [&] {
-            auto s = from_dds(m);
-            std::unique_lock lock(mutex_);
-            if (inbox_.add(std::move(s))) {
-              pump_locked(lock);
-              cv_.notify_all();
-            }
+  const auto publications = agent_.publications();
+  proto::for_each_topic([&](auto t) {
+    constexpr proto::Topic T = decltype(t)::value;
+    using Dds = typename DdsType<T>::type;
+    const std::string name = topics::data(T);
+    if (subscribes(T)) {
+      std::get<static_cast<std::size_t>(T)>(data_readers_) = participant_->make_reader<Dds>(
+          name, profiles::kDataReader, [this, guard](Dds&& m) {
+            guard(proto::TopicTraits<T>::name, [&] {
+              auto s = from_dds(m);
+              std::unique_lock lock(mutex_);
+              if (inbox_.add<T>(std::move(s))) {
+                pump_locked(lock);
+                cv_.notify_all();
+              }
+            });
           });
-        });
-  };
-  data_reader(state_reader_, proto::Topic::vehicle_state, msg::VehicleState{});
-  data_reader(command_reader_, proto::Topic::driver_command, msg::DriverCommand{});
-  data_reader(terrain_reader_, proto::Topic::terrain_deformation, msg::TerrainDeformation{});
-  data_reader(collision_reader_, proto::Topic::collision_event, msg::CollisionEvent{});
-
-  for (proto::Topic t : agent_.publications()) {
-    const std::string name = topics::data(t);
-    switch (t) {
-      case proto::Topic::vehicle_state:
-        state_writer_ = participant_->make_writer<msg::VehicleState>(name, profiles::kDataWriter);
-        break;
-      case proto::Topic::driver_command:
-        command_writer_ = participant_->make_writer<msg::DriverCommand>(name, profiles::kDataWriter);
-        break;
-      case proto::Topic::terrain_deformation:
-        terrain_writer_ =
-            participant_->make_writer<msg::TerrainDeformation>(name, profiles::kDataWriter);
-        break;
-      case proto::Topic::collision_event:
-        collision_writer_ =
-            participant_->make_writer<msg::CollisionEvent>(name, profiles::kDataWriter);
-        break;
     }
-  }
+    if (std::find(publications.begin(), publications.end(), T) != publications.end()) {
+      std::get<static_cast<std::size_t>(T)>(data_writers_) =
+          participant_->make_writer<Dds>(name, profiles::kDataWriter);
+    }
+  });
   done_writer_ = participant_->make_writer<msg::FrameDone>(topics::kFrameDone,
                                                           profiles::kProtocolWriter);
   announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
@@ -224,17 +202,16 @@ bool MemberRuntime::wait_inputs(std::int64_t frame, const proto::Manifest& manif
 }
 
 void MemberRuntime::flush_writers(double timeout_s) {
-  if (state_writer_) state_writer_->wait_for_acknowledgments(timeout_s);
-  if (command_writer_) command_writer_->wait_for_acknowledgments(timeout_s);
-  if (terrain_writer_) terrain_writer_->wait_for_acknowledgments(timeout_s);
-  if (collision_writer_) collision_writer_->wait_for_acknowledgments(timeout_s);
+  std::apply([&](auto&... w) { ((w ? w->wait_for_acknowledgments(timeout_s) : true), ...); },
+             data_writers_);
 }
 
 void MemberRuntime::publish(const proto::FrameSamples& out) {
-  write_all(state_writer_, out.vehicle_states, "vehicle_state");
-  write_all(command_writer_, out.driver_commands, "driver_command");
-  write_all(terrain_writer_, out.terrain_deformations, "terrain_deformation");
-  write_all(collision_writer_, out.collision_events, "collision_event");
+  proto::for_each_topic([&](auto t) {
+    constexpr proto::Topic T = decltype(t)::value;
+    write_all(std::get<static_cast<std::size_t>(T)>(data_writers_), out.list<T>(),
+              proto::TopicTraits<T>::name);
+  });
 }
 
 void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& published,

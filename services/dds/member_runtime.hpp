@@ -8,7 +8,10 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <tuple>
+#include <utility>
 
+#include "dds/convert.hpp"
 #include "dds/participant.hpp"
 #include "protocol/agent.hpp"
 #include "protocol/frame_inbox.hpp"
@@ -81,19 +84,26 @@ class MemberRuntime {
   std::int64_t next_frame_ = 0;
   std::string failure_;       // set when a frame failed; the main thread ends the run
 
+  // One writer and one reader slot per data topic (null when the agent does not use it).
+  template <proto::Topic T>
+  using DataWriterPtr = std::unique_ptr<Writer<typename DdsType<T>::type>>;
+  template <proto::Topic T>
+  using DataReaderPtr = std::unique_ptr<Reader<typename DdsType<T>::type>>;
+  template <template <proto::Topic> class Ptr, typename Seq>
+  struct PerTopic;
+  template <template <proto::Topic> class Ptr, std::size_t... I>
+  struct PerTopic<Ptr, std::index_sequence<I...>> {
+    using type = std::tuple<Ptr<proto::kAllDataTopics[I]>...>;
+  };
+  using AllTopics = std::make_index_sequence<std::size(proto::kAllDataTopics)>;
+
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
   std::unique_ptr<Writer<msg::FrameDone>> done_writer_;
-  std::unique_ptr<Writer<msg::VehicleState>> state_writer_;
-  std::unique_ptr<Writer<msg::DriverCommand>> command_writer_;
-  std::unique_ptr<Writer<msg::TerrainDeformation>> terrain_writer_;
-  std::unique_ptr<Writer<msg::CollisionEvent>> collision_writer_;
+  typename PerTopic<DataWriterPtr, AllTopics>::type data_writers_;
   std::unique_ptr<Reader<msg::MemberAnnounce>> announce_reader_;
   std::unique_ptr<Reader<msg::FrameGrant>> grant_reader_;
   std::unique_ptr<Reader<msg::RunControl>> control_reader_;
-  std::unique_ptr<Reader<msg::VehicleState>> state_reader_;
-  std::unique_ptr<Reader<msg::DriverCommand>> command_reader_;
-  std::unique_ptr<Reader<msg::TerrainDeformation>> terrain_reader_;
-  std::unique_ptr<Reader<msg::CollisionEvent>> collision_reader_;
+  typename PerTopic<DataReaderPtr, AllTopics>::type data_readers_;
 
   std::string end_reason_;
 };

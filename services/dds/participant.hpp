@@ -68,6 +68,12 @@ SYNDDS_DDS_TYPE(VehicleState)
 SYNDDS_DDS_TYPE(DriverCommand)
 SYNDDS_DDS_TYPE(TerrainDeformation)
 SYNDDS_DDS_TYPE(CollisionEvent)
+SYNDDS_DDS_TYPE(GpsFix)
+SYNDDS_DDS_TYPE(Imu)
+SYNDDS_DDS_TYPE(Magnetometer)
+SYNDDS_DDS_TYPE(WheelSpeeds)
+SYNDDS_DDS_TYPE(Image)
+SYNDDS_DDS_TYPE(PointCloud)
 #undef SYNDDS_DDS_TYPE
 
 class Participant;
