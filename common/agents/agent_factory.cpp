@@ -1,6 +1,9 @@
 #include "agents/agent_factory.hpp"
 
 #include "agents/controller_agent.hpp"
+#include "agents/sensor_agent.hpp"
+
+#include <filesystem>
 #include "agents/vehicle_agent.hpp"
 #include "core/error.hpp"
 
@@ -14,6 +17,10 @@ proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& membe
     }
     if (member_id == scenario::controller_member(v.id) && v.controller.type == "path_follower") {
       return std::make_unique<ControllerAgent>(s, v);
+    }
+    if (member_id == scenario::sensor_member(v.id) && v.has_rendered_sensors()) {
+      return std::make_unique<SensorAgent>(
+          s, v, SensorAgentOptions{(std::filesystem::path(recorder_options.output_dir) / "sensors").string()});
     }
     if (member_id == scenario::external_member(v.id) && v.controller.type == "external") {
       throw ConfigError(member_id + " is an external controller: it is the user's own program");

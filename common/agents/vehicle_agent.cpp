@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "agents/sensor_messages.hpp"
 #include "core/error.hpp"
 #include "vehicle/bicycle_model.hpp"
 #include "vehicle/ode_vehicle.hpp"
@@ -70,6 +71,11 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
     spacing_m_ = scenario.terrain.scm.grid.spacing_m;
   }
   model_ = make_vehicle_model(scenario, vehicle, soil_);
+  if (vehicle.has_interoceptive_sensors()) {
+    sensors_ = std::make_unique<sensors::VehicleSensors>(vehicle.sensors->rig, vehicle.id,
+                                                         scenario.seed, step_s_,
+                                                         scenario.time.heartbeat_s);
+  }
 }
 
 std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
@@ -81,6 +87,10 @@ std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
 std::vector<proto::Topic> VehicleAgent::publications() const {
   std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event};
   if (soil_) pubs.push_back(proto::Topic::terrain_deformation);
+  if (sensors_) {
+    pubs.insert(pubs.end(), {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
+                             proto::Topic::wheel_speeds});
+  }
   return pubs;
 }
 
@@ -119,7 +129,15 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     model_->set_inputs({cmd.steering, cmd.throttle, cmd.braking});
   }
   if (ctx.frame > 0) {
-    for (std::int64_t i = 0; i < steps_per_frame_; ++i) model_->advance(step_s_);
+    for (std::int64_t i = 0; i < steps_per_frame_; ++i) {
+      model_->advance(step_s_);
+      // Interoceptive sensors sample the dynamics at every step (their rate and lag are theirs).
+      if (sensors_) sensors_->update_dynamics(model_->snapshot());
+    }
+  }
+  if (sensors_) {
+    append_messages(sensors_->take_interoceptive(ctx.sim_time_s), vehicle_id_, member_id_,
+                    ctx.frame, outputs);
   }
   outputs.vehicle_states.push_back(state_message(ctx.frame, ctx.sim_time_s));
   if (soil_) {

@@ -6,6 +6,7 @@
 
 #include "protocol/agent.hpp"
 #include "scm/scm_terrain.hpp"
+#include "sensors/rig.hpp"
 #include "scenario/scenario.hpp"
 #include "vehicle/vehicle_model.hpp"
 
@@ -55,6 +56,7 @@ class VehicleAgent final : public proto::Agent {
   double step_s_;
   std::int64_t steps_per_frame_;
   std::shared_ptr<scm::ScmTerrain> soil_;
+  std::unique_ptr<sensors::VehicleSensors> sensors_;  // interoceptive sensors, if any
   std::uint32_t rank_ = 0;
   double spacing_m_ = 0.0;
   std::unique_ptr<vehicle::VehicleModel> model_;

@@ -63,12 +63,25 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
                        "throttle,braking,gear,engine_speed_rpm");
   commands_ = open_csv(dir / "commands.csv", "frame,time_s,vehicle,source,steering,throttle,braking");
   events_ = open_csv(dir / "events.csv", "frame,time_s,kind,vehicle,detail");
+  bool interoceptive = false;
+  for (const auto& v : scenario.vehicles) interoceptive = interoceptive || v.has_interoceptive_sensors();
+  if (interoceptive) {
+    const char* stamp = "frame,vehicle,sensor,sequence,time_s,available_s,";
+    gps_ = open_csv(dir / "gps.csv",
+                    (std::string(stamp) + "latitude_deg,longitude_deg,altitude_m,e_m,n_m,u_m").c_str());
+    imu_ = open_csv(dir / "imu.csv",
+                    (std::string(stamp) + "ax_mps2,ay_mps2,az_mps2,gx_rad_s,gy_rad_s,gz_rad_s").c_str());
+    compass_ = open_csv(dir / "compass.csv",
+                        (std::string(stamp) + "heading_rad,fx_ut,fy_ut,fz_ut").c_str());
+    wheel_speeds_ = open_csv(dir / "wheel_speeds.csv",
+                             (std::string(stamp) + "fl_rad_s,fr_rad_s,rl_rad_s,rr_rad_s").c_str());
+  }
   flush();
   write_summary(nullptr);
 }
 
 RecorderAgent::~RecorderAgent() {
-  for (std::FILE* f : {vehicles_, commands_, events_}) {
+  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_}) {
     if (f) std::fclose(f);
   }
 }
@@ -78,6 +91,12 @@ std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
                                            {proto::Topic::driver_command, ""},
                                            {proto::Topic::collision_event, ""}};
   if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  if (gps_) {
+    for (auto t : {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
+                   proto::Topic::wheel_speeds}) {
+      subs.push_back({t, ""});
+    }
+  }
   return subs;
 }
 
@@ -143,6 +162,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     ++totals_[e.vehicle_id].collisions;
   }
   std::fwrite(out.data(), 1, out.size(), events_);
+  if (gps_) record_sensors(samples);
   flush();
   if (soil_) {
     std::uint64_t frame_bytes = 0;
@@ -160,6 +180,45 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
   }
 }
 
+void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
+  fmt::memory_buffer out;
+  auto stamp = [&](const auto& m) {
+    fmt::format_to(std::back_inserter(out), "{},{},{},{},{:.9g},{:.9g},", m.frame, m.vehicle_id,
+                   m.stamp.sensor_id, m.stamp.sequence, m.stamp.time_s, m.stamp.available_s);
+  };
+  for (const auto& m : samples.gps_fixes) {
+    stamp(m);
+    fmt::format_to(std::back_inserter(out), "{:.10f},{:.10f},{:.4f},{:.4f},{:.4f},{:.4f}\n",
+                   m.latitude_deg, m.longitude_deg, m.altitude_m, m.enu_m.x(), m.enu_m.y(),
+                   m.enu_m.z());
+  }
+  std::fwrite(out.data(), 1, out.size(), gps_);
+  out.clear();
+  for (const auto& m : samples.imus) {
+    stamp(m);
+    fmt::format_to(std::back_inserter(out), "{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n",
+                   m.accel_mps2.x(), m.accel_mps2.y(), m.accel_mps2.z(), m.gyro_rad_s.x(),
+                   m.gyro_rad_s.y(), m.gyro_rad_s.z());
+  }
+  std::fwrite(out.data(), 1, out.size(), imu_);
+  out.clear();
+  for (const auto& m : samples.magnetometers) {
+    stamp(m);
+    fmt::format_to(std::back_inserter(out), "{:.6g},{:.6g},{:.6g},{:.6g}\n", m.heading_rad,
+                   m.field_ut.x(), m.field_ut.y(), m.field_ut.z());
+  }
+  std::fwrite(out.data(), 1, out.size(), compass_);
+  out.clear();
+  for (const auto& m : samples.wheel_speeds) {
+    stamp(m);
+    for (std::size_t i = 0; i < 4; ++i) {
+      fmt::format_to(std::back_inserter(out), "{:.6g}{}",
+                     i < m.wheel_spin_rad_s.size() ? m.wheel_spin_rad_s[i] : 0.0, i < 3 ? "," : "\n");
+    }
+  }
+  std::fwrite(out.data(), 1, out.size(), wheel_speeds_);
+}
+
 void RecorderAgent::note_event(std::int64_t frame, const std::string& kind,
                                const std::string& vehicle, const std::string& detail) {
   const double t = frame >= 0 ? static_cast<double>(frame) * heartbeat_s_ : 0.0;
@@ -168,7 +227,9 @@ void RecorderAgent::note_event(std::int64_t frame, const std::string& kind,
 }
 
 void RecorderAgent::flush() {
-  for (std::FILE* f : {vehicles_, commands_, events_}) std::fflush(f);
+  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_}) {
+    if (f) std::fflush(f);
+  }
 }
 
 void RecorderAgent::write_summary(const proto::RunControlMsg* end) {

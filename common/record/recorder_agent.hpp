@@ -54,6 +54,7 @@ class RecorderAgent final : public proto::Agent {
 
  private:
   void record(const proto::FrameSamples& samples);
+  void record_sensors(const proto::FrameSamples& samples);
   void write_summary(const proto::RunControlMsg* end);
   void flush();
 
@@ -67,6 +68,11 @@ class RecorderAgent final : public proto::Agent {
   std::FILE* vehicles_ = nullptr;
   std::FILE* commands_ = nullptr;
   std::FILE* events_ = nullptr;
+  // Interoceptive sensor samples (only when some vehicle carries such sensors).
+  std::FILE* gps_ = nullptr;
+  std::FILE* imu_ = nullptr;
+  std::FILE* compass_ = nullptr;
+  std::FILE* wheel_speeds_ = nullptr;
   std::map<std::string, VehicleTotals> totals_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
   std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)

@@ -200,6 +200,27 @@ std::string resolve_model_file(const YamlNode& node, const std::string& model,
   return file.string();
 }
 
+// `sensors: default` (a rig name or file) or `sensors: {rig: default, save_images: true, video: false}`.
+VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::string& config_dir) {
+  VehicleSensorsConfig c;
+  std::optional<YamlNode> rig_node;
+  if (node.is_scalar()) {
+    rig_node = node;
+  } else {
+    MapReader m(node);
+    rig_node = m.required("rig");
+    c.save_images = m.get_or("save_images", false);
+    c.video = m.get_or("video", false);
+    m.finish();
+  }
+  const std::string rig = rig_node->as_string();
+  std::string file = sensors::sensor_rig_path(rig, config_dir);
+  if (!fs::exists(file)) file = (fs::path(node.file()).parent_path() / rig).string();
+  if (!fs::exists(file)) rig_node->fail("sensor rig not found: " + rig);
+  c.rig = sensors::load_sensor_rig(file);
+  return c;
+}
+
 VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir) {
   MapReader m(node);
   VehicleConfig v;
@@ -213,6 +234,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir)
   v.params = vehicle::load_vehicle_params(resolve_model_file(model_node, v.model, config_dir));
   v.dynamics = m.choice("dynamics", "reduced", {"reduced", "full"});
   auto start = m.optional("start");
+  if (auto n = m.optional("sensors")) v.sensors = parse_vehicle_sensors(*n, config_dir);
   if (auto c = m.optional("controller")) {
     v.controller = parse_controller(*c);
   } else {
@@ -255,12 +277,21 @@ const VehicleConfig* Scenario::find_vehicle(const std::string& id) const {
   return nullptr;
 }
 
+bool VehicleConfig::has_interoceptive_sensors() const {
+  if (!sensors) return false;
+  const auto& r = sensors->rig;
+  return !r.gps.empty() || !r.imus.empty() || !r.magnetometers.empty() || !r.tachometers.empty();
+}
+
 std::vector<std::string> Scenario::member_ids() const {
   std::vector<std::string> out;
   for (const auto& v : vehicles) out.push_back(vehicle_member(v.id));
   for (const auto& v : vehicles) {
     if (v.controller.type == "path_follower") out.push_back(controller_member(v.id));
     if (v.controller.type == "external") out.push_back(external_member(v.id));
+  }
+  for (const auto& v : vehicles) {
+    if (v.has_rendered_sensors()) out.push_back(sensor_member(v.id));
   }
   if (recorder.enabled) out.push_back(kRecorderMember);
   return out;
@@ -269,6 +300,7 @@ std::vector<std::string> Scenario::member_ids() const {
 std::string vehicle_member(const std::string& id) { return "vehicle/" + id; }
 std::string controller_member(const std::string& id) { return "controller/" + id; }
 std::string external_member(const std::string& id) { return "external/" + id; }
+std::string sensor_member(const std::string& id) { return "sensor/" + id; }
 
 std::string default_config_dir() {
   if (const char* env = std::getenv("SYNDDS_CONFIG_DIR"); env && *env) return env;

@@ -10,6 +10,7 @@
 #include "control/path_follower.hpp"
 #include "protocol/barrier.hpp"
 #include "scm/scm_params.hpp"
+#include "sensors/rig.hpp"
 #include "terrain/heightmap_terrain.hpp"
 #include "vehicle/vehicle_params.hpp"
 #include "world/obstacle.hpp"
@@ -53,6 +54,13 @@ struct ControllerConfig {
   control::PathFollowerConfig follower;
 };
 
+/// The sensors a vehicle carries (`sensors:` of a vehicle entry).
+struct VehicleSensorsConfig {
+  sensors::SensorRig rig;
+  bool save_images = false;  // camera frames as PNG (and frame metadata) in the run directory
+  bool video = false;        // camera frames as an MJPG video in the run directory
+};
+
 struct VehicleConfig {
   std::string id;
   std::string model;                   // as written in the scenario
@@ -60,6 +68,11 @@ struct VehicleConfig {
   vehicle::VehicleParams params;
   Pose start;
   ControllerConfig controller;
+  std::optional<VehicleSensorsConfig> sensors;
+  /// GPS, IMU, compass or tachometer: simulated in the vehicle process at the dynamics rate.
+  bool has_interoceptive_sensors() const;
+  /// Cameras or lidars: rendered by the vehicle's own sensor process ("sensor/<id>").
+  bool has_rendered_sensors() const { return sensors && sensors->rig.has_rendered_sensors(); }
 };
 
 struct RecorderConfig {
@@ -102,10 +115,11 @@ Scenario load_scenario(const std::string& file, const Overrides& overrides = {},
 Scenario parse_scenario(const YamlNode& root, const std::string& text, const Overrides& overrides,
                         const std::string& config_dir);
 
-// Member ids: "vehicle/<id>", "controller/<id>", "external/<id>", "recorder".
+// Member ids: "vehicle/<id>", "controller/<id>", "external/<id>", "sensor/<id>", "recorder".
 std::string vehicle_member(const std::string& vehicle_id);
 std::string controller_member(const std::string& vehicle_id);
 std::string external_member(const std::string& vehicle_id);
+std::string sensor_member(const std::string& vehicle_id);
 inline constexpr const char* kRecorderMember = "recorder";
 
 }  // namespace syndds::scenario

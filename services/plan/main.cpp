@@ -64,6 +64,12 @@ int main(int argc, char** argv) {
       processes.emplace_back(scenario::controller_member(v.id),
                              program("syndds_controller") + shared + " --vehicle " + quote(v.id));
     }
+    for (const auto& v : s.vehicles) {
+      if (!v.has_rendered_sensors()) continue;
+      processes.emplace_back(scenario::sensor_member(v.id),
+                             program("syndds_sensor") + shared + " --vehicle " + quote(v.id) +
+                                 " --output " + quote(fs::absolute(output).string()));
+    }
     if (s.recorder.enabled) {
       processes.emplace_back(scenario::kRecorderMember,
                              program("syndds_recorder") + shared + " --output " +

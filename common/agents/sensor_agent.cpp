@@ -1,0 +1,178 @@
+#include "agents/sensor_agent.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "agents/sensor_messages.hpp"
+#include "core/error.hpp"
+
+namespace syndds::agents {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr double kRenderSpacingM = 0.1;    // rendered terrain resolution on SCM soil
+constexpr double kFlatSpacingM = 2.0;      // a flat plane needs no resolution
+constexpr double kWorldMarginM = 60.0;     // rendered ground beyond the paths and obstacles
+
+// The area worth rendering: every path, start and obstacle, plus a margin.
+void world_bounds(const scenario::Scenario& s, double& x0, double& x1, double& y0, double& y1) {
+  x0 = y0 = std::numeric_limits<double>::infinity();
+  x1 = y1 = -x0;
+  auto grow = [&](double x, double y) {
+    x0 = std::min(x0, x);
+    x1 = std::max(x1, x);
+    y0 = std::min(y0, y);
+    y1 = std::max(y1, y);
+  };
+  for (const auto& v : s.vehicles) {
+    grow(v.start.position.x(), v.start.position.y());
+    for (const auto& w : v.controller.waypoints) grow(w.x(), w.y());
+  }
+  for (const auto& o : s.obstacles) grow(o.pose.position.x(), o.pose.position.y());
+  x0 -= kWorldMarginM;
+  y0 -= kWorldMarginM;
+  x1 += kWorldMarginM;
+  y1 += kWorldMarginM;
+}
+
+// Snow-like soft soil renders white, firmer soils silt-brown, rigid ground neutral.
+std::string look_of(const scenario::TerrainConfig& t) {
+  if (t.type != "scm") return "rigid";
+  return t.scm.soil.bekker_kphi < 1.0e6 ? "snow" : "silt";
+}
+
+}  // namespace
+
+SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleConfig& vehicle,
+                         SensorAgentOptions options)
+    : vehicle_id_(vehicle.id),
+      member_id_(scenario::sensor_member(vehicle.id)),
+      deformable_(s.terrain.deformable()),
+      config_(*vehicle.sensors),
+      options_(std::move(options)) {
+  scene_ = std::make_unique<sensors::Scene>(config_.rig.scene);
+  const auto surface = scenario::make_terrain(s.terrain);
+  if (s.terrain.type == "scm") {
+    const auto& g = s.terrain.scm.grid;
+    render_stride_ = std::max(1, static_cast<int>(std::lround(kRenderSpacingM / g.spacing_m)));
+    scene_->set_terrain(sensors::sample_terrain(*surface, g.spacing_m * render_stride_, g.x_min_m,
+                                                g.x_max_m, g.y_min_m, g.y_max_m),
+                        sensors::terrain_look(look_of(s.terrain)));
+  } else if (s.terrain.type == "heightmap") {
+    const auto& h = s.terrain.heightmap;
+    const double spacing = std::max(0.1, h.size_x_m / 1024.0);
+    scene_->set_terrain(sensors::sample_terrain(*surface, spacing,
+                                                h.centre_m.x() - h.size_x_m / 2,
+                                                h.centre_m.x() + h.size_x_m / 2,
+                                                h.centre_m.y() - h.size_y_m / 2,
+                                                h.centre_m.y() + h.size_y_m / 2),
+                        sensors::terrain_look(look_of(s.terrain)));
+  } else {
+    double x0, x1, y0, y1;
+    world_bounds(s, x0, x1, y0, y1);
+    scene_->set_terrain(sensors::sample_terrain(*surface, kFlatSpacingM, x0, x1, y0, y1),
+                        sensors::terrain_look(look_of(s.terrain)));
+  }
+  scene_->add_obstacles(s.obstacles);
+  for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
+    const auto& v = s.vehicles[i];
+    scene_->add_vehicle(v.id, sensors::vehicle_shape(v.params, sensors::vehicle_palette(i)));
+    scene_->set_vehicle_pose(v.id, v.start, {});
+  }
+  scene_->commit();
+  sensors_ = std::make_unique<sensors::VehicleSensors>(config_.rig, vehicle_id_, s.seed,
+                                                       s.time.step_s, s.time.heartbeat_s);
+  if (config_.save_images || config_.video) {
+    const fs::path dir = fs::path(options_.output_dir) / vehicle_id_;
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw ConfigError(dir.string() + ": cannot create sensor output directory");
+    index_.reset(std::fopen((dir / "frames.csv").c_str(), "w"));
+    if (!index_) throw ConfigError((dir / "frames.csv").string() + ": cannot create");
+    std::fputs("sensor,sequence,time_s,available_s,x,y,z,qw,qx,qy,qz,file\n", index_.get());
+  }
+}
+
+SensorAgent::~SensorAgent() = default;
+
+std::vector<proto::Subscription> SensorAgent::subscriptions() const {
+  std::vector<proto::Subscription> subs = {{proto::Topic::vehicle_state, ""}};
+  if (deformable_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  return subs;
+}
+
+std::vector<proto::Topic> SensorAgent::publications() const {
+  return {proto::Topic::image, proto::Topic::point_cloud};
+}
+
+void SensorAgent::update_world(const proto::FrameSamples& inputs) {
+  for (const auto& st : inputs.vehicle_states) {
+    if (!scene_->has_vehicle(st.vehicle_id)) continue;
+    std::vector<Pose> wheels;
+    wheels.reserve(st.wheels.size());
+    for (const auto& w : st.wheels) wheels.push_back(w.pose);
+    scene_->set_vehicle_pose(st.vehicle_id, st.pose, wheels);
+  }
+  std::vector<sensors::HeightUpdate> updates;
+  for (const auto& d : inputs.terrain_deformations) {
+    for (const auto& v : d.vertices) {
+      if (v.i % render_stride_ != 0 || v.j % render_stride_ != 0) continue;
+      updates.push_back({v.i / render_stride_, v.j / render_stride_, v.height});
+    }
+  }
+  if (!updates.empty()) scene_->update_terrain_world(updates);
+  scene_->commit();
+}
+
+void SensorAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                       proto::FrameSamples& outputs) {
+  if (ctx.frame == 0) return;  // nothing stamped -1: the world is rendered from frame 1 on
+  // The world as it was at the end of frame k-1.
+  const double t = static_cast<double>(ctx.frame - 1) * ctx.heartbeat_s;
+  update_world(inputs);
+  sensors_->update_rendered(*scene_, t);
+  const sensors::RenderedBatch batch = sensors_->take_rendered(t);
+  frames_rendered_ += batch.camera.size();
+  if (index_) save(batch);
+  append_messages(batch, vehicle_id_, member_id_, ctx.frame, outputs);
+}
+
+void SensorAgent::save(const sensors::RenderedBatch& batch) {
+  const fs::path dir = fs::path(options_.output_dir) / vehicle_id_;
+  for (const auto& f : batch.camera) {
+    std::string file;
+    if (config_.save_images) {
+      file = fmt::format("{}_{:06d}.png", f.sensor_id, f.stamp.sequence);
+      sensors::write_png((dir / file).string(), f.image);
+    }
+    if (config_.video) {
+      auto& video = videos_[f.sensor_id];
+      if (!video) {
+        double fps = 30.0;
+        for (const auto& c : config_.rig.cameras) {
+          if (c.id == f.sensor_id) fps = c.rate_hz;
+        }
+        video = std::make_unique<sensors::VideoWriter>((dir / (f.sensor_id + ".avi")).string(),
+                                                       fps, f.image.width, f.image.height);
+      }
+      video->write(f.image);
+    }
+    const auto& p = f.pose.position;
+    const auto& q = f.pose.orientation;
+    fmt::print(index_.get(), "{},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n",
+               f.sensor_id, f.stamp.sequence, f.stamp.time_s, f.stamp.available_s, p.x(), p.y(),
+               p.z(), q.w(), q.x(), q.y(), q.z(), file);
+  }
+  std::fflush(index_.get());
+}
+
+void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
+  for (auto& [id, video] : videos_) video->close();
+  spdlog::info("{}: rendered {} camera frames", member_id_, frames_rendered_);
+}
+
+}  // namespace syndds::agents

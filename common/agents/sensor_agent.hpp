@@ -1,0 +1,54 @@
+#pragma once
+// The sensor member of one vehicle ("sensor/<id>"): keeps an Embree scene of the whole world
+// (terrain with every vehicle's ruts, obstacles, every vehicle at its synced pose) and renders
+// the vehicle's cameras and lidars. In frame k it sees the states and deformations stamped
+// k-1 (the world at t_{k-1}), renders it, and publishes what became available, stamped k.
+#include <cstdio>
+#include <memory>
+
+#include "protocol/agent.hpp"
+#include "scenario/scenario.hpp"
+#include "sensors/image_io.hpp"
+#include "sensors/rig.hpp"
+
+namespace syndds::agents {
+
+struct SensorAgentOptions {
+  std::string output_dir;  // where saved frames / videos go (scenario decides whether to save)
+};
+
+class SensorAgent final : public proto::Agent {
+ public:
+  SensorAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle,
+              SensorAgentOptions options);
+  ~SensorAgent() override;
+
+  const std::string& member_id() const override { return member_id_; }
+  proto::MemberKind kind() const override { return proto::MemberKind::sensor; }
+  std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override;
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+            proto::FrameSamples& outputs) override;
+  void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
+
+  const sensors::Scene& scene() const { return *scene_; }
+  std::uint64_t frames_rendered() const { return frames_rendered_; }
+
+ private:
+  void update_world(const proto::FrameSamples& inputs);
+  void save(const sensors::RenderedBatch& batch);
+
+  std::string vehicle_id_;
+  std::string member_id_;
+  bool deformable_ = false;
+  int render_stride_ = 1;  // SCM vertices per rendered terrain vertex (along each axis)
+  scenario::VehicleSensorsConfig config_;
+  SensorAgentOptions options_;
+  std::unique_ptr<sensors::Scene> scene_;
+  std::unique_ptr<sensors::VehicleSensors> sensors_;
+  std::map<std::string, std::unique_ptr<sensors::VideoWriter>> videos_;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> index_{nullptr, &std::fclose};
+  std::uint64_t frames_rendered_ = 0;
+};
+
+}  // namespace syndds::agents

@@ -1,0 +1,19 @@
+// syndds_sensor: renders one vehicle's cameras and lidars (Embree) from the synced world.
+#include "common/member_main.hpp"
+
+int main(int argc, char** argv) {
+  std::string vehicle;
+  std::string output = "runs/latest";
+  return syndds::service::member_main(
+      "sensor", "syndds sensor: renders one vehicle's cameras and lidars from the synced world",
+      argc, argv,
+      [&](CLI::App& app) {
+        app.add_option("--vehicle", vehicle, "Vehicle id from the scenario")->required();
+        app.add_option("--output", output, "Run directory (saved frames go to OUTPUT/sensors)")
+            ->capture_default_str();
+      },
+      [&](const syndds::scenario::Scenario&) { return syndds::scenario::sensor_member(vehicle); },
+      [&](const syndds::scenario::Scenario&, const std::string& run_id) {
+        return syndds::record::RecorderOptions{output, run_id, "distributed"};
+      });
+}
