@@ -13,6 +13,7 @@ class ConstantDriverAgent final : public proto::Agent {
       : member_id_(std::move(member_id)), vehicle_id_(std::move(vehicle_id)), command_(command) {}
 
   const std::string& member_id() const override { return member_id_; }
+  std::string vehicle_key() const override { return vehicle_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::external; }
   std::vector<proto::Subscription> subscriptions() const override {
     return {{proto::Topic::vehicle_state, vehicle_id_}};

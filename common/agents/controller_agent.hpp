@@ -14,6 +14,7 @@ class ControllerAgent final : public proto::Agent {
   ControllerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);
 
   const std::string& member_id() const override { return member_id_; }
+  std::string vehicle_key() const override { return vehicle_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::controller; }
   std::vector<proto::Subscription> subscriptions() const override;
   std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }

@@ -24,6 +24,7 @@ class SensorAgent final : public proto::Agent {
   ~SensorAgent() override;
 
   const std::string& member_id() const override { return member_id_; }
+  std::string vehicle_key() const override { return vehicle_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::sensor; }
   std::vector<proto::Subscription> subscriptions() const override;
   std::vector<proto::Topic> publications() const override;

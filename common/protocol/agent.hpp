@@ -86,6 +86,9 @@ class Agent {
   virtual std::vector<Subscription> subscriptions() const = 0;
   /// Topics this agent may write (the DDS runtime creates writers for exactly these).
   virtual std::vector<Topic> publications() const = 0;
+  /// The vehicle every sample this agent writes is about (its vehicle_id); empty if it writes
+  /// nothing. Lets the DDS layer deliver samples only to the readers of that vehicle.
+  virtual std::string vehicle_key() const { return ""; }
 
   /// Computes frame `ctx.frame`. `inputs` holds exactly the subscribed samples stamped
   /// ctx.frame - 1 (none for frame 0). Samples to publish go to `outputs`; the runtime stamps

@@ -31,6 +31,7 @@ inline int member_main(const char* name, const char* description, int argc, char
     if (configure) configure(*agent);
     dds::MemberRuntime runtime(*agent, options);
     const int code = runtime.run(interrupted());
+    exit_with_on_teardown_abort(code);
     if (code == dds::kExitCompleted) {
       spdlog::info("{}: run completed", member);
     } else {

@@ -3,6 +3,8 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
+
 #include <csignal>
 #include <filesystem>
 #include <iostream>
@@ -13,12 +15,19 @@ namespace syndds::service {
 namespace {
 
 std::atomic<bool> g_interrupted{false};
+volatile std::sig_atomic_t g_teardown_code = 0;
 
 extern "C" void on_signal(int) { g_interrupted.store(true); }
+extern "C" void on_teardown_abort(int) { _exit(g_teardown_code); }
 
 }  // namespace
 
 const std::atomic<bool>& interrupted() { return g_interrupted; }
+
+void exit_with_on_teardown_abort(int code) {
+  g_teardown_code = code;
+  std::signal(SIGABRT, on_teardown_abort);
+}
 
 void add_common_options(CLI::App& app, CommonArgs& a) {
   app.add_option("scenario", a.scenario_file, "Scenario YAML file")->required();

@@ -32,6 +32,8 @@ int main(int argc, char** argv) {
     o.barrier.on_member_loss = s.coordinator.on_member_loss;
     o.barrier.realtime = s.time.realtime;
     sdds::CoordinatorService coordinator(o);
-    return coordinator.run(service::interrupted());
+    const int code = coordinator.run(service::interrupted());
+    service::exit_with_on_teardown_abort(code);
+    return code;
   });
 }

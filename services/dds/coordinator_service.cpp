@@ -180,7 +180,7 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   control_writer_->write(to_dds(end.control));
   if (end.kind == proto::Barrier::Action::Kind::stop) {
     const auto& s = end.control.stats;
-    spdlog::info("coordinator: run completed: {} frames, {:.2f} s simulated in {:.2f} s "
+    spdlog::info("coordinator: run completed: {} frames, {:.2f} s simulated in {:.3f} s "
                  "(real-time factor {:.3f})",
                  s.frames, s.sim_time_s, s.wall_time_s, s.real_time_factor);
   } else {

@@ -22,10 +22,14 @@ Clock::time_point after(double seconds) {
 }
 
 template <typename W, typename Samples>
-void write_all(W& writer, const Samples& samples, const char* topic) {
+void write_all(W& writer, const Samples& samples, const char* topic, const std::string& key) {
   for (const auto& s : samples) {
     if (!writer) {
       throw ProtocolError(std::string("agent wrote ") + topic + " but did not declare it");
+    }
+    if (s.vehicle_id != key) {
+      throw ProtocolError(std::string("agent wrote ") + topic + " for vehicle '" + s.vehicle_id +
+                          "'; its samples must be about vehicle '" + key + "'");
     }
     if (!writer->write(to_dds(s))) {
       throw std::runtime_error(std::string("DDS refused a ") + topic + " sample");
@@ -107,6 +111,16 @@ void MemberRuntime::setup() {
     }
     return false;
   };
+  // The one key all of the agent's subscriptions to a topic ask for ("" if any asks for all).
+  auto only_key = [this](proto::Topic t) {
+    std::string key;
+    for (const auto& s : agent_.subscriptions()) {
+      if (s.topic != t) continue;
+      if (s.key.empty() || (!key.empty() && key != s.key)) return std::string();
+      key = s.key;
+    }
+    return key;
+  };
   const auto publications = agent_.publications();
   proto::for_each_topic([&](auto t) {
     constexpr proto::Topic T = decltype(t)::value;
@@ -123,11 +137,13 @@ void MemberRuntime::setup() {
                 cv_.notify_all();
               }
             });
-          });
+          },
+          only_key(T).empty() ? Participant::Scope::all_vehicles : Participant::Scope::one_vehicle,
+          only_key(T));
     }
     if (std::find(publications.begin(), publications.end(), T) != publications.end()) {
       std::get<static_cast<std::size_t>(T)>(data_writers_) =
-          participant_->make_writer<Dds>(name, profiles::kDataWriter);
+          participant_->make_writer<Dds>(name, profiles::kDataWriter, agent_.vehicle_key());
     }
   });
   done_writer_ = participant_->make_writer<msg::FrameDone>(topics::kFrameDone,
@@ -210,7 +226,7 @@ void MemberRuntime::publish(const proto::FrameSamples& out) {
   proto::for_each_topic([&](auto t) {
     constexpr proto::Topic T = decltype(t)::value;
     write_all(std::get<static_cast<std::size_t>(T)>(data_writers_), out.list<T>(),
-              proto::TopicTraits<T>::name);
+              proto::TopicTraits<T>::name, agent_.vehicle_key());
   });
 }
 

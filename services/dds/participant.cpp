@@ -97,6 +97,35 @@ void Participant::on_participant_discovery(
   if (lost_) lost_(out.str(), info.status == Info::REMOVED_PARTICIPANT);
 }
 
+// Partitions of data topics: writers of vehicle V publish in "<run>/all" and "<run>/vehicle/V";
+// a reader of every vehicle subscribes to "<run>/all", a reader of V to "<run>/vehicle/V".
+fdds::Publisher* Participant::data_publisher(const std::string& vehicle_id) {
+  std::lock_guard lock(mutex_);
+  auto& p = data_publishers_[vehicle_id];
+  if (!p) {
+    fdds::PublisherQos qos = participant_->get_default_publisher_qos();
+    qos.partition().push_back((options_.run_id + "/all").c_str());
+    qos.partition().push_back((options_.run_id + "/vehicle/" + vehicle_id).c_str());
+    p = participant_->create_publisher(qos);
+    if (!p) fail("cannot create a publisher for vehicle " + vehicle_id);
+  }
+  return p;
+}
+
+fdds::Subscriber* Participant::data_subscriber(const std::string& vehicle_id) {
+  std::lock_guard lock(mutex_);
+  auto& s = data_subscribers_[vehicle_id];
+  if (!s) {
+    fdds::SubscriberQos qos = participant_->get_default_subscriber_qos();
+    const std::string partition = vehicle_id.empty() ? options_.run_id + "/all"
+                                                     : options_.run_id + "/vehicle/" + vehicle_id;
+    qos.partition().push_back(partition.c_str());
+    s = participant_->create_subscriber(qos);
+    if (!s) fail("cannot create a subscriber for vehicle " + vehicle_id);
+  }
+  return s;
+}
+
 void Participant::fail(const std::string& what) const {
   throw std::runtime_error("DDS: " + what + " (domain " + std::to_string(options_.domain_id) +
                            ", run " + options_.run_id + ")");

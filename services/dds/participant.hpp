@@ -146,23 +146,40 @@ class Participant : private fdds::DomainParticipantListener {
   /// in progress has returned, so the owner may then be destroyed safely.
   void set_lost_callback(LostCallback cb);
 
+  /// A writer of a protocol topic (`vehicle_id` empty) or of a data topic carrying the samples
+  /// of one vehicle: they reach the readers of every key and the readers of that key only.
   template <typename T>
-  std::unique_ptr<Writer<T>> make_writer(const std::string& topic_name, const char* profile) {
+  std::unique_ptr<Writer<T>> make_writer(const std::string& topic_name, const char* profile,
+                                         const std::string& vehicle_id = "") {
     fdds::Topic* t = topic<T>(topic_name);
-    fdds::DataWriter* w = publisher_->create_datawriter_with_profile(t, profile);
+    fdds::Publisher* publisher = vehicle_id.empty() ? publisher_ : data_publisher(vehicle_id);
+    fdds::DataWriter* w = publisher->create_datawriter_with_profile(t, profile);
     if (!w) fail("cannot create writer for " + topic_name + " with profile " + profile);
-    return std::make_unique<Writer<T>>(publisher_, w);
+    return std::make_unique<Writer<T>>(publisher, w);
   }
 
+  enum class Scope {
+    protocol,      // protocol topics
+    all_vehicles,  // data topics, every vehicle's samples
+    one_vehicle,   // data topics, the samples of `vehicle_id` only
+  };
+  /// Readers of data topics match only the writers they need (partitions per vehicle), so a
+  /// controller is not even matched with the other vehicles' state writers: no samples, no
+  /// heartbeats, no acknowledgements travel between them.
   template <typename T>
   std::unique_ptr<Reader<T>> make_reader(const std::string& topic_name, const char* profile,
-                                         typename Reader<T>::Callback on_sample) {
+                                         typename Reader<T>::Callback on_sample,
+                                         Scope scope = Scope::protocol,
+                                         const std::string& vehicle_id = "") {
     fdds::Topic* t = topic<T>(topic_name);
+    fdds::Subscriber* subscriber = scope == Scope::protocol       ? subscriber_
+                                   : scope == Scope::all_vehicles ? data_subscriber("")
+                                                                  : data_subscriber(vehicle_id);
     auto reader = std::make_unique<Reader<T>>(std::move(on_sample));
-    fdds::DataReader* r = subscriber_->create_datareader_with_profile(
+    fdds::DataReader* r = subscriber->create_datareader_with_profile(
         t, profile, reader.get(), fdds::StatusMask::data_available());
     if (!r) fail("cannot create reader for " + topic_name + " with profile " + profile);
-    reader->attach(subscriber_, r);
+    reader->attach(subscriber, r);
     return reader;
   }
 
@@ -170,6 +187,8 @@ class Participant : private fdds::DomainParticipantListener {
   void on_participant_discovery(fdds::DomainParticipant* participant,
                                 eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override;
   [[noreturn]] void fail(const std::string& what) const;
+  fdds::Publisher* data_publisher(const std::string& vehicle_id);
+  fdds::Subscriber* data_subscriber(const std::string& vehicle_id);  // "": every vehicle
 
   template <typename T>
   fdds::Topic* topic(const std::string& name) {
@@ -189,8 +208,10 @@ class Participant : private fdds::DomainParticipantListener {
 
   DdsOptions options_;
   fdds::DomainParticipant* participant_ = nullptr;
-  fdds::Publisher* publisher_ = nullptr;
+  fdds::Publisher* publisher_ = nullptr;    // protocol topics (partition: run id)
   fdds::Subscriber* subscriber_ = nullptr;
+  std::map<std::string, fdds::Publisher*> data_publishers_;    // by vehicle id
+  std::map<std::string, fdds::Subscriber*> data_subscribers_;  // by vehicle id, "" = all
   std::map<std::string, fdds::Topic*> topics_;
   mutable std::mutex mutex_;
   std::mutex callback_mutex_;  // held while lost_ runs: clearing it waits for a call in flight

@@ -5,8 +5,9 @@
 #
 # barrier: N vehicle processes (reduced model, no controller, no recorder) for N = 1 2 4 8 16:
 #          frames/s and mean barrier round (wall time / frames) as the coordinator reports them.
-# scaling: N vehicles + N path-follower controllers + the recorder (a full run) for growing N:
-#          real-time factor at heartbeat 0.01 s; the largest N with RTF <= 1 is the answer.
+# scaling: N vehicles (reduced model) + N path-follower controllers + the recorder (a full run)
+#          for growing N: real-time factor at heartbeat 0.01 s; the largest N with RTF <= 1 is
+#          the answer. SCALING_N="8 16 24" chooses the N.
 # Runs inside a private network namespace when allowed (tests/netns_exec.sh).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -55,7 +56,7 @@ if [ "$MODE" = barrier ]; then
   echo "| members | frames/s | mean round (ms) | real-time factor |"
   echo "|---|---|---|---|"
   for n in 1 2 4 8 16; do
-    read -r frames wall rtf < <(run_one "$(scenario "$n" 0)")
+    read -r frames wall rtf < <(run_one "$(scenario "$n" 0)") || { echo "| $n | failed |"; continue; }
     awk -v n="$n" -v f="$frames" -v w="$wall" -v r="$rtf" \
       'BEGIN { printf "| %d | %.0f | %.3f | %.3f |\n", n, f / w, 1000 * w / f, r }'
   done
@@ -63,7 +64,10 @@ else
   echo "| vehicles | processes | real-time factor |"
   echo "|---|---|---|"
   for n in ${SCALING_N:-4 8 12 16 20 24 32}; do
-    read -r frames wall rtf < <(run_one "$(scenario "$n" 1)")
-    echo "| $n | $((2 * n + 2)) | $rtf |"
+    if read -r frames wall rtf < <(run_one "$(scenario "$n" 1)") && [ -n "${rtf:-}" ]; then
+      echo "| $n | $((2 * n + 2)) | $rtf |"
+    else
+      echo "| $n | $((2 * n + 2)) | failed (see above) |"
+    fi
   done
 fi
