@@ -55,6 +55,10 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
       config_(*vehicle.sensors),
       options_(std::move(options)) {
   scene_ = std::make_unique<sensors::Scene>(config_.rig.scene);
+  if (deformable_) {
+    soil_ = std::make_unique<scm::ScmTerrain>(s.terrain.scm);
+    soil_->set_source_id(static_cast<std::uint32_t>(s.member_ids().size()));  // never wins a tie
+  }
   const auto surface = scenario::make_terrain(s.terrain);
   if (s.terrain.type == "scm") {
     const auto& g = s.terrain.scm.grid;
@@ -101,7 +105,10 @@ SensorAgent::~SensorAgent() = default;
 
 std::vector<proto::Subscription> SensorAgent::subscriptions() const {
   std::vector<proto::Subscription> subs = {{proto::Topic::vehicle_state, ""}};
-  if (deformable_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  if (deformable_) {
+    subs.push_back({proto::Topic::terrain_deformation, ""});
+    subs.push_back({proto::Topic::terrain_snapshot, ""});
+  }
   return subs;
 }
 
@@ -117,20 +124,48 @@ void SensorAgent::update_world(const proto::FrameSamples& inputs) {
     for (const auto& w : st.wheels) wheels.push_back(w.pose);
     scene_->set_vehicle_pose(st.vehicle_id, st.pose, wheels);
   }
-  std::vector<sensors::HeightUpdate> updates;
-  for (const auto& d : inputs.terrain_deformations) {
-    for (const auto& v : d.vertices) {
-      if (v.i % render_stride_ != 0 || v.j % render_stride_ != 0) continue;
-      updates.push_back({v.i / render_stride_, v.j / render_stride_, v.height});
+  if (soil_) {
+    // The soil copy merges every list by the SCM rule; the scene shows the merged heights.
+    std::vector<sensors::HeightUpdate> updates;
+    for (const auto& snap : inputs.terrain_snapshots) {  // a late joiner's starting point
+      scm::ScmSnapshot s;
+      s.spacing_m = snap.spacing_m;
+      for (const auto& v : snap.vertices) {
+        s.vertices.push_back({v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield});
+      }
+      soil_->load_snapshot(s);
+      for (const auto& v : snap.vertices) render_vertex(v.i, v.j, updates);
     }
+    std::vector<scm::VertexChange> changes;
+    for (const auto& d : inputs.terrain_deformations) {
+      changes.clear();
+      for (const auto& v : d.vertices) {
+        changes.push_back({v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield});
+      }
+      soil_->apply_remote_changes(d.source_index, changes);
+    }
+    for (const auto& d : inputs.terrain_deformations) {
+      for (const auto& v : d.vertices) render_vertex(v.i, v.j, updates);
+    }
+    soil_->take_local_changes();  // opens the merge window of the next frame's lists
+    if (!updates.empty()) scene_->update_terrain_world(updates);
   }
-  if (!updates.empty()) scene_->update_terrain_world(updates);
   scene_->commit();
+}
+
+void SensorAgent::render_vertex(std::int32_t i, std::int32_t j,
+                                std::vector<sensors::HeightUpdate>& out) const {
+  if (i % render_stride_ != 0 || j % render_stride_ != 0) return;
+  const auto v = soil_->vertex(i, j);
+  if (v) out.push_back({i / render_stride_, j / render_stride_, v->level_m});
 }
 
 void SensorAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                        proto::FrameSamples& outputs) {
-  if (ctx.frame == 0) return;  // nothing stamped -1: the world is rendered from frame 1 on
+  if (ctx.frame == 0) {
+    if (soil_) soil_->take_local_changes();  // the merge window of frame 0's lists
+    return;  // nothing stamped -1: the world is rendered from frame 1 on
+  }
   // The world as it was at the end of frame k-1.
   const double t = static_cast<double>(ctx.frame - 1) * ctx.heartbeat_s;
   update_world(inputs);
@@ -171,8 +206,10 @@ void SensorAgent::save(const sensors::RenderedBatch& batch) {
 }
 
 void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
+  if (soil_ && !final_inputs.empty()) update_world(final_inputs);
   for (auto& [id, video] : videos_) video->close();
   spdlog::info("{}: rendered {} camera frames", member_id_, frames_rendered_);
+  if (soil_) spdlog::info("{}: terrain grid hash {:016x}", member_id_, soil_->grid_hash());
 }
 
 }  // namespace syndds::agents

@@ -8,6 +8,7 @@
 
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
+#include "scm/scm_terrain.hpp"
 #include "sensors/image_io.hpp"
 #include "sensors/rig.hpp"
 
@@ -37,6 +38,7 @@ class SensorAgent final : public proto::Agent {
 
  private:
   void update_world(const proto::FrameSamples& inputs);
+  void render_vertex(std::int32_t i, std::int32_t j, std::vector<sensors::HeightUpdate>& out) const;
   void save(const sensors::RenderedBatch& batch);
 
   std::string vehicle_id_;
@@ -45,6 +47,7 @@ class SensorAgent final : public proto::Agent {
   int render_stride_ = 1;  // SCM vertices per rendered terrain vertex (along each axis)
   scenario::VehicleSensorsConfig config_;
   SensorAgentOptions options_;
+  std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain (merged exactly)
   std::unique_ptr<sensors::Scene> scene_;
   std::unique_ptr<sensors::VehicleSensors> sensors_;
   std::map<std::string, std::unique_ptr<sensors::VideoWriter>> videos_;

@@ -69,6 +69,7 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
     rank_ = member_rank(scenario, member_id_);
     soil_->set_source_id(rank_);
     spacing_m_ = scenario.terrain.scm.grid.spacing_m;
+    snapshot_provider_ = vehicle.id == scenario.vehicles.front().id;
   }
   model_ = make_vehicle_model(scenario, vehicle, soil_);
   if (vehicle.has_interoceptive_sensors()) {
@@ -87,6 +88,7 @@ std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
 std::vector<proto::Topic> VehicleAgent::publications() const {
   std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event};
   if (soil_) pubs.push_back(proto::Topic::terrain_deformation);
+  if (snapshot_provider_) pubs.push_back(proto::Topic::terrain_snapshot);
   if (sensors_) {
     pubs.insert(pubs.end(), {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
                              proto::Topic::wheel_speeds});
@@ -153,6 +155,19 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
       d.vertices.reserve(changes.size());
       for (const auto& c : changes) d.vertices.push_back(to_message(c));
       outputs.terrain_deformations.push_back(std::move(d));
+    }
+    if (snapshot_provider_ && !ctx.joiners.empty()) {
+      // Late joiners start from this copy as it is now (own changes of this frame included;
+      // they apply the others' changes of this frame themselves, like everyone else).
+      const scm::ScmSnapshot snap = soil_->snapshot();
+      proto::TerrainSnapshotMsg m;
+      m.vehicle_id = vehicle_id_;
+      m.source = member_id_;
+      m.frame = ctx.frame;
+      m.spacing_m = snap.spacing_m;
+      m.vertices.reserve(snap.vertices.size());
+      for (const auto& v : snap.vertices) m.vertices.push_back(to_message(v));
+      outputs.terrain_snapshots.push_back(std::move(m));
     }
   }
   for (const auto& c : model_->take_collisions()) {

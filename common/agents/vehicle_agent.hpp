@@ -60,6 +60,7 @@ class VehicleAgent final : public proto::Agent {
   std::unique_ptr<sensors::VehicleSensors> sensors_;  // interoceptive sensors, if any
   std::uint32_t rank_ = 0;
   double spacing_m_ = 0.0;
+  bool snapshot_provider_ = false;  // writes the terrain snapshot late joiners start from
   std::unique_ptr<vehicle::VehicleModel> model_;
   std::uint64_t rejected_ = 0;
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> hash_log_{nullptr, &std::fclose};

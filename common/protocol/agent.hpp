@@ -25,6 +25,7 @@ struct FrameSamples {
   std::vector<VehicleStateMsg> vehicle_states;
   std::vector<DriverCommandMsg> driver_commands;
   std::vector<TerrainDeformationMsg> terrain_deformations;
+  std::vector<TerrainSnapshotMsg> terrain_snapshots;
   std::vector<CollisionEventMsg> collision_events;
   std::vector<GpsFixMsg> gps_fixes;
   std::vector<ImuMsg> imus;
@@ -39,6 +40,7 @@ struct FrameSamples {
     if constexpr (T == Topic::vehicle_state) return vehicle_states;
     else if constexpr (T == Topic::driver_command) return driver_commands;
     else if constexpr (T == Topic::terrain_deformation) return terrain_deformations;
+    else if constexpr (T == Topic::terrain_snapshot) return terrain_snapshots;
     else if constexpr (T == Topic::collision_event) return collision_events;
     else if constexpr (T == Topic::gps_fix) return gps_fixes;
     else if constexpr (T == Topic::imu) return imus;
@@ -71,6 +73,7 @@ struct FrameContext {
   std::int64_t frame = 0;     // the frame being computed
   double sim_time_s = 0.0;    // t_k = frame * heartbeat_s, the time at the end of this frame
   double heartbeat_s = 0.0;
+  std::vector<std::string> joiners;  // members joining from frame + 1 on (need a snapshot)
 };
 
 /// How a run ended, as told to every agent.

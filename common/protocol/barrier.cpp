@@ -15,7 +15,8 @@ std::string join_names(const std::vector<std::string>& names) {
 }  // namespace
 
 Barrier::Barrier(BarrierConfig config, double now_s) : config_(std::move(config)), created_s_(now_s) {
-  for (const auto& m : config_.members) members_[m];
+  for (const auto& m : config_.members) members_[m].active_from = 0;
+  for (const auto& m : config_.late_members) members_[m].late = true;
 }
 
 std::string Barrier::on_join(const std::string& member, double now_s) {
@@ -23,11 +24,14 @@ std::string Barrier::on_join(const std::string& member, double now_s) {
   if (it == members_.end()) {
     return "ignoring join of '" + member + "': not a member of this scenario";
   }
-  if (it->second.joined) return "";  // repeated announcement (TRANSIENT_LOCAL) is harmless
-  if (phase_ != Phase::joining) {
+  Member& m = it->second;
+  if (m.joined) return "";  // repeated announcement (TRANSIENT_LOCAL) is harmless
+  if (phase_ != Phase::joining && !m.late) {
     return "ignoring join of '" + member + "': the run has already started";
   }
-  it->second.joined = true;
+  if (phase_ == Phase::stopped || phase_ == Phase::aborted) return "";
+  m.joined = true;
+  m.joined_at_s = now_s;
   return "";
 }
 
@@ -38,6 +42,7 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
   }
   Member& m = it->second;
   if (m.left) return "ignoring done from '" + done.member_id + "': member has left the run";
+  if (!done.finished && !active(m)) return "";  // a late joiner not yet taking part
   if (done.finished) {
     m.finished = true;
     return "";
@@ -68,6 +73,11 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
     return;
   }
   it->second.lost = true;
+  if (it->second.late && it->second.active_from < 0) {
+    it->second.joined = false;  // never took part: it may announce itself again
+    it->second.lost = false;
+    return;
+  }
   if (config_.on_member_loss == LossPolicy::abort || phase_ == Phase::joining) {
     if (!pending_abort_) pending_abort_ = "member " + member + " lost: " + why;
   } else {
@@ -83,9 +93,21 @@ void Barrier::on_interrupt(const std::string& why, double now_s) {
 // only when every member still in the barrier reported it.
 bool Barrier::everyone_done() const {
   for (const auto& [name, m] : members_) {
-    if (!m.left && !m.done) return false;
+    if (active(m) && !m.left && !m.done) return false;
   }
   return true;
+}
+
+std::vector<std::string> Barrier::admit_joiners(std::int64_t frame, double now_s) {
+  std::vector<std::string> out;
+  for (auto& [name, m] : members_) {
+    if (m.late && m.joined && m.active_from < 0 && !m.lost &&
+        (frame == 0 || now_s - m.joined_at_s >= config_.late_join_delay_s)) {
+      m.active_from = frame + 1;
+      out.push_back(name);
+    }
+  }
+  return out;
 }
 
 Manifest Barrier::collect_manifest() const {
@@ -137,6 +159,7 @@ Barrier::Action Barrier::poll(double now_s) {
       a.kind = Action::Kind::grant;
       a.grant.frame = 0;
       a.grant.sim_time_s = 0.0;
+      a.grant.joiners = admit_joiners(0, now_s);  // late members already here start at frame 1
       return a;
     }
     const double deadline = created_s_ + config_.join_timeout_s;
@@ -200,13 +223,14 @@ Barrier::Action Barrier::poll(double now_s) {
   a.grant.frame = frame_;
   a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
   a.grant.manifest = manifest;
+  if (frame_ < config_.final_frame) a.grant.joiners = admit_joiners(frame_, now_s);
   return a;
 }
 
 std::vector<std::string> Barrier::missing_members() const {
   std::vector<std::string> out;
   for (const auto& [name, m] : members_) {
-    if (!m.joined) out.push_back(name);
+    if (!m.joined && !m.late) out.push_back(name);
   }
   return out;
 }
@@ -214,14 +238,14 @@ std::vector<std::string> Barrier::missing_members() const {
 std::vector<std::string> Barrier::pending_members() const {
   std::vector<std::string> out;
   for (const auto& [name, m] : members_) {
-    if (!m.left && !m.done) out.push_back(name);
+    if (active(m) && !m.left && !m.done) out.push_back(name);
   }
   return out;
 }
 
 bool Barrier::all_finished() const {
   for (const auto& [name, m] : members_) {
-    if (m.joined && !m.lost && !m.finished) return false;
+    if (m.joined && m.active_from >= 0 && !m.lost && !m.finished) return false;
   }
   return true;
 }

@@ -16,7 +16,10 @@ namespace syndds::proto {
 enum class LossPolicy : std::uint8_t { abort, continue_run };
 
 struct BarrierConfig {
-  std::vector<std::string> members;  // declared by the scenario
+  std::vector<std::string> members;  // declared by the scenario, waited for at the start
+  std::vector<std::string> late_members;  // declared, may join at any time (sensor processes)
+  double late_join_delay_s = 1.0;    // a late joiner is admitted this long after it announced
+                                     // itself (time for every process to discover it)
   std::int64_t final_frame = 0;      // last frame to grant; frames run 0..final_frame
   double heartbeat_s = 0.01;
   double join_timeout_s = 30.0;      // from construction until every member joined
@@ -59,6 +62,9 @@ class Barrier {
 
  private:
   struct Member {
+    bool late = false;       // may join after the start
+    std::int64_t active_from = -1;  // first frame it takes part in (-1: not yet admitted)
+    double joined_at_s = 0.0;
     bool joined = false;
     bool lost = false;       // its process died or stopped answering
     bool left = false;       // lost under the `continue` policy: no longer waited for
@@ -75,6 +81,9 @@ class Barrier {
   Action abort_with(const std::string& reason, double now_s);
   Manifest collect_manifest() const;
   bool everyone_done() const;
+  bool active(const Member& m) const { return m.active_from >= 0 && m.active_from <= frame_; }
+  /// Late joiners ready to be admitted with the grant of `frame` (they start at frame + 1).
+  std::vector<std::string> admit_joiners(std::int64_t frame, double now_s);
 
   BarrierConfig config_;
   std::map<std::string, Member> members_;

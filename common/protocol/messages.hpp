@@ -29,6 +29,7 @@ enum class Topic : std::uint8_t {
   vehicle_state,
   driver_command,
   terrain_deformation,
+  terrain_snapshot,
   collision_event,
   gps_fix,
   imu,
@@ -39,7 +40,7 @@ enum class Topic : std::uint8_t {
 };
 inline constexpr Topic kAllDataTopics[] = {
     Topic::vehicle_state, Topic::driver_command, Topic::terrain_deformation,
-    Topic::collision_event, Topic::gps_fix, Topic::imu, Topic::magnetometer,
+    Topic::terrain_snapshot, Topic::collision_event, Topic::gps_fix, Topic::imu, Topic::magnetometer,
     Topic::wheel_speeds, Topic::image, Topic::point_cloud};
 /// Stable short name used in manifests, logs and DDS topic names ("vehicle_state").
 std::string_view to_string(Topic topic);
@@ -94,6 +95,15 @@ struct TerrainDeformationMsg {
   std::string source;
   std::int64_t frame = 0;
   std::uint32_t source_index = 0;  // the writer's rank in the member list (merge tie-break)
+  double spacing_m = 0.0;
+  std::vector<TerrainVertexMsg> vertices;
+};
+
+/// Every stored vertex of one vehicle's terrain copy at the end of `frame` (late joiners).
+struct TerrainSnapshotMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
   double spacing_m = 0.0;
   std::vector<TerrainVertexMsg> vertices;
 };
@@ -203,6 +213,7 @@ struct TopicOf;
 SYNDDS_TOPIC(vehicle_state, VehicleStateMsg)
 SYNDDS_TOPIC(driver_command, DriverCommandMsg)
 SYNDDS_TOPIC(terrain_deformation, TerrainDeformationMsg)
+SYNDDS_TOPIC(terrain_snapshot, TerrainSnapshotMsg)
 SYNDDS_TOPIC(collision_event, CollisionEventMsg)
 SYNDDS_TOPIC(gps_fix, GpsFixMsg)
 SYNDDS_TOPIC(imu, ImuMsg)
@@ -246,6 +257,7 @@ struct FrameGrantMsg {
   std::int64_t frame = 0;
   double sim_time_s = 0.0;  // end time of the granted frame
   Manifest manifest;        // what was published in frame - 1
+  std::vector<std::string> joiners;  // late joiners taking part from frame + 1 on
 };
 
 struct FrameDoneMsg {

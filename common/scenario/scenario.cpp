@@ -211,6 +211,7 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
     rig_node = m.required("rig");
     c.save_images = m.get_or("save_images", false);
     c.video = m.get_or("video", false);
+    c.late_join = m.get_or("late_join", false);
     m.finish();
   }
   const std::string rig = rig_node->as_string();
@@ -295,6 +296,15 @@ std::vector<std::string> Scenario::member_ids() const {
   }
   if (recorder.enabled) out.push_back(kRecorderMember);
   return out;
+}
+
+bool Scenario::is_late_member(const std::string& member_id) const {
+  for (const auto& v : vehicles) {
+    if (member_id == sensor_member(v.id) && v.has_rendered_sensors() && v.sensors->late_join) {
+      return true;
+    }
+  }
+  return false;
 }
 
 std::string vehicle_member(const std::string& id) { return "vehicle/" + id; }

@@ -59,6 +59,7 @@ struct VehicleSensorsConfig {
   sensors::SensorRig rig;
   bool save_images = false;  // camera frames as PNG (and frame metadata) in the run directory
   bool video = false;        // camera frames as an MJPG video in the run directory
+  bool late_join = false;    // the sensor process may join a run already under way
 };
 
 struct VehicleConfig {
@@ -95,6 +96,8 @@ struct Scenario {
   const VehicleConfig* find_vehicle(const std::string& id) const;
   /// Every barrier member the scenario declares, in a fixed order.
   std::vector<std::string> member_ids() const;
+  /// Members the run does not wait for at the start: they may join later (late_join).
+  bool is_late_member(const std::string& member_id) const;
 };
 
 /// Command-line overrides applied on top of the file (they change the fingerprint too).

@@ -24,7 +24,7 @@ inline int member_main(const char* name, const char* description, int argc, char
   return run_service(name, app, argc, argv, common, [&] {
     const auto s = load_scenario(common);
     const std::string member = make_member_id(s);
-    const auto options = member_options(common, debug, s);
+    const auto options = member_options(common, debug, s, member);
     record::RecorderOptions ro;
     if (recorder_options) ro = recorder_options(s, options.dds.run_id);
     auto agent = agents::make_agent(s, member, ro);

@@ -104,6 +104,13 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
   return o;
 }
 
+dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d,
+                                         const scenario::Scenario& s, const std::string& member) {
+  auto o = member_options(a, d, s);
+  o.late_join = s.is_late_member(member);
+  return o;
+}
+
 int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonArgs& common,
                 const std::function<int()>& body) {
   try {

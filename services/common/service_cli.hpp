@@ -44,6 +44,9 @@ std::string default_run_id(const scenario::Scenario& s);
 dds::DdsOptions dds_options(const CommonArgs& args, const scenario::Scenario& s);
 dds::MemberRuntimeOptions member_options(const CommonArgs& args, const DebugArgs& debug,
                                          const scenario::Scenario& s);
+/// The same for one member (late joiners get their flag).
+dds::MemberRuntimeOptions member_options(const CommonArgs& args, const DebugArgs& debug,
+                                         const scenario::Scenario& s, const std::string& member);
 
 /// Set by SIGINT / SIGTERM.
 const std::atomic<bool>& interrupted();

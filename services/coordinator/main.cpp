@@ -24,7 +24,9 @@ int main(int argc, char** argv) {
     o.dds = service::dds_options(common, s);
     o.config_fingerprint = s.fingerprint;
     o.scenario_name = s.name;
-    o.barrier.members = s.member_ids();
+    for (const auto& m : s.member_ids()) {
+      (s.is_late_member(m) ? o.barrier.late_members : o.barrier.members).push_back(m);
+    }
     o.barrier.final_frame = s.time.final_frame();
     o.barrier.heartbeat_s = s.time.heartbeat_s;
     o.barrier.join_timeout_s = s.coordinator.join_timeout_s;

@@ -63,6 +63,43 @@ proto::Manifest manifest(const std::vector<msg::TopicCount>& m) {
   return out;
 }
 
+std::vector<msg::TerrainVertex> vertices(const std::vector<proto::TerrainVertexMsg>& in) {
+  std::vector<msg::TerrainVertex> out;
+  out.reserve(in.size());
+  for (const auto& v : in) {
+    msg::TerrainVertex x;
+    x.i(v.i);
+    x.j(v.j);
+    x.height(v.height);
+    x.level_initial(v.level_initial);
+    x.sinkage_plastic(v.sinkage_plastic);
+    x.sigma_yield(v.sigma_yield);
+    out.push_back(x);
+  }
+  return out;
+}
+
+// Validated: every field finite, or ProtocolError naming the vertex and the field.
+std::vector<proto::TerrainVertexMsg> vertices(const std::vector<msg::TerrainVertex>& in,
+                                              const std::string& what) {
+  std::vector<proto::TerrainVertexMsg> out;
+  out.reserve(in.size());
+  for (const auto& v : in) {
+    for (const auto& [name, value] :
+         {std::pair{"height", v.height()}, std::pair{"level_initial", v.level_initial()},
+          std::pair{"sinkage_plastic", v.sinkage_plastic()},
+          std::pair{"sigma_yield", v.sigma_yield()}}) {
+      if (!std::isfinite(value)) {
+        throw ProtocolError(what + ": vertex (" + std::to_string(v.i()) + ", " +
+                            std::to_string(v.j()) + ") " + name + " is not finite");
+      }
+    }
+    out.push_back(
+        {v.i(), v.j(), v.height(), v.level_initial(), v.sinkage_plastic(), v.sigma_yield()});
+  }
+  return out;
+}
+
 msg::SensorStamp stamp(const proto::SensorStampMsg& s) {
   msg::SensorStamp o;
   o.sensor_id(s.sensor_id);
@@ -130,10 +167,11 @@ msg::FrameGrant to_dds(const proto::FrameGrantMsg& m) {
   o.frame(m.frame);
   o.sim_time_s(m.sim_time_s);
   o.manifest(manifest(m.manifest));
+  o.joiners(m.joiners);
   return o;
 }
 proto::FrameGrantMsg from_dds(const msg::FrameGrant& m) {
-  return proto::FrameGrantMsg{m.frame(), m.sim_time_s(), manifest(m.manifest())};
+  return proto::FrameGrantMsg{m.frame(), m.sim_time_s(), manifest(m.manifest()), m.joiners()};
 }
 
 msg::FrameDone to_dds(const proto::FrameDoneMsg& m) {
@@ -266,17 +304,7 @@ msg::TerrainDeformation to_dds(const proto::TerrainDeformationMsg& m) {
   o.frame(m.frame);
   o.source_index(m.source_index);
   o.spacing_m(m.spacing_m);
-  o.vertices().reserve(m.vertices.size());
-  for (const auto& v : m.vertices) {
-    msg::TerrainVertex x;
-    x.i(v.i);
-    x.j(v.j);
-    x.height(v.height);
-    x.level_initial(v.level_initial);
-    x.sinkage_plastic(v.sinkage_plastic);
-    x.sigma_yield(v.sigma_yield);
-    o.vertices().push_back(x);
-  }
+  o.vertices(vertices(m.vertices));
   return o;
 }
 proto::TerrainDeformationMsg from_dds(const msg::TerrainDeformation& m) {
@@ -286,21 +314,26 @@ proto::TerrainDeformationMsg from_dds(const msg::TerrainDeformation& m) {
   o.frame = m.frame();
   o.source_index = m.source_index();
   o.spacing_m = m.spacing_m();
-  o.vertices.reserve(m.vertices().size());
-  for (const auto& v : m.vertices()) {
-    for (const auto& [name, value] :
-         {std::pair{"height", v.height()}, std::pair{"level_initial", v.level_initial()},
-          std::pair{"sinkage_plastic", v.sinkage_plastic()},
-          std::pair{"sigma_yield", v.sigma_yield()}}) {
-      if (!std::isfinite(value)) {
-        throw ProtocolError("terrain_deformation from " + m.source() + ": vertex (" +
-                            std::to_string(v.i()) + ", " + std::to_string(v.j()) + ") " + name +
-                            " is not finite");
-      }
-    }
-    o.vertices.push_back(
-        {v.i(), v.j(), v.height(), v.level_initial(), v.sinkage_plastic(), v.sigma_yield()});
-  }
+  o.vertices = vertices(m.vertices(), "terrain_deformation from " + m.source());
+  return o;
+}
+
+msg::TerrainSnapshot to_dds(const proto::TerrainSnapshotMsg& m) {
+  msg::TerrainSnapshot o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.spacing_m(m.spacing_m);
+  o.vertices(vertices(m.vertices));
+  return o;
+}
+proto::TerrainSnapshotMsg from_dds(const msg::TerrainSnapshot& m) {
+  proto::TerrainSnapshotMsg o;
+  o.vehicle_id = m.vehicle_id();
+  o.source = m.source();
+  o.frame = m.frame();
+  o.spacing_m = m.spacing_m();
+  o.vertices = vertices(m.vertices(), "terrain_snapshot from " + m.source());
   return o;
 }
 

@@ -28,6 +28,9 @@ proto::DriverCommandMsg from_dds(const msg::DriverCommand& m);
 msg::TerrainDeformation to_dds(const proto::TerrainDeformationMsg& m);
 proto::TerrainDeformationMsg from_dds(const msg::TerrainDeformation& m);
 
+msg::TerrainSnapshot to_dds(const proto::TerrainSnapshotMsg& m);
+proto::TerrainSnapshotMsg from_dds(const msg::TerrainSnapshot& m);
+
 msg::CollisionEvent to_dds(const proto::CollisionEventMsg& m);
 proto::CollisionEventMsg from_dds(const msg::CollisionEvent& m);
 
@@ -53,6 +56,7 @@ struct DdsType;
 SYNDDS_DDS_TOPIC(vehicle_state, VehicleState)
 SYNDDS_DDS_TOPIC(driver_command, DriverCommand)
 SYNDDS_DDS_TOPIC(terrain_deformation, TerrainDeformation)
+SYNDDS_DDS_TOPIC(terrain_snapshot, TerrainSnapshot)
 SYNDDS_DDS_TOPIC(collision_event, CollisionEvent)
 SYNDDS_DDS_TOPIC(gps_fix, GpsFix)
 SYNDDS_DDS_TOPIC(imu, Imu)

@@ -70,6 +70,8 @@ void CoordinatorService::setup() {
   a.pid = process_id();
   a.config_fingerprint = options_.config_fingerprint;
   a.expected_members = options_.barrier.members;
+  a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
+                            options_.barrier.late_members.end());
   announce_writer_->write(to_dds(a));
 }
 
@@ -122,6 +124,9 @@ void CoordinatorService::advance_locked() {
   while (!end_) {
     auto action = barrier_->poll(now());
     if (action.kind == Kind::grant) {
+      for (const auto& j : action.grant.joiners) {
+        spdlog::info("coordinator: {} joins the run at frame {}", j, action.grant.frame + 1);
+      }
       if (action.grant.frame == 0) {
         spdlog::info("coordinator: all members joined after {:.2f} s; starting", now());
       } else if (action.grant.frame % progress_every_ == 0) {

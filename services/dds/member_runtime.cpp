@@ -277,6 +277,18 @@ int MemberRuntime::finish(const proto::RunControlMsg& control,
 void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
   while (ready_ && !stepping_ && !control_ && failure_.empty() && !grants_.empty()) {
     proto::FrameGrantMsg& front = grants_.front();
+    if (!admitted_) {
+      // A late joiner starts with the frame after the grant that names it; grants before that
+      // (also old ones replayed by TRANSIENT_LOCAL) are not its business.
+      const auto& j = front.joiners;
+      if (std::find(j.begin(), j.end(), agent_.member_id()) != j.end()) {
+        admitted_ = true;
+        next_frame_ = front.frame + 1;
+        spdlog::info("{}: admitted; taking part from frame {}", agent_.member_id(), next_frame_);
+      }
+      grants_.pop_front();
+      continue;
+    }
     if (front.frame < next_frame_) {  // duplicate
       grants_.pop_front();
       continue;
@@ -314,7 +326,8 @@ void MemberRuntime::run_frame(const proto::FrameGrantMsg& grant,
                               const proto::FrameSamples& inputs) {
   const auto t0 = Clock::now();
   proto::FrameSamples outputs;
-  const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s};
+  const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s,
+                                grant.joiners};
   agent_.step(ctx, inputs, outputs);
   proto::check_outputs(outputs, grant.frame, agent_.member_id());
   if (options_.debug_frame_delay_ms > 0) {
@@ -355,6 +368,7 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   // Frames run in pump_locked(); this thread watches for the end, failures and deadlines.
   std::unique_lock lock(mutex_);
   ready_ = true;
+  admitted_ = !options_.late_join;
   pump_locked(lock);
   std::int64_t waiting_frame = -1;
   auto waiting_since = Clock::now();

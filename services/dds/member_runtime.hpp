@@ -25,6 +25,7 @@ struct MemberRuntimeOptions {
   double join_timeout_s = 30.0;   // waiting for the coordinator's announcement
   double input_timeout_s = 10.0;  // waiting for announced samples once a frame is granted
   double final_timeout_s = 5.0;   // gathering the final frame's samples after the run ended
+  bool late_join = false;         // may join a run under way: starts after the grant naming it
 
   // Test knobs (never set by the launcher):
   int debug_frame_delay_ms = 0;    // sleep this long in every frame: a slow process
@@ -81,6 +82,7 @@ class MemberRuntime {
   bool coordinator_lost_ = false;
   bool ready_ = false;        // the coordinator was checked: frames may run
   bool stepping_ = false;     // a frame is running (in some thread)
+  bool admitted_ = false;     // takes part in the barrier (late joiners: once a grant says so)
   std::int64_t next_frame_ = 0;
   std::string failure_;       // set when a frame failed; the main thread ends the run
 

@@ -379,6 +379,59 @@ TEST(Sensors, CameraSeesTheOtherVehicleAtItsSyncedPose) {
   EXPECT_NE(imu.find(",a,imu,300,3,3,"), std::string::npos);
 }
 
+// A late joiner: vehicle a's sensor process starts while the run is under way (real time, so
+// there is time to start it). It is admitted at a frame boundary, gets a snapshot of the
+// deformed soil plus the states, and from then on renders exactly what it would have rendered
+// had it been there from the start (same images, byte for byte).
+TEST(LateJoiner, SensorProcessJoinsARunUnderWayAndSeesTheSameWorld) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/late_camera.yaml";
+  single_process_csv(run, scenario, "");  // the reference: the sensor there from frame 1
+  const fs::path out = run.dir / "distributed";
+  auto processes = plan(run, scenario, out.string(), "--realtime");
+  std::vector<Planned> sensor;
+  std::erase_if(processes, [&](const Planned& p) {
+    if (p.member != "sensor/a") return false;
+    sensor.push_back(p);
+    return true;
+  });
+  ASSERT_EQ(sensor.size(), 1u);
+  auto procs = start_all(run, processes);
+  // The run starts without it; 2 s into it the sensor process comes.
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 400; }, 30))
+      << describe_logs(procs);
+  procs.push_back(std::make_unique<Process>(sensor[0].command, run.dir / "sensor_a.log"));
+  const auto codes = wait_all(procs, 60.0);
+  for (int c : codes) EXPECT_EQ(c, 0) << describe_logs(procs);
+  EXPECT_NE(read_file(run.dir / "coordinator.log").find("sensor/a joins the run at frame"),
+            std::string::npos);
+
+  const std::string late = read_file(out / "sensors" / "a" / "frames.csv");
+  const std::string full = read_file(run.dir / "single" / "sensors" / "a" / "frames.csv");
+  std::istringstream in(late);
+  std::string line;
+  std::getline(in, line);
+  std::size_t frames = 0;
+  std::string first;
+  while (std::getline(in, line)) {
+    if (first.empty()) first = line;
+    EXPECT_NE(full.find(line + "\n"), std::string::npos) << "frame not in the reference: " << line;
+    const std::string file = line.substr(line.rfind(',') + 1);
+    EXPECT_EQ(read_file(out / "sensors" / "a" / file),
+              read_file(run.dir / "single" / "sensors" / "a" / file))
+        << file;
+    ++frames;
+  }
+  EXPECT_GT(frames, 60u);                        // it filmed the rest of the run
+  EXPECT_NE(first.rfind("front_camera,0,", 0), 0u);  // and it did start late
+  // Its copy of the soil (snapshot + every change since) equals the recorder's at the end.
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  const std::string hash = summary["terrain"]["grid_hash"];
+  EXPECT_NE(read_file(run.dir / "sensor_a.log").find("terrain grid hash " + hash),
+            std::string::npos)
+      << read_file(run.dir / "sensor_a.log") << " vs " << hash;
+}
+
 TEST(Cli, BadScenariosGiveClearErrors) {
   TestRun run;
   struct Case {

@@ -230,3 +230,53 @@ TEST(Barrier, FrameWithALostMemberIsNotComplete) {
   EXPECT_EQ(a.control.final_frame, 0);
   EXPECT_TRUE(a.control.final_manifest.empty());
 }
+
+// A late member is not waited for at the start; once it announces itself it is admitted at a
+// frame boundary (named in that grant's joiners, a snapshot is due) and counted from the next
+// frame on.
+TEST(Barrier, LateMemberIsAdmittedAtAFrameBoundary) {
+  auto c = config(100);
+  c.late_members = {"sensor/a"};
+  c.late_join_delay_s = 0.5;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  auto g = b.poll(0.0);
+  ASSERT_EQ(g.kind, Kind::grant);
+  EXPECT_TRUE(g.grant.joiners.empty());
+  auto finish_frame = [&](std::int64_t f, double t) {
+    for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, f), t);
+  };
+  finish_frame(0, 0.1);
+  ASSERT_EQ(b.poll(0.1).kind, Kind::grant);  // frame 1
+  EXPECT_EQ(b.on_join("sensor/a", 0.2), "");
+  finish_frame(1, 0.3);
+  auto g2 = b.poll(0.3);  // frame 2: too early to admit (0.1 s after its announcement)
+  ASSERT_EQ(g2.kind, Kind::grant);
+  EXPECT_TRUE(g2.grant.joiners.empty());
+  finish_frame(2, 0.8);
+  auto g3 = b.poll(0.8);  // frame 3 names it: it takes part from frame 4 on
+  ASSERT_EQ(g3.kind, Kind::grant);
+  EXPECT_EQ(g3.grant.joiners, std::vector<std::string>{"sensor/a"});
+  finish_frame(3, 0.9);
+  ASSERT_EQ(b.poll(0.9).kind, Kind::grant);  // frame 4
+  finish_frame(4, 1.0);
+  EXPECT_EQ(b.poll(1.0).kind, Kind::wait);   // waits for the newcomer now
+  EXPECT_EQ(b.pending_members(), std::vector<std::string>{"sensor/a"});
+  b.on_done(done("sensor/a", 4), 1.0);
+  EXPECT_EQ(b.poll(1.0).kind, Kind::grant);
+}
+
+TEST(Barrier, LateMemberPresentAtTheStartBeginsAtFrameOne) {
+  auto c = config(10);
+  c.late_members = {"sensor/a"};
+  Barrier b(c, 0.0);
+  b.on_join("sensor/a", 0.0);
+  join_all(b, 0.0);
+  auto g = b.poll(0.0);
+  ASSERT_EQ(g.kind, Kind::grant);
+  EXPECT_EQ(g.grant.joiners, std::vector<std::string>{"sensor/a"});
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 0 did not wait for it
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 1), 0.0);
+  EXPECT_EQ(b.poll(0.0).kind, Kind::wait);   // frame 1 does
+}
