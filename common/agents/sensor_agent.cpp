@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "agents/scm_messages.hpp"
 #include "agents/sensor_messages.hpp"
 #include "core/error.hpp"
 
@@ -128,21 +129,11 @@ void SensorAgent::update_world(const proto::FrameSamples& inputs) {
     // The soil copy merges every list by the SCM rule; the scene shows the merged heights.
     std::vector<sensors::HeightUpdate> updates;
     for (const auto& snap : inputs.terrain_snapshots) {  // a late joiner's starting point
-      scm::ScmSnapshot s;
-      s.spacing_m = snap.spacing_m;
-      for (const auto& v : snap.vertices) {
-        s.vertices.push_back({v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield});
-      }
-      soil_->load_snapshot(s);
+      soil_->load_snapshot({snap.spacing_m, from_messages(snap.vertices)});
       for (const auto& v : snap.vertices) render_vertex(v.i, v.j, updates);
     }
-    std::vector<scm::VertexChange> changes;
     for (const auto& d : inputs.terrain_deformations) {
-      changes.clear();
-      for (const auto& v : d.vertices) {
-        changes.push_back({v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield});
-      }
-      soil_->apply_remote_changes(d.source_index, changes);
+      soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
     }
     for (const auto& d : inputs.terrain_deformations) {
       for (const auto& v : d.vertices) render_vertex(v.i, v.j, updates);

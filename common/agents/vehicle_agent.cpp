@@ -44,14 +44,6 @@ std::string validate_command(const proto::DriverCommandMsg& cmd) {
   return "";
 }
 
-proto::TerrainVertexMsg to_message(const scm::VertexChange& v) {
-  return {v.i, v.j, v.level_m, v.level_initial_m, v.sinkage_plastic_m, v.sigma_yield_pa};
-}
-
-scm::VertexChange from_message(const proto::TerrainVertexMsg& v) {
-  return {v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield};
-}
-
 std::uint32_t member_rank(const scenario::Scenario& s, const std::string& member_id) {
   const auto members = s.member_ids();
   const auto it = std::find(members.begin(), members.end(), member_id);
@@ -105,13 +97,9 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
                         proto::FrameSamples& outputs) {
   if (soil_) {
     // The other vehicles' deformations of frame k-1, merged by the SCM rule (order-free).
-    std::vector<scm::VertexChange> changes;
     for (const auto& d : inputs.terrain_deformations) {
       if (d.vehicle_id == vehicle_id_) continue;  // our own, applied in place already
-      changes.clear();
-      changes.reserve(d.vertices.size());
-      for (const auto& v : d.vertices) changes.push_back(from_message(v));
-      soil_->apply_remote_changes(d.source_index, changes);
+      soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
     }
     if (hash_log_ && ctx.frame > 0) {
       std::fprintf(hash_log_.get(), "%lld %016llx\n", static_cast<long long>(ctx.frame - 1),

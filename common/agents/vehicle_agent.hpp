@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "agents/scm_messages.hpp"
 #include "protocol/agent.hpp"
 #include "scm/scm_terrain.hpp"
 #include "sensors/rig.hpp"
@@ -18,10 +19,6 @@ namespace syndds::agents {
 std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(
     const scenario::Scenario& scenario, const scenario::VehicleConfig& config,
     std::shared_ptr<scm::ScmTerrain> scm = nullptr);
-
-/// Converts between the SCM library's vertex records and the wire message.
-proto::TerrainVertexMsg to_message(const scm::VertexChange& v);
-scm::VertexChange from_message(const proto::TerrainVertexMsg& v);
 
 /// The rank of a member in the scenario's member list: the tie-break of the SCM merge rule.
 std::uint32_t member_rank(const scenario::Scenario& scenario, const std::string& member_id);

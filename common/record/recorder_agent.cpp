@@ -6,6 +6,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "agents/scm_messages.hpp"
 #include "core/error.hpp"
 #include "scm/scm_images.hpp"
 
@@ -166,13 +167,8 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
   flush();
   if (soil_) {
     std::uint64_t frame_bytes = 0;
-    std::vector<scm::VertexChange> changes;
     for (const auto& d : samples.terrain_deformations) {
-      changes.clear();
-      for (const auto& v : d.vertices) {
-        changes.push_back({v.i, v.j, v.height, v.level_initial, v.sinkage_plastic, v.sigma_yield});
-      }
-      soil_->apply_remote_changes(d.source_index, changes);
+      soil_->apply_remote_changes(d.source_index, agents::from_messages(d.vertices));
       frame_bytes += d.vertices.size() * sizeof(proto::TerrainVertexMsg);
     }
     terrain_bytes_ += frame_bytes;
