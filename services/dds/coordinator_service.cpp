@@ -37,6 +37,14 @@ void CoordinatorService::setup() {
   participant_ = std::make_unique<Participant>(options_.dds);
   participant_->set_lost_callback(
       [this](const std::string& guid, bool graceful) { on_lost(guid, graceful); });
+  // Writers before readers: a reader's callback may decide a grant at once (members that
+  // announced themselves before the coordinator started are delivered as soon as it matches).
+  grant_writer_ =
+      participant_->make_writer<msg::FrameGrant>(topics::kFrameGrant, profiles::kProtocolWriter);
+  control_writer_ =
+      participant_->make_writer<msg::RunControl>(topics::kRunControl, profiles::kProtocolWriter);
+  announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
+                                                                    profiles::kProtocolWriter);
   announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
       topics::kMemberAnnounce, profiles::kProtocolReader, [this](msg::MemberAnnounce&& m) {
         if (m.kind() == msg::MEMBER_COORDINATOR) return;
@@ -55,12 +63,6 @@ void CoordinatorService::setup() {
                         e.what());
         }
       });
-  grant_writer_ =
-      participant_->make_writer<msg::FrameGrant>(topics::kFrameGrant, profiles::kProtocolWriter);
-  control_writer_ =
-      participant_->make_writer<msg::RunControl>(topics::kRunControl, profiles::kProtocolWriter);
-  announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
-                                                                    profiles::kProtocolWriter);
   proto::MemberAnnounceMsg a;
   a.member_id = "coordinator";
   a.kind = proto::MemberKind::coordinator;
