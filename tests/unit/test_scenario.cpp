@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include "scenario/scenario.hpp"
@@ -164,4 +165,18 @@ TEST(Scenario, FullDynamicsIsAccepted) {
   text.replace(text.find("dynamics: full"), 14, "dynamics: magic");
   EXPECT_NE(error_of(text).find("vehicles[0].dynamics: must be one of [reduced, full]"),
             std::string::npos);
+}
+
+// Every scenario shipped in config/scenarios loads (vehicle files, rigs, height maps, presets).
+TEST(Scenario, EveryShippedScenarioLoads) {
+  std::size_t n = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kConfigDir + "/scenarios")) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    const auto s = load_scenario(entry.path().string());
+    EXPECT_FALSE(s.vehicles.empty());
+    EXPECT_FALSE(s.member_ids().empty());
+    ++n;
+  }
+  EXPECT_GE(n, 5u);
 }
