@@ -42,12 +42,17 @@ while [ $# -gt 0 ]; do
 done
 
 stem=$(basename "$SCENARIO" .yaml)
+stem=${stem//[^A-Za-z0-9_.-]/_}
 stamp=$(date +%Y%m%d-%H%M%S)
 [ -n "$OUTPUT" ] || OUTPUT="runs/$stem-$stamp"
 [ -n "$RUN_ID" ] || RUN_ID="$stem-$stamp-$$"
 
 if [ "$SINGLE" = 1 ]; then
-  [ "$PRINT" = 1 ] && { echo "$BIN/syndds_sim $SCENARIO --output $OUTPUT ${PASS[*]}"; exit 0; }
+  if [ "$PRINT" = 1 ]; then
+    printf '%q ' "$BIN/syndds_sim" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" "${PASS[@]}"
+    echo
+    exit 0
+  fi
   "$BIN/syndds_sim" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" "${PASS[@]}"
   rc=$?
   [ $rc -eq 0 ] && echo "output: $OUTPUT"
@@ -64,6 +69,16 @@ plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bi
 mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
 : > "$OUTPUT/logs/pids"
 names=(); pids=(); codes=()
+# From here on no child may outlive the launcher: signals are noted and handled by the watch
+# loop below, and whatever ends the script kills what is still running.
+interrupted=0
+trap 'interrupted=1' INT TERM HUP
+kill_children() {
+  for i in "${!pids[@]}"; do
+    [ -z "${codes[$i]}" ] && kill -KILL "${pids[$i]}" 2>/dev/null
+  done
+}
+trap kill_children EXIT
 while IFS=$'\t' read -r member cmd; do
   [ -n "$member" ] || continue
   log="$OUTPUT/logs/${member//\//_}.log"
@@ -78,8 +93,6 @@ stop_all() {  # $1 = signal
     [ -z "${codes[$i]}" ] && kill "-$1" "${pids[$i]}" 2>/dev/null
   done
 }
-interrupted=0
-trap 'interrupted=1' INT TERM
 
 failed=""; deadline=0; killed=0
 while :; do
@@ -92,7 +105,8 @@ while :; do
       wait "${pids[$i]}"; codes[$i]=$?
       if [ "${codes[$i]}" -ne 0 ] && [ -z "$failed" ]; then
         failed="${names[$i]} exited with status ${codes[$i]}"
-        [ "${codes[$i]}" -gt 128 ] && failed="${names[$i]} was killed by signal $((codes[$i] - 128))"
+        [ "${codes[$i]}" -eq 130 ] && failed="${names[$i]} was interrupted"
+        [ "${codes[$i]}" -gt 130 ] && failed="${names[$i]} was killed by signal $((codes[$i] - 128))"
         deadline=$((SECONDS + GRACE_S))
       fi
     fi
@@ -105,7 +119,11 @@ while :; do
   fi
   if [ -n "$failed" ] && [ $SECONDS -ge $deadline ] && [ $deadline -gt 0 ]; then
     if [ $killed -lt 2 ]; then
-      echo "run_scenario: processes still running ${GRACE_S} s after a failure; stopping them" >&2
+      if [ $interrupted = 1 ]; then
+        echo "run_scenario: processes still running 5 s after the interrupt; stopping them" >&2
+      else
+        echo "run_scenario: processes still running ${GRACE_S} s after a failure; stopping them" >&2
+      fi
       stop_all TERM; killed=2; deadline=$((SECONDS + 5))
     else
       stop_all KILL; deadline=0
@@ -113,7 +131,7 @@ while :; do
   fi
   sleep 0.1
 done
-trap - INT TERM
+trap - INT TERM HUP EXIT
 
 summary="$OUTPUT/summary.txt"
 if [ -z "$failed" ]; then

@@ -113,7 +113,8 @@ std::vector<std::string> Barrier::admit_joiners(std::int64_t frame, double now_s
 Manifest Barrier::collect_manifest() const {
   Manifest out;
   for (const auto& [name, m] : members_) {
-    if (!m.done) continue;
+    // A member that left (continue policy) is not announced: its samples may never arrive.
+    if (!m.done || m.left) continue;
     out.insert(out.end(), m.published.begin(), m.published.end());
   }
   std::sort(out.begin(), out.end(), [](const TopicCount& a, const TopicCount& b) {
@@ -123,8 +124,10 @@ Manifest Barrier::collect_manifest() const {
 }
 
 Barrier::Action Barrier::abort_with(const std::string& reason, double now_s) {
-  if (phase_ == Phase::running && everyone_done()) last_completed_ = frame_;
-  const bool data_unconsumed = phase_ == Phase::running && last_completed_ == frame_;
+  if (phase_ == Phase::running && everyone_done() && last_completed_ != frame_) {
+    last_completed_ = frame_;
+    last_manifest_ = collect_manifest();
+  }
   phase_ = Phase::aborted;
   end_s_ = now_s;
   Action a;
@@ -132,9 +135,9 @@ Barrier::Action Barrier::abort_with(const std::string& reason, double now_s) {
   a.control.status = RunStatus::aborted;
   a.control.reason = reason;
   a.control.final_frame = last_completed_;
-  // Samples of the last completed frame have not been consumed by anyone yet: announce them
-  // so the recorder can keep that frame too.
-  if (data_unconsumed) a.control.final_manifest = collect_manifest();
+  // The last complete frame's samples: members that have not consumed them yet (the recorder
+  // in the middle of the next frame, or nobody yet) keep that frame too; the others skip it.
+  a.control.final_manifest = last_manifest_;
   a.control.stats = stats(now_s);
   announced_end_ = true;
   return a;
@@ -193,6 +196,7 @@ Barrier::Action Barrier::poll(double now_s) {
   }
   last_completed_ = frame_;
   const Manifest manifest = collect_manifest();
+  last_manifest_ = manifest;
   if (frame_ >= config_.final_frame) {
     phase_ = Phase::stopped;
     end_s_ = now_s;

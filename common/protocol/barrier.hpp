@@ -94,6 +94,7 @@ class Barrier {
   double end_s_ = 0.0;
   std::int64_t frame_ = -1;      // current (last granted) frame
   std::int64_t last_completed_ = -1;  // last frame every live member reported done
+  Manifest last_manifest_;            // what was published in last_completed_
   std::string last_done_member_;
   std::optional<std::string> pending_abort_;
   bool announced_end_ = false;

@@ -201,7 +201,8 @@ std::string resolve_model_file(const YamlNode& node, const std::string& model,
 }
 
 // `sensors: default` (a rig name or file) or `sensors: {rig: default, save_images: true, video: false}`.
-VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::string& config_dir) {
+VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::string& config_dir,
+                                           double heartbeat_s) {
   VehicleSensorsConfig c;
   std::optional<YamlNode> rig_node;
   if (node.is_scalar()) {
@@ -219,10 +220,27 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
   if (!fs::exists(file)) file = (fs::path(node.file()).parent_path() / rig).string();
   if (!fs::exists(file)) rig_node->fail("sensor rig not found: " + rig);
   c.rig = sensors::load_sensor_rig(file);
+  // The DDS history keeps 32 samples per sensor type, vehicle and frame (two frames in flight).
+  auto per_frame = [&](const auto& list) {
+    double n = 0;
+    for (const auto& sensor : list) n += std::ceil(sensor.rate_hz * heartbeat_s - 1e-9);
+    return n;
+  };
+  for (const auto& [kind, n] : {std::pair{"gps", per_frame(c.rig.gps)},
+                                std::pair{"imu", per_frame(c.rig.imus)},
+                                std::pair{"magnetometer", per_frame(c.rig.magnetometers)},
+                                std::pair{"tachometer", per_frame(c.rig.tachometers)}}) {
+    if (n > 32) {
+      rig_node->fail(std::string("rig ") + file + ": its " + kind + " sensors make " +
+                     std::to_string(static_cast<int>(n)) +
+                     " samples per frame; at most 32 fit (lower rate_hz or heartbeat_s)");
+    }
+  }
   return c;
 }
 
-VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir) {
+VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
+                            double heartbeat_s) {
   MapReader m(node);
   VehicleConfig v;
   auto id_node = m.required("id");
@@ -235,7 +253,9 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir)
   v.params = vehicle::load_vehicle_params(resolve_model_file(model_node, v.model, config_dir));
   v.dynamics = m.choice("dynamics", "reduced", {"reduced", "full"});
   auto start = m.optional("start");
-  if (auto n = m.optional("sensors")) v.sensors = parse_vehicle_sensors(*n, config_dir);
+  if (auto n = m.optional("sensors")) {
+    v.sensors = parse_vehicle_sensors(*n, config_dir, heartbeat_s);
+  }
   if (auto c = m.optional("controller")) {
     v.controller = parse_controller(*c);
   } else {
@@ -340,7 +360,7 @@ Scenario parse_scenario(const YamlNode& root, const std::string& text, const Ove
   auto vehicles = m.required("vehicles");
   std::set<std::string> ids;
   for (const auto& v : vehicles.elements()) {
-    s.vehicles.push_back(parse_vehicle(v, config_dir));
+    s.vehicles.push_back(parse_vehicle(v, config_dir, s.time.heartbeat_s));
     if (!ids.insert(s.vehicles.back().id).second) {
       v.fail("duplicate vehicle id '" + s.vehicles.back().id + "'");
     }

@@ -31,11 +31,14 @@ inline int member_main(const char* name, const char* description, int argc, char
     if (configure) configure(*agent);
     dds::MemberRuntime runtime(*agent, options);
     const int code = runtime.run(interrupted());
-    exit_with_on_teardown_abort(code);
     if (code == dds::kExitCompleted) {
       spdlog::info("{}: run completed", member);
     } else {
       spdlog::error("{}: run ended: {}", member, runtime.end_reason());
+    }
+    {
+      DdsTeardownGuard guard(code);
+      runtime.close();
     }
     return code;
   });

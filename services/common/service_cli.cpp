@@ -5,7 +5,9 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <csignal>
+#include <regex>
 #include <filesystem>
 #include <iostream>
 
@@ -18,16 +20,23 @@ std::atomic<bool> g_interrupted{false};
 volatile std::sig_atomic_t g_teardown_code = 0;
 
 extern "C" void on_signal(int) { g_interrupted.store(true); }
-extern "C" void on_teardown_abort(int) { _exit(g_teardown_code); }
+extern "C" void on_teardown_abort(int) {
+  static const char note[] = "note: Fast DDS aborted while shutting down (known 2.9.1 assertion); "
+                             "the run's outcome was already delivered\n";
+  [[maybe_unused]] const auto n = write(2, note, sizeof note - 1);
+  _exit(g_teardown_code);
+}
 
 }  // namespace
 
 const std::atomic<bool>& interrupted() { return g_interrupted; }
 
-void exit_with_on_teardown_abort(int code) {
+DdsTeardownGuard::DdsTeardownGuard(int code) {
   g_teardown_code = code;
   std::signal(SIGABRT, on_teardown_abort);
 }
+
+DdsTeardownGuard::~DdsTeardownGuard() { std::signal(SIGABRT, SIG_DFL); }
 
 void add_common_options(CLI::App& app, CommonArgs& a) {
   app.add_option("scenario", a.scenario_file, "Scenario YAML file")->required();
@@ -75,13 +84,21 @@ scenario::Scenario load_scenario(const CommonArgs& a) {
 std::string default_run_id(const scenario::Scenario& s) {
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(s.fingerprint));
-  return s.name + "-" + std::string(hex).substr(0, 8);
+  std::string name = s.name.substr(0, 48);
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '.' && c != '-') c = '_';
+  }
+  return name + "-" + std::string(hex).substr(0, 8);
 }
 
 dds::DdsOptions dds_options(const CommonArgs& a, const scenario::Scenario& s) {
   dds::DdsOptions d;
   d.domain_id = s.dds.domain_id;
   d.run_id = a.run_id.empty() ? default_run_id(s) : a.run_id;
+  // The run id becomes a DDS partition name, where * ? [ would match other runs.
+  if (!std::regex_match(d.run_id, std::regex("[A-Za-z0-9_.-]{1,64}"))) {
+    throw ConfigError("--run-id '" + d.run_id + "': use 1-64 characters of [A-Za-z0-9_.-]");
+  }
   d.transport = s.dds.transport;
   d.discovery_server = s.dds.discovery_server;
   d.profiles_file =

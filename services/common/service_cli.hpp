@@ -51,11 +51,17 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& args, const DebugArgs
 /// Set by SIGINT / SIGTERM.
 const std::atomic<bool>& interrupted();
 
-/// Call once the run's outcome is decided and delivered, before the DDS entities are torn down:
-/// Fast DDS 2.9.1 (Debian, assertions on) can abort in PDP::check_remote_participant_liveliness
-/// while many participants leave at once. Such an abort then ends the process with `code`
-/// instead of SIGABRT: nothing is left to deliver at that point.
-void exit_with_on_teardown_abort(int code);
+/// Scope of the DDS teardown, after the run's outcome was decided and delivered: Fast DDS 2.9.1
+/// (Debian, assertions on) can abort in PDP::check_remote_participant_liveliness while many
+/// participants leave at once. An abort inside this scope (and only there) ends the process
+/// with `code` and a note on stderr instead of SIGABRT; nothing is left to deliver by then.
+class DdsTeardownGuard {
+ public:
+  explicit DdsTeardownGuard(int code);
+  ~DdsTeardownGuard();
+  DdsTeardownGuard(const DdsTeardownGuard&) = delete;
+  DdsTeardownGuard& operator=(const DdsTeardownGuard&) = delete;
+};
 
 /// Parses the command line, sets up logging and signals, calls `body`, and maps exceptions to
 /// exit codes: ConfigError -> 1 (message names file:line:key), anything else -> 3.

@@ -35,7 +35,10 @@ int main(int argc, char** argv) {
     o.barrier.realtime = s.time.realtime;
     sdds::CoordinatorService coordinator(o);
     const int code = coordinator.run(service::interrupted());
-    service::exit_with_on_teardown_abort(code);
+    {
+      service::DdsTeardownGuard guard(code);
+      coordinator.close();
+    }
     return code;
   });
 }

@@ -20,7 +20,9 @@ double seconds_since(Clock::time_point t0) {
 
 CoordinatorService::CoordinatorService(CoordinatorOptions options) : options_(std::move(options)) {}
 
-CoordinatorService::~CoordinatorService() {
+CoordinatorService::~CoordinatorService() { close(); }
+
+void CoordinatorService::close() {
   // Stop every DDS callback into this object before its members go (see MemberRuntime).
   if (participant_) participant_->set_lost_callback(nullptr);
   announce_reader_.reset();
@@ -51,7 +53,7 @@ void CoordinatorService::setup() {
         try {
           on_join(from_dds(m));
         } catch (const std::exception& e) {
-          spdlog::error("coordinator: dropped malformed member_announce: {}", e.what());
+          malformed("member_announce from " + m.member_id(), e.what());
         }
       });
   done_reader_ = participant_->make_reader<msg::FrameDone>(
@@ -59,8 +61,7 @@ void CoordinatorService::setup() {
         try {
           on_done(from_dds(m));
         } catch (const std::exception& e) {
-          spdlog::error("coordinator: dropped malformed frame_done from {}: {}", m.member_id(),
-                        e.what());
+          malformed("frame_done from " + m.member_id(), e.what());
         }
       });
   proto::MemberAnnounceMsg a;
@@ -75,6 +76,14 @@ void CoordinatorService::setup() {
   a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
                             options_.barrier.late_members.end());
   announce_writer_->write(to_dds(a));
+}
+
+// A malformed protocol message aborts the run naming it (ignoring it would end in a deadline
+// that blames the wrong member).
+void CoordinatorService::malformed(const std::string& what, const std::string& error) {
+  std::lock_guard lock(mutex_);
+  barrier_->on_interrupt("malformed " + what + ": " + error, now());
+  advance_locked();
 }
 
 void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {

@@ -29,6 +29,8 @@ class CoordinatorService {
 
   /// Runs the whole run; returns 0 when it completed, 2 when aborted, 130 when interrupted.
   int run(const std::atomic<bool>& interrupt);
+  /// Tears the DDS entities down (also done by the destructor); idempotent.
+  void close();
   const proto::RunControlMsg& result() const { return result_; }
 
  private:
@@ -40,6 +42,7 @@ class CoordinatorService {
   void on_join(const proto::MemberAnnounceMsg& announce);
   void on_done(const proto::FrameDoneMsg& done);
   void on_lost(const std::string& guid, bool graceful);
+  void malformed(const std::string& what, const std::string& error);
   void advance_locked();
   void wait_for_finished(std::unique_lock<std::mutex>& lock);
 

@@ -37,14 +37,34 @@ void write_all(W& writer, const Samples& samples, const char* topic, const std::
   }
 }
 
+// Interoceptive sensors may write several samples per key and frame (an IMU at the dynamics
+// rate): their writers keep a deeper history.
+const char* writer_profile(proto::Topic t) {
+  switch (t) {
+    case proto::Topic::gps_fix:
+    case proto::Topic::imu:
+    case proto::Topic::magnetometer:
+    case proto::Topic::wheel_speeds:
+      return profiles::kSensorWriter;
+    default:
+      return profiles::kDataWriter;
+  }
+}
+
 }  // namespace
 
 MemberRuntime::MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options)
     : agent_(agent), options_(std::move(options)), inbox_(agent.subscriptions()) {}
 
-MemberRuntime::~MemberRuntime() {
+MemberRuntime::~MemberRuntime() { close(); }
+
+void MemberRuntime::close() {
   // Stop every DDS callback into this object before its members go: the lost-participant
   // callback, then the readers, then the writers, and the participant last.
+  {
+    std::unique_lock lock(mutex_);
+    stop_frames(lock);
+  }
   if (participant_) participant_->set_lost_callback(nullptr);
   announce_reader_.reset();
   grant_reader_.reset();
@@ -67,12 +87,17 @@ void MemberRuntime::setup() {
   });
 
   // Readers before writers and before the announcement, so nothing addressed to us is missed.
+  // A malformed sample (protocol or data) ends this member with the reason: dropping it would
+  // only turn into a timeout later that names the wrong cause.
   auto guard = [this](const char* topic, auto&& fn) {
     try {
       fn();
     } catch (const std::exception& e) {
       std::lock_guard lock(mutex_);
-      spdlog::error("{}: dropped malformed {} sample: {}", agent_.member_id(), topic, e.what());
+      if (failure_.empty()) {
+        failure_ = std::string("received a malformed ") + topic + " sample: " + e.what();
+      }
+      cv_.notify_all();
     }
   };
   announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
@@ -81,7 +106,12 @@ void MemberRuntime::setup() {
           if (m.kind() != msg::MEMBER_COORDINATOR) return;
           auto a = from_dds(m);
           std::lock_guard lock(mutex_);
-          coordinator_ = std::move(a);
+          if (!coordinator_) {
+            coordinator_ = std::move(a);
+          } else if (coordinator_->participant_guid != a.participant_guid && failure_.empty()) {
+            failure_ = "a second coordinator (pid " + std::to_string(a.pid) + " on " + a.host +
+                       ") announced run '" + a.run_id + "'";
+          }
           cv_.notify_all();
         });
       });
@@ -143,7 +173,7 @@ void MemberRuntime::setup() {
     }
     if (std::find(publications.begin(), publications.end(), T) != publications.end()) {
       std::get<static_cast<std::size_t>(T)>(data_writers_) =
-          participant_->make_writer<Dds>(name, profiles::kDataWriter, agent_.vehicle_key());
+          participant_->make_writer<Dds>(name, writer_profile(T), agent_.vehicle_key());
     }
   });
   done_writer_ = participant_->make_writer<msg::FrameDone>(topics::kFrameDone,
@@ -217,9 +247,13 @@ bool MemberRuntime::wait_inputs(std::int64_t frame, const proto::Manifest& manif
   return true;
 }
 
-void MemberRuntime::flush_writers(double timeout_s) {
-  std::apply([&](auto&... w) { ((w ? w->wait_for_acknowledgments(timeout_s) : true), ...); },
-             data_writers_);
+bool MemberRuntime::flush_writers(double timeout_s) {
+  bool all = true;
+  auto flush = [&](auto& w) {
+    if (w && !w->wait_for_acknowledgments(timeout_s)) all = false;
+  };
+  std::apply([&](auto&... w) { (flush(w), ...); }, data_writers_);
+  return all;
 }
 
 void MemberRuntime::publish(const proto::FrameSamples& out) {
@@ -241,20 +275,38 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
-int MemberRuntime::finish(const proto::RunControlMsg& control,
+void MemberRuntime::stop_frames(std::unique_lock<std::mutex>& lock) {
+  stopping_ = true;
+  while (stepping_) cv_.wait_for(lock, kPollInterval);
+}
+
+int MemberRuntime::finish(const proto::RunControlMsg& announced,
                           const std::atomic<bool>& interrupt) {
+  proto::RunControlMsg control = announced;
   proto::FrameSamples final_inputs;
-  if (control.final_frame >= 0 && !control.final_manifest.empty()) {
+  int code = control.status == proto::RunStatus::completed ? kExitCompleted : kExitAborted;
+  bool already_taken = false;
+  {
+    std::lock_guard lock(mutex_);
+    already_taken = control.final_frame <= inbox_.last_taken_frame();
+  }
+  if (control.final_frame >= 0 && !control.final_manifest.empty() && !already_taken) {
     const bool complete = wait_inputs(control.final_frame, control.final_manifest,
                                       options_.final_timeout_s, interrupt);
     std::lock_guard lock(mutex_);
     if (complete) {
       final_inputs = inbox_.take(control.final_frame, control.final_manifest);
     } else {
-      // Never hand out a partial frame: the agent ends with the last complete one.
-      spdlog::warn("{}: final frame {} incomplete, not used: {}", agent_.member_id(),
-                   control.final_frame,
-                   inbox_.describe_missing(control.final_frame, control.final_manifest));
+      // Never hand out a partial frame: the agent ends with the last complete one, and says so.
+      const std::string missing =
+          inbox_.describe_missing(control.final_frame, control.final_manifest);
+      spdlog::error("{}: final frame {} incomplete, not used: {}", agent_.member_id(),
+                    control.final_frame, missing);
+      control.status = proto::RunStatus::aborted;
+      control.reason = (control.reason.empty() ? "" : control.reason + "; ") + "final frame " +
+                       std::to_string(control.final_frame) + " incomplete at " +
+                       agent_.member_id() + ": " + missing;
+      code = kExitFailed;
     }
   }
   agent_.finish(proto::RunEnd{control}, final_inputs);
@@ -262,20 +314,24 @@ int MemberRuntime::finish(const proto::RunControlMsg& control,
   try {
     // Whatever this member wrote must reach its readers before the process (and its shared
     // memory segments) goes away: a sample still in flight when the writer disappears is lost.
-    flush_writers(2.0);
+    if (!flush_writers(2.0)) {
+      spdlog::warn("{}: not every reader acknowledged this member's last samples within 2 s",
+                   agent_.member_id());
+    }
     send_done(control.final_frame, {}, 0.0, true);
     done_writer_->wait_for_acknowledgments(2.0);
   } catch (const std::exception& e) {
     spdlog::warn("{}: could not confirm the end of the run: {}", agent_.member_id(), e.what());
   }
-  return control.status == proto::RunStatus::completed ? kExitCompleted : kExitAborted;
+  return code;
 }
 
 // Runs every granted frame whose inputs are complete, in the calling thread: the DDS receive
 // thread that delivered the last missing piece (grant or sample), or the main thread. This saves
 // a thread hop per frame. One frame runs at a time (stepping_); called with mutex_ held.
 void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
-  while (ready_ && !stepping_ && !control_ && failure_.empty() && !grants_.empty()) {
+  while (ready_ && !stepping_ && !stopping_ && !control_ && failure_.empty() &&
+         !grants_.empty()) {
     proto::FrameGrantMsg& front = grants_.front();
     if (!admitted_) {
       // A late joiner starts with the frame after the grant that names it; grants before that
@@ -362,8 +418,11 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   if (!wait_for_coordinator(interrupt)) {
     return local_abort(end_reason_, interrupt.load() ? kExitInterrupted : kExitFailed);
   }
-  spdlog::info("{}: joined run '{}' (coordinator on {})", agent_.member_id(), options_.dds.run_id,
-               coordinator_->host);
+  {
+    std::lock_guard lock(mutex_);
+    spdlog::info("{}: joined run '{}' (coordinator on {})", agent_.member_id(),
+                 options_.dds.run_id, coordinator_->host);
+  }
 
   // Frames run in pump_locked(); this thread watches for the end, failures and deadlines.
   std::unique_lock lock(mutex_);
@@ -375,21 +434,27 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   while (true) {
     cv_.wait_for(lock, kPollInterval);
     if (stepping_) continue;  // let the running frame finish first
+    // Every way out first stops frames from starting in DDS threads (and waits for one that
+    // runs): the agent's finish() must never overlap a step.
     if (control_) {
       const proto::RunControlMsg control = *control_;
+      stop_frames(lock);
       lock.unlock();
       return finish(control, interrupt);
     }
     if (!failure_.empty()) {
       const std::string failure = failure_;
+      stop_frames(lock);
       lock.unlock();
       return local_abort(failure, kExitFailed);
     }
     if (interrupt.load()) {
+      stop_frames(lock);
       lock.unlock();
       return local_abort("interrupted", kExitInterrupted);
     }
     if (coordinator_lost_) {
+      stop_frames(lock);
       lock.unlock();
       return local_abort("the coordinator was lost (its process exited or stopped answering)",
                          kExitFailed);
@@ -406,9 +471,11 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
       waiting_since = Clock::now();
     } else if (std::chrono::duration<double>(Clock::now() - waiting_since).count() >
                options_.input_timeout_s) {
-      const std::string missing = inbox_.describe_missing(grant.frame - 1, grant.manifest);
+      const std::int64_t frame = grant.frame;
+      const std::string missing = inbox_.describe_missing(frame - 1, grant.manifest);
+      stop_frames(lock);
       lock.unlock();
-      return local_abort("frame " + std::to_string(grant.frame) +
+      return local_abort("frame " + std::to_string(frame) +
                              ": announced inputs missing after " +
                              std::to_string(options_.input_timeout_s) + " s: " + missing,
                          kExitFailed);

@@ -50,6 +50,8 @@ class MemberRuntime {
 
   /// Runs until the run ends; returns an ExitCode. `interrupt` is polled (signals).
   int run(const std::atomic<bool>& interrupt);
+  /// Tears the DDS entities down (also done by the destructor); idempotent.
+  void close();
 
   /// Why the run ended (for logs): the coordinator's reason or this member's own.
   const std::string& end_reason() const { return end_reason_; }
@@ -64,10 +66,12 @@ class MemberRuntime {
   void pump_locked(std::unique_lock<std::mutex>& lock);
   void run_frame(const proto::FrameGrantMsg& grant, const proto::FrameSamples& inputs);
   void publish(const proto::FrameSamples& out);
-  void flush_writers(double timeout_s);
+  bool flush_writers(double timeout_s);  // true when every reader acknowledged everything
   void send_done(std::int64_t frame, const proto::Manifest& published, double compute_s,
                  bool finished);
   int finish(const proto::RunControlMsg& control, const std::atomic<bool>& interrupt);
+  /// Stops frames from starting and waits for a running one; returns with `lock` held.
+  void stop_frames(std::unique_lock<std::mutex>& lock);
 
   proto::Agent& agent_;
   MemberRuntimeOptions options_;
@@ -83,6 +87,7 @@ class MemberRuntime {
   bool ready_ = false;        // the coordinator was checked: frames may run
   bool stepping_ = false;     // a frame is running (in some thread)
   bool admitted_ = false;     // takes part in the barrier (late joiners: once a grant says so)
+  bool stopping_ = false;     // the run is ending here: no frame may start any more
   std::int64_t next_frame_ = 0;
   std::string failure_;       // set when a frame failed; the main thread ends the run
 

@@ -50,6 +50,7 @@ inline constexpr const char* kProtocolWriter = "protocol_writer";
 inline constexpr const char* kProtocolReader = "protocol_reader";
 inline constexpr const char* kDataWriter = "data_writer";
 inline constexpr const char* kDataReader = "data_reader";
+inline constexpr const char* kSensorWriter = "sensor_writer";
 }  // namespace profiles
 
 template <typename T>

@@ -34,9 +34,12 @@ int main(int argc, char** argv) {
                                               cmd);
     syndds::dds::MemberRuntime runtime(agent, service::member_options(common, debug, s));
     const int code = runtime.run(service::interrupted());
-    service::exit_with_on_teardown_abort(code);
     if (code != syndds::dds::kExitCompleted) {
       spdlog::error("{}: run ended: {}", agent.member_id(), runtime.end_reason());
+    }
+    {
+      service::DdsTeardownGuard guard(code);
+      runtime.close();
     }
     return code;
   });

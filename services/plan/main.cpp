@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   return service::run_service("plan", app, argc, argv, common, [&] {
     const auto s = service::load_scenario(common);
-    const std::string run_id = common.run_id.empty() ? service::default_run_id(s) : common.run_id;
+    const std::string run_id = service::dds_options(common, s).run_id;  // validated
     const std::string bin = bin_dir.empty() ? fs::path(argv[0]).parent_path().string() : bin_dir;
     const auto program = [&](const char* name) {
       return quote((fs::path(bin) / name).string());

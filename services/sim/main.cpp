@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
   app.add_flag("--quiet", quiet, "Do not print the summary");
   return service::run_service("sim", app, argc, argv, common, [&] {
     const auto s = service::load_scenario(common);
-    const std::string run_id = common.run_id.empty() ? service::default_run_id(s) : common.run_id;
+    const std::string run_id = service::dds_options(common, s).run_id;  // validated
     proto::LocalRunner runner(
         agents::make_all_agents(s, record::RecorderOptions{output, run_id, "single-process"}),
         {s.time.final_frame(), s.time.heartbeat_s, s.time.realtime});

@@ -219,6 +219,34 @@ TEST(Failure, InterruptedCoordinatorStopsTheRun) {
   EXPECT_NE(read_file(out / "summary.txt").find("aborted: interrupted"), std::string::npos);
 }
 
+// Ctrl-C on the launcher stops every process it started and exits 130; the recorder keeps the
+// complete frames and says the run was interrupted.
+TEST(Failure, CtrlCOnTheLauncherStopsEverything) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/long_run.yaml";
+  Process launcher(kSource + "/launch_scripts/run_scenario.sh " + scenario + " --output " +
+                       out.string() + run.common_args(),
+                   run.dir / "launcher.log");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 60; }, 30))
+      << launcher.log();
+  launcher.signal(SIGINT);
+  const auto code = launcher.wait(40);
+  ASSERT_TRUE(code.has_value()) << launcher.log();
+  EXPECT_EQ(*code, 130) << launcher.log();
+  std::istringstream pids(read_file(out / "logs" / "pids"));
+  std::string member;
+  int pid = 0;
+  int checked = 0;
+  while (pids >> member >> pid) {
+    EXPECT_TRUE(wait_until([&] { return ::kill(pid, 0) != 0; }, 5)) << member << " still runs";
+    ++checked;
+  }
+  EXPECT_EQ(checked, 8);  // coordinator, 3 vehicles, 3 controllers, recorder
+  EXPECT_NE(read_file(out / "summary.txt").find("aborted: interrupted"), std::string::npos)
+      << read_file(out / "summary.txt");
+}
+
 // An external program drives a vehicle; NaN commands are rejected, logged, never applied.
 TEST(ExternalController, DrivesTheVehicleAndBadCommandsAreRejected) {
   TestRun run;

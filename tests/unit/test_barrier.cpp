@@ -280,3 +280,39 @@ TEST(Barrier, LateMemberPresentAtTheStartBeginsAtFrameOne) {
   for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 1), 0.0);
   EXPECT_EQ(b.poll(0.0).kind, Kind::wait);   // frame 1 does
 }
+
+// An abort in the middle of frame k+1 still announces the samples of frame k (the last complete
+// one): a member that has not consumed them yet (the recorder) can keep that frame.
+TEST(Barrier, AbortMidFrameAnnouncesTheLastCompleteFrame) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  const TopicCount state{Topic::vehicle_state, "a", "vehicle/a", 1};
+  b.on_done(done("vehicle/a", 0, {state}), 0.0);
+  b.on_done(done("controller/a", 0), 0.0);
+  b.on_done(done("recorder", 0), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 1 under way
+  b.on_done(done("vehicle/a", 1, {state}), 0.1);
+  b.on_interrupt("interrupted", 0.1);
+  auto a = b.poll(0.1);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.final_frame, 0);
+  ASSERT_EQ(a.control.final_manifest.size(), 1u);
+  EXPECT_EQ(a.control.final_manifest[0], state);
+}
+
+// Under the continue policy, a member that left is no longer announced in manifests.
+TEST(Barrier, LeftMemberIsNotAnnounced) {
+  auto c = config();
+  c.on_member_loss = LossPolicy::continue_run;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  b.on_done(done("vehicle/a", 0, {{Topic::vehicle_state, "a", "vehicle/a", 1}}), 0.0);
+  b.on_done(done("controller/a", 0), 0.0);
+  b.on_member_lost("vehicle/a", "killed", 0.0);
+  b.on_done(done("recorder", 0), 0.0);
+  auto a = b.poll(0.0);
+  ASSERT_EQ(a.kind, Kind::grant);
+  EXPECT_TRUE(a.grant.manifest.empty());
+}
