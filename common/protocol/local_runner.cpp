@@ -16,22 +16,27 @@ double seconds_since(Clock::time_point t0) {
 
 template <typename T>
 void check_list(const std::vector<T>& v, std::string_view topic, std::int64_t frame,
-                const std::string& source) {
+                const std::string& source, const std::string& key) {
   for (const auto& s : v) {
     if (s.frame != frame || s.source != source) {
       throw ProtocolError(source + " wrote a " + std::string(topic) + " sample stamped frame " +
                           std::to_string(s.frame) + " source '" + s.source + "' in frame " +
                           std::to_string(frame));
     }
+    if (s.vehicle_id != key) {
+      throw ProtocolError(source + " wrote a " + std::string(topic) + " sample of vehicle '" +
+                          s.vehicle_id + "'; its samples must be about '" + key + "'");
+    }
   }
 }
 
 }  // namespace
 
-void check_outputs(const FrameSamples& out, std::int64_t frame, const std::string& source) {
+void check_outputs(const FrameSamples& out, std::int64_t frame, const std::string& source,
+                   const std::string& vehicle_key) {
   for_each_topic([&](auto t) {
     constexpr Topic T = decltype(t)::value;
-    check_list(out.list<T>(), TopicTraits<T>::name, frame, source);
+    check_list(out.list<T>(), TopicTraits<T>::name, frame, source, vehicle_key);
   });
 }
 
@@ -67,8 +72,19 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
       const auto step_t0 = Clock::now();
       FrameSamples inputs = previous.filtered(subs[i]);
       FrameSamples outputs;
-      agents_[i]->step(ctx, inputs, outputs);
-      check_outputs(outputs, frame, agents_[i]->member_id());
+      try {
+        agents_[i]->step(ctx, inputs, outputs);
+        check_outputs(outputs, frame, agents_[i]->member_id(), agents_[i]->vehicle_key());
+      } catch (const std::exception& e) {
+        // Every agent still learns how the run ended (the recorder writes its summary).
+        RunControlMsg control;
+        control.status = RunStatus::aborted;
+        control.reason = agents_[i]->member_id() + " failed in frame " + std::to_string(frame) +
+                         ": " + e.what();
+        control.final_frame = completed;
+        for (auto& a : agents_) a->finish(RunEnd{control}, {});
+        throw;
+      }
       current.append(outputs);
       member_stats[i].mean_compute_s += seconds_since(step_t0);
     }

@@ -30,7 +30,9 @@ class LocalRunner {
   LocalRunOptions options_;
 };
 
-/// Throws ProtocolError if a sample in `out` is not stamped (frame, source) as the rules demand.
-void check_outputs(const FrameSamples& out, std::int64_t frame, const std::string& source);
+/// Throws ProtocolError if a sample in `out` is not stamped (frame, source) as the rules demand
+/// or is about another vehicle than the agent's `vehicle_key`.
+void check_outputs(const FrameSamples& out, std::int64_t frame, const std::string& source,
+                   const std::string& vehicle_key);
 
 }  // namespace syndds::proto

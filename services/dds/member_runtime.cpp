@@ -385,7 +385,7 @@ void MemberRuntime::run_frame(const proto::FrameGrantMsg& grant,
   const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s,
                                 grant.joiners};
   agent_.step(ctx, inputs, outputs);
-  proto::check_outputs(outputs, grant.frame, agent_.member_id());
+  proto::check_outputs(outputs, grant.frame, agent_.member_id(), agent_.vehicle_key());
   if (options_.debug_frame_delay_ms > 0) {
     std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_frame_delay_ms));
   }

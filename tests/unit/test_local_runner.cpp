@@ -91,6 +91,7 @@ TEST(LocalRunner, RejectsOutputsWithTheWrongStamp) {
     proto::MemberKind kind() const override { return proto::MemberKind::controller; }
     std::vector<proto::Subscription> subscriptions() const override { return {}; }
     std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
+    std::string vehicle_key() const override { return "x"; }
     void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
               proto::FrameSamples& out) override {
       proto::DriverCommandMsg c;
