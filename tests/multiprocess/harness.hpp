@@ -42,6 +42,14 @@ inline std::size_t count_lines(const std::string& text) {
   return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
 }
 
+/// Fields of one CSV line.
+inline std::vector<std::string> split_csv(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  for (std::string x; std::getline(ss, x, ',');) out.push_back(x);
+  return out;
+}
+
 /// Polls `condition` every 20 ms until it holds or `timeout_s` passes.
 inline bool wait_until(const std::function<bool()>& condition, double timeout_s) {
   const auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
@@ -165,6 +173,24 @@ inline std::string log_name(const std::string& member) {
     if (c == '/') c = '_';
   }
   return s + ".log";
+}
+
+/// The launcher's OUTPUT/logs/pids: member id and process id of everything it started.
+inline std::vector<std::pair<std::string, int>> launched_pids(const fs::path& output) {
+  std::vector<std::pair<std::string, int>> out;
+  std::istringstream in(read_file(output / "logs" / "pids"));
+  std::string member;
+  int pid = 0;
+  while (in >> member >> pid) out.emplace_back(member, pid);
+  return out;
+}
+
+/// A launcher run of `scenario` in the background (its output in run.dir / "out").
+inline std::unique_ptr<Process> start_launcher(const TestRun& run, const std::string& scenario) {
+  return std::make_unique<Process>(kSource + "/launch_scripts/run_scenario.sh " + scenario +
+                                       " --output " + (run.dir / "out").string() +
+                                       run.common_args(),
+                                   run.dir / "launcher.log");
 }
 
 /// Starts planned processes in the given order; `tweak` may change a member's command.

@@ -127,20 +127,17 @@ TEST(DataBarrier, WithoutTheBarrierStaleDataChangesTheResult) {
 TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   TestRun run;
   const fs::path out = run.dir / "out";
-  const std::string scenario = kSource + "/tests/multiprocess/scenarios/long_run.yaml";
-  Process launcher(kSource + "/launch_scripts/run_scenario.sh " + scenario + " --output " +
-                       out.string() + run.common_args(),
-                   run.dir / "launcher.log");
+  auto launcher_ptr = start_launcher(run, kSource + "/tests/multiprocess/scenarios/long_run.yaml");
+  Process& launcher = *launcher_ptr;
   // Wait until the recorder has written 50 frames (3 vehicles each).
   ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 150; }, 30))
       << launcher.log();
   // Find vehicle/b's pid and kill it hard.
-  std::istringstream pids(read_file(out / "logs" / "pids"));
-  std::string member;
   int pid = 0;
-  while (pids >> member >> pid && member != "vehicle/b") {
+  for (const auto& [member, p] : launched_pids(out)) {
+    if (member == "vehicle/b") pid = p;
   }
-  ASSERT_EQ(member, "vehicle/b");
+  ASSERT_NE(pid, 0);
   ASSERT_EQ(::kill(pid, SIGKILL), 0);
   const auto t_kill = Clock::now();
 
@@ -224,22 +221,18 @@ TEST(Failure, InterruptedCoordinatorStopsTheRun) {
 TEST(Failure, CtrlCOnTheLauncherStopsEverything) {
   TestRun run;
   const fs::path out = run.dir / "out";
-  const std::string scenario = kSource + "/tests/multiprocess/scenarios/long_run.yaml";
-  Process launcher(kSource + "/launch_scripts/run_scenario.sh " + scenario + " --output " +
-                       out.string() + run.common_args(),
-                   run.dir / "launcher.log");
+  auto launcher_ptr = start_launcher(run, kSource + "/tests/multiprocess/scenarios/long_run.yaml");
+  Process& launcher = *launcher_ptr;
   ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 60; }, 30))
       << launcher.log();
   launcher.signal(SIGINT);
   const auto code = launcher.wait(40);
   ASSERT_TRUE(code.has_value()) << launcher.log();
   EXPECT_EQ(*code, 130) << launcher.log();
-  std::istringstream pids(read_file(out / "logs" / "pids"));
-  std::string member;
-  int pid = 0;
   int checked = 0;
-  while (pids >> member >> pid) {
-    EXPECT_TRUE(wait_until([&] { return ::kill(pid, 0) != 0; }, 5)) << member << " still runs";
+  for (const auto& [member, pid] : launched_pids(out)) {
+    EXPECT_TRUE(wait_until([&, pid = pid] { return ::kill(pid, 0) != 0; }, 5))
+        << member << " still runs";
     ++checked;
   }
   EXPECT_EQ(checked, 8);  // coordinator, 3 vehicles, 3 controllers, recorder
@@ -324,9 +317,7 @@ TEST(DeformableTerrain, CopiesAgreeEveryFrameAndTheRutJoltsTheOtherVehicle) {
     double best = 0.0, previous_vz = 0.0;
     bool has_previous = false;
     while (std::getline(in, line)) {
-      std::vector<std::string> f;
-      std::stringstream ss(line);
-      for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+      const auto f = split_csv(line);
       if (f[2] != "b") continue;
       const double y = std::stod(f[4]), vz = std::stod(f[12]);
       if (has_previous && y > -4.0 && y < 4.0) best = std::max(best, std::abs(vz - previous_vz) / 0.01);
@@ -363,10 +354,7 @@ TEST(Sensors, CameraSeesTheOtherVehicleAtItsSyncedPose) {
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {
-      std::vector<double> f;
-      std::vector<std::string> t;
-      std::stringstream ss(line);
-      for (std::string x; std::getline(ss, x, ',');) t.push_back(x);
+      const auto t = split_csv(line);
       if (t[2] != "b") continue;
       Pose p;
       p.position = Vec3(std::stod(t[3]), std::stod(t[4]), std::stod(t[5]));
@@ -381,9 +369,7 @@ TEST(Sensors, CameraSeesTheOtherVehicleAtItsSyncedPose) {
   std::getline(in, line);
   int checked = 0;
   while (std::getline(in, line)) {
-    std::vector<std::string> t;
-    std::stringstream ss(line);
-    for (std::string x; std::getline(ss, x, ',');) t.push_back(x);
+    const auto t = split_csv(line);
     const double time = std::stod(t[2]);
     Pose cam;
     cam.position = Vec3(std::stod(t[4]), std::stod(t[5]), std::stod(t[6]));
