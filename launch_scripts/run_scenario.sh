@@ -94,36 +94,40 @@ stop_all() {  # $1 = signal
   done
 }
 
-failed=""; deadline=0; killed=0
+# The coordinator is the authority on the run: when it exits (completed or aborted) every other
+# process has GRACE_S seconds to follow before it is stopped. A member that fails before that
+# either makes the coordinator abort (on_member_loss: abort) or is left behind (continue).
+failed=""; deadline=0; killed=0; coordinator_code=""; recorder_code=0; notes=()
 while :; do
   alive=0
   for i in "${!pids[@]}"; do
     [ -n "${codes[$i]}" ] && continue
     if kill -0 "${pids[$i]}" 2>/dev/null; then
       alive=$((alive + 1))
-    else
-      wait "${pids[$i]}"; codes[$i]=$?
-      if [ "${codes[$i]}" -ne 0 ] && [ -z "$failed" ]; then
-        failed="${names[$i]} exited with status ${codes[$i]}"
-        [ "${codes[$i]}" -eq 130 ] && failed="${names[$i]} was interrupted"
-        [ "${codes[$i]}" -gt 130 ] && failed="${names[$i]} was killed by signal $((codes[$i] - 128))"
-        deadline=$((SECONDS + GRACE_S))
-      fi
+      continue
+    fi
+    wait "${pids[$i]}"; codes[$i]=$?
+    case "${names[$i]}" in
+      coordinator) coordinator_code=${codes[$i]}
+                   [ $deadline -eq 0 ] && deadline=$((SECONDS + GRACE_S)) ;;
+      recorder) recorder_code=${codes[$i]} ;;
+    esac
+    if [ "${codes[$i]}" -ne 0 ]; then
+      what="${names[$i]} exited with status ${codes[$i]}"
+      [ "${codes[$i]}" -eq 130 ] && what="${names[$i]} was interrupted"
+      [ "${codes[$i]}" -gt 130 ] && what="${names[$i]} was killed by signal $((codes[$i] - 128))"
+      [ -n "$failed" ] || failed=$what
+      notes+=("$what")
     fi
   done
   [ $alive -eq 0 ] && break
   if [ $interrupted = 1 ] && [ $killed = 0 ]; then
     echo "run_scenario: interrupted; stopping every process" >&2
     stop_all TERM; killed=1; deadline=$((SECONDS + 5))
-    [ -n "$failed" ] || failed="interrupted"
   fi
-  if [ -n "$failed" ] && [ $SECONDS -ge $deadline ] && [ $deadline -gt 0 ]; then
+  if [ $deadline -gt 0 ] && [ $SECONDS -ge $deadline ]; then
     if [ $killed -lt 2 ]; then
-      if [ $interrupted = 1 ]; then
-        echo "run_scenario: processes still running 5 s after the interrupt; stopping them" >&2
-      else
-        echo "run_scenario: processes still running ${GRACE_S} s after a failure; stopping them" >&2
-      fi
+      echo "run_scenario: processes still running after the end of the run; stopping them" >&2
       stop_all TERM; killed=2; deadline=$((SECONDS + 5))
     else
       stop_all KILL; deadline=0
@@ -134,11 +138,15 @@ done
 trap - INT TERM HUP EXIT
 
 summary="$OUTPUT/summary.txt"
-if [ -z "$failed" ]; then
+if [ $interrupted = 0 ] && [ "$coordinator_code" = 0 ] && [ "$recorder_code" = 0 ]; then
   [ -f "$summary" ] && cat "$summary"
+  for n in "${notes[@]}"; do
+    echo "run_scenario: note: $n; the run went on without it (on_member_loss: continue)" >&2
+  done
   echo "output: $OUTPUT"
   exit 0
 fi
+[ -n "$failed" ] || failed="interrupted"
 
 # One line saying why: the coordinator's verdict (as recorded), else who failed first.
 reason=""

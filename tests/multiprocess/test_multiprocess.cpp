@@ -172,6 +172,49 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   EXPECT_EQ(summary["recorded_up_to_frame"].get<long>(), rows_per_frame.rbegin()->first);
 }
 
+// on_member_loss: continue. The killed vehicle leaves the barrier, the others run to the end,
+// the launcher succeeds and says what was left behind; the recorder stops the lost vehicle's
+// rows at the frame it was lost and marks it lost.
+TEST(Failure, ContinuePolicyRunsOnWithoutTheLostVehicle) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kSource + "/tests/multiprocess/scenarios/continue_run.yaml");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
+  int pid = 0;
+  for (const auto& [member, p] : launched_pids(out)) {
+    if (member == "vehicle/b") pid = p;
+  }
+  ASSERT_NE(pid, 0);
+  ASSERT_EQ(::kill(pid, SIGKILL), 0);
+  const auto code = launcher->wait(40);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 0) << launcher->log();
+  EXPECT_NE(launcher->log().find("note: vehicle/b was killed by signal 9; the run went on"),
+            std::string::npos)
+      << launcher->log();
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  EXPECT_EQ(summary["status"], "completed");
+  EXPECT_EQ(summary["final_frame"], 400);
+  bool b_lost = false;
+  for (const auto& m : summary["members"]) {
+    if (m["member"] == "vehicle/b") b_lost = m["lost"];
+  }
+  EXPECT_TRUE(b_lost);
+  // Vehicle a is recorded to the end, vehicle b only until it was lost.
+  std::map<std::string, long> last_frame;
+  std::istringstream csv(read_file(out / "vehicles.csv"));
+  std::string line;
+  std::getline(csv, line);
+  while (std::getline(csv, line)) {
+    const auto f = split_csv(line);
+    last_frame[f[2]] = std::stol(f[0]);
+  }
+  EXPECT_EQ(last_frame["a"], 400);
+  EXPECT_LT(last_frame["b"], 400);
+  EXPECT_GT(last_frame["b"], 30);
+}
+
 TEST(Failure, MissingMemberIsNamedAfterTheJoinTimeout) {
   TestRun run;
   const std::string scenario = kSource + "/tests/multiprocess/scenarios/join_timeout.yaml";
