@@ -41,6 +41,12 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
     return "ignoring done from '" + done.member_id + "': not a member of this scenario";
   }
   Member& m = it->second;
+  if (!done.error.empty() && !pending_abort_ && phase_ != Phase::stopped &&
+      phase_ != Phase::aborted) {
+    // A member that fails says why before it goes: that is the run's reason, not "lost".
+    pending_abort_ = "member " + done.member_id + " failed: " + done.error;
+    return "";
+  }
   if (m.left) return "ignoring done from '" + done.member_id + "': member has left the run";
   if (!done.finished && !active(m)) return "";  // a late joiner not yet taking part
   if (done.finished) {

@@ -266,6 +266,7 @@ struct FrameDoneMsg {
   Manifest published;
   double compute_s = 0.0;   // wall time the member spent in its step
   bool finished = false;    // true: reply to RunControl stop, the member is shutting down
+  std::string error;        // non-empty: the member failed (and exits); the run aborts with it
 };
 
 struct MemberStatsMsg {

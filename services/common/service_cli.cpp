@@ -114,7 +114,9 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
   o.config_fingerprint = s.fingerprint;
   o.heartbeat_s = s.time.heartbeat_s;
   o.join_timeout_s = s.coordinator.join_timeout_s + 5.0;
-  o.input_timeout_s = s.coordinator.frame_timeout_s;
+  // Shorter than the coordinator's frame deadline: a member stuck waiting for announced data
+  // reports which sample is missing before the coordinator can only say who is late.
+  o.input_timeout_s = 0.75 * s.coordinator.frame_timeout_s;
   o.debug_frame_delay_ms = d.frame_delay_ms;
   o.debug_publish_delay_ms = d.publish_delay_ms;
   o.debug_skip_data_barrier = d.skip_data_barrier;

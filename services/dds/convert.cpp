@@ -181,11 +181,12 @@ msg::FrameDone to_dds(const proto::FrameDoneMsg& m) {
   o.published(manifest(m.published));
   o.compute_s(m.compute_s);
   o.finished(m.finished);
+  o.error(m.error);
   return o;
 }
 proto::FrameDoneMsg from_dds(const msg::FrameDone& m) {
-  return proto::FrameDoneMsg{m.member_id(), m.frame(), manifest(m.published()), m.compute_s(),
-                             m.finished()};
+  return proto::FrameDoneMsg{m.member_id(), m.frame(),    manifest(m.published()),
+                             m.compute_s(), m.finished(), m.error()};
 }
 
 msg::RunControl to_dds(const proto::RunControlMsg& m) {

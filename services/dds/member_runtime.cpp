@@ -404,6 +404,18 @@ void MemberRuntime::run_frame(const proto::FrameGrantMsg& grant,
 int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   auto local_abort = [&](const std::string& reason, int code) {
     end_reason_ = reason;
+    if (code == kExitFailed && done_writer_) {
+      // Tell the coordinator why, so the run's one-line reason names the cause.
+      try {
+        proto::FrameDoneMsg d;
+        d.member_id = agent_.member_id();
+        d.frame = next_frame_;
+        d.error = reason;
+        done_writer_->write(to_dds(d));
+        done_writer_->wait_for_acknowledgments(1.0);
+      } catch (const std::exception&) {
+      }
+    }
     proto::RunControlMsg c;
     c.status = proto::RunStatus::aborted;
     c.reason = reason;

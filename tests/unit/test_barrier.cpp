@@ -316,3 +316,16 @@ TEST(Barrier, LeftMemberIsNotAnnounced) {
   ASSERT_EQ(a.kind, Kind::grant);
   EXPECT_TRUE(a.grant.manifest.empty());
 }
+
+// A member that fails says why; the run aborts with that reason.
+TEST(Barrier, AMemberReportingAnErrorAbortsTheRunWithIt) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  FrameDoneMsg d = done("vehicle/a", 0);
+  d.error = "received a malformed driver_command sample: ...";
+  b.on_done(d, 0.1);
+  auto a = b.poll(0.1);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.reason, "member vehicle/a failed: received a malformed driver_command sample: ...");
+}
