@@ -1,5 +1,6 @@
 #include "dds/member_runtime.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -121,7 +122,6 @@ void MemberRuntime::setup() {
           auto g = from_dds(m);
           std::unique_lock lock(mutex_);
           grants_.push_back(std::move(g));
-          pump_locked(lock);
           cv_.notify_all();
         });
       });
@@ -162,10 +162,7 @@ void MemberRuntime::setup() {
             guard(proto::TopicTraits<T>::name, [&] {
               auto s = from_dds(m);
               std::unique_lock lock(mutex_);
-              if (inbox_.add<T>(std::move(s))) {
-                pump_locked(lock);
-                cv_.notify_all();
-              }
+              if (inbox_.add<T>(std::move(s))) cv_.notify_all();
             });
           },
           only_key(T).empty() ? Participant::Scope::all_vehicles : Participant::Scope::one_vehicle,
@@ -326,9 +323,16 @@ int MemberRuntime::finish(const proto::RunControlMsg& announced,
   return code;
 }
 
-// Runs every granted frame whose inputs are complete, in the calling thread: the DDS receive
-// thread that delivered the last missing piece (grant or sample), or the main thread. This saves
-// a thread hop per frame. One frame runs at a time (stepping_); called with mutex_ held.
+// True when pump_locked() has something to do with the first queued grant.
+bool MemberRuntime::frame_ready_locked() const {
+  if (grants_.empty()) return false;
+  const proto::FrameGrantMsg& g = grants_.front();
+  if (!admitted_ || g.frame != next_frame_) return true;  // to skip, or a protocol error
+  return options_.debug_skip_data_barrier || inbox_.complete(g.frame - 1, g.manifest);
+}
+
+// Runs every granted frame whose inputs are complete (in the main thread). One frame runs at a
+// time (stepping_); called with mutex_ held, released while the agent steps.
 void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
   while (ready_ && !stepping_ && !stopping_ && !control_ && failure_.empty() &&
          !grants_.empty()) {
@@ -436,16 +440,19 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
                  options_.dds.run_id, coordinator_->host);
   }
 
-  // Frames run in pump_locked(); this thread watches for the end, failures and deadlines.
+  // This thread runs the frames (pump_locked) and watches for the end, failures and deadlines.
+  // DDS callbacks only store what arrives and wake it: a long frame must not block a DDS thread
+  // (it would hold Fast DDS's internal locks, delay acknowledgements, even liveliness).
   std::unique_lock lock(mutex_);
   ready_ = true;
   admitted_ = !options_.late_join;
-  pump_locked(lock);
   std::int64_t waiting_frame = -1;
   auto waiting_since = Clock::now();
   while (true) {
-    cv_.wait_for(lock, kPollInterval);
-    if (stepping_) continue;  // let the running frame finish first
+    cv_.wait_for(lock, kPollInterval, [&] {
+      return control_ || !failure_.empty() || coordinator_lost_ || interrupt.load() ||
+             frame_ready_locked();
+    });
     // Every way out first stops frames from starting in DDS threads (and waits for one that
     // runs): the agent's finish() must never overlap a step.
     if (control_) {
@@ -489,7 +496,7 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
       lock.unlock();
       return local_abort("frame " + std::to_string(frame) +
                              ": announced inputs missing after " +
-                             std::to_string(options_.input_timeout_s) + " s: " + missing,
+                             fmt::format("{:g}", options_.input_timeout_s) + " s: " + missing,
                          kExitFailed);
     }
   }

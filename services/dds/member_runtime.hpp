@@ -64,6 +64,7 @@ class MemberRuntime {
   bool wait_inputs(std::int64_t frame, const proto::Manifest& manifest, double timeout_s,
                    const std::atomic<bool>& interrupt);
   void pump_locked(std::unique_lock<std::mutex>& lock);
+  bool frame_ready_locked() const;
   void run_frame(const proto::FrameGrantMsg& grant, const proto::FrameSamples& inputs);
   void publish(const proto::FrameSamples& out);
   bool flush_writers(double timeout_s);  // true when every reader acknowledged everything
