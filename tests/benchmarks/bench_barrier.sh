@@ -3,8 +3,9 @@
 #
 #   tests/benchmarks/bench_barrier.sh [barrier|scaling] [DURATION_S]
 #
-# barrier: N vehicle processes (reduced model, no controller, no recorder) for N = 1 2 4 8 16:
-#          frames/s and mean barrier round (wall time / frames) as the coordinator reports them.
+# barrier: N vehicle processes (reduced model, no controller, no recorder) for N = 1 2 4 8 16
+#          (BARRIER_N="32 48" chooses others): frames/s and mean barrier round (wall time /
+#          frames) as the coordinator reports them.
 # scaling: N vehicles (reduced model) + N path-follower controllers + the recorder (a full run)
 #          for growing N: real-time factor at heartbeat 0.01 s; the largest N with RTF <= 1 is
 #          the answer. SCALING_N="8 16 24" chooses the N.
@@ -55,7 +56,7 @@ echo "# $(date -u +%F) $(nproc) cores, $(uname -r); duration ${DURATION} s simul
 if [ "$MODE" = barrier ]; then
   echo "| members | frames/s | mean round (ms) | real-time factor |"
   echo "|---|---|---|---|"
-  for n in 1 2 4 8 16; do
+  for n in ${BARRIER_N:-1 2 4 8 16}; do
     read -r frames wall rtf < <(run_one "$(scenario "$n" 0)") || { echo "| $n | failed |"; continue; }
     awk -v n="$n" -v f="$frames" -v w="$wall" -v r="$rtf" \
       'BEGIN { printf "| %d | %.0f | %.3f | %.3f |\n", n, f / w, 1000 * w / f, r }'
