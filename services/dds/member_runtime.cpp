@@ -361,7 +361,7 @@ void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
     }
     const std::int64_t input_frame = front.frame - 1;
     if (!options_.debug_skip_data_barrier && !inbox_.complete(input_frame, front.manifest)) {
-      return;  // the data barrier: the last announced sample will call us again
+      return;  // the data barrier: the callback storing the last announced sample wakes us
     }
     proto::FrameGrantMsg grant = std::move(front);
     grants_.pop_front();
