@@ -66,7 +66,7 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
                    std::chrono::duration<double>(frame * options_.heartbeat_s)));
     }
     FrameContext ctx{frame, static_cast<double>(frame) * options_.heartbeat_s,
-                     options_.heartbeat_s};
+                     options_.heartbeat_s, {}};
     FrameSamples current;
     for (std::size_t i = 0; i < agents_.size(); ++i) {
       const auto step_t0 = Clock::now();

@@ -316,39 +316,30 @@ std::int32_t ScmTerrain::find_step_vertex(std::int32_t i, std::int32_t j) const 
 
 // ---- TerrainSurface --------------------------------------------------------------------------
 
-double ScmTerrain::height(double x, double y) const {
+std::optional<ScmTerrain::Cell> ScmTerrain::cell_at(double x, double y) const {
   const double u = x / delta_;
   const double v = y / delta_;
-  if (!(std::abs(u) < 2e9 && std::abs(v) < 2e9)) {
-    return base_ ? base_->height(x, y) : params_.grid.base_height_m;
-  }
+  if (!(std::abs(u) < 2e9 && std::abs(v) < 2e9)) return std::nullopt;
   const double fu = std::floor(u);
   const double fv = std::floor(v);
   const auto i = static_cast<std::int32_t>(fu);
   const auto j = static_cast<std::int32_t>(fv);
-  const double tu = u - fu;
-  const double tv = v - fv;
-  const double h00 = level_of(i, j), h10 = level_of(i + 1, j);
-  const double h01 = level_of(i, j + 1), h11 = level_of(i + 1, j + 1);
-  return (1 - tv) * ((1 - tu) * h00 + tu * h10) + tv * ((1 - tu) * h01 + tu * h11);
+  return Cell{u - fu,           v - fv,           level_of(i, j),
+              level_of(i + 1, j), level_of(i, j + 1), level_of(i + 1, j + 1)};
+}
+
+double ScmTerrain::height(double x, double y) const {
+  const auto c = cell_at(x, y);
+  if (!c) return base_ ? base_->height(x, y) : params_.grid.base_height_m;
+  return (1 - c->tv) * ((1 - c->tu) * c->h00 + c->tu * c->h10) +
+         c->tv * ((1 - c->tu) * c->h01 + c->tu * c->h11);
 }
 
 Vec3 ScmTerrain::normal(double x, double y) const {
-  const double u = x / delta_;
-  const double v = y / delta_;
-  if (!(std::abs(u) < 2e9 && std::abs(v) < 2e9)) {
-    return base_ ? base_->normal(x, y) : Vec3::UnitZ();
-  }
-  const double fu = std::floor(u);
-  const double fv = std::floor(v);
-  const auto i = static_cast<std::int32_t>(fu);
-  const auto j = static_cast<std::int32_t>(fv);
-  const double tu = u - fu;
-  const double tv = v - fv;
-  const double h00 = level_of(i, j), h10 = level_of(i + 1, j);
-  const double h01 = level_of(i, j + 1), h11 = level_of(i + 1, j + 1);
-  const double hx = ((1 - tv) * (h10 - h00) + tv * (h11 - h01)) / delta_;
-  const double hy = ((1 - tu) * (h01 - h00) + tu * (h11 - h10)) / delta_;
+  const auto c = cell_at(x, y);
+  if (!c) return base_ ? base_->normal(x, y) : Vec3::UnitZ();
+  const double hx = ((1 - c->tv) * (c->h10 - c->h00) + c->tv * (c->h11 - c->h01)) / delta_;
+  const double hy = ((1 - c->tu) * (c->h01 - c->h00) + c->tu * (c->h11 - c->h10)) / delta_;
   return Vec3(-hx, -hy, 1.0).normalized();
 }
 

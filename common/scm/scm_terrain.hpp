@@ -172,6 +172,11 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   std::int32_t get_or_insert_record(std::int32_t i, std::int32_t j);
   void mark_dirty(std::int32_t index);
   double level_of(std::int32_t i, std::int32_t j) const;
+  /// The grid cell under (x, y): corner levels and fractions; nullopt far outside any grid.
+  struct Cell {
+    double tu, tv, h00, h10, h01, h11;
+  };
+  std::optional<Cell> cell_at(double x, double y) const;
   /// Height of the unloaded soil, level_initial - sinkage_plastic: a body below it is in contact.
   double surface_of(std::int32_t i, std::int32_t j) const;
   void note_level(double level);

@@ -185,6 +185,14 @@ inline std::vector<std::pair<std::string, int>> launched_pids(const fs::path& ou
   return out;
 }
 
+/// The pid the launcher recorded for `member` (0 if none).
+inline int launched_pid(const fs::path& output, const std::string& member) {
+  for (const auto& [m, pid] : launched_pids(output)) {
+    if (m == member) return pid;
+  }
+  return 0;
+}
+
 /// A launcher run of `scenario` in the background (its output in run.dir / "out").
 inline std::unique_ptr<Process> start_launcher(const TestRun& run, const std::string& scenario) {
   return std::make_unique<Process>(kSource + "/launch_scripts/run_scenario.sh " + scenario +

@@ -133,10 +133,7 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 150; }, 30))
       << launcher.log();
   // Find vehicle/b's pid and kill it hard.
-  int pid = 0;
-  for (const auto& [member, p] : launched_pids(out)) {
-    if (member == "vehicle/b") pid = p;
-  }
+  const int pid = launched_pid(out, "vehicle/b");
   ASSERT_NE(pid, 0);
   ASSERT_EQ(::kill(pid, SIGKILL), 0);
   const auto t_kill = Clock::now();
@@ -181,10 +178,7 @@ TEST(Failure, ContinuePolicyRunsOnWithoutTheLostVehicle) {
   auto launcher = start_launcher(run, kSource + "/tests/multiprocess/scenarios/continue_run.yaml");
   ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
       << launcher->log();
-  int pid = 0;
-  for (const auto& [member, p] : launched_pids(out)) {
-    if (member == "vehicle/b") pid = p;
-  }
+  const int pid = launched_pid(out, "vehicle/b");
   ASSERT_NE(pid, 0);
   ASSERT_EQ(::kill(pid, SIGKILL), 0);
   const auto code = launcher->wait(40);
