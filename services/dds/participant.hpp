@@ -78,6 +78,27 @@ SYNDDS_DDS_TYPE(Image)
 SYNDDS_DDS_TYPE(PointCloud)
 #undef SYNDDS_DDS_TYPE
 
+/// The generated PubSubType computes instance keys in member buffers (m_keyBuffer, m_md5), but
+/// Fast DDS calls getKey from every thread that uses the type: the thread writing a sample and
+/// the receive threads of every reader of that topic in the same participant (Fast DDS 2.9
+/// writers send no key hash with ALIVE data, so readers compute it from the payload). A vehicle
+/// writes and reads terrain_deformation in one process; when two calls overlapped, a sample got
+/// a garbage key, became an instance of its own in the writer's KEEP_LAST history and stayed
+/// there for good. The history then had ever more holes, and the writer sent a GAP for every
+/// one of them with every heartbeat (docs/performance.md, "Soil runs that slowed down").
+template <typename PubSub>
+class ThreadSafeKeyType : public PubSub {
+ public:
+  bool getKey(void* data, eprosima::fastrtps::rtps::InstanceHandle_t* handle,
+              bool force_md5 = false) override {
+    std::lock_guard lock(key_mutex_);
+    return PubSub::getKey(data, handle, force_md5);
+  }
+
+ private:
+  std::mutex key_mutex_;
+};
+
 class Participant;
 
 template <typename T>
@@ -197,7 +218,7 @@ class Participant : private fdds::DomainParticipantListener {
     std::lock_guard lock(mutex_);
     auto it = topics_.find(name);
     if (it != topics_.end()) return it->second;
-    fdds::TypeSupport type(new typename TypeTraits<T>::PubSub());
+    fdds::TypeSupport type(new ThreadSafeKeyType<typename TypeTraits<T>::PubSub>());
     if (type.register_type(participant_) != ReturnCode_t::RETCODE_OK &&
         !participant_->find_type(type.get_type_name())) {
       fail(std::string("cannot register type ") + TypeTraits<T>::name);

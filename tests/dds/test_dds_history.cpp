@@ -1,0 +1,175 @@
+// What a writer keeps must stay bounded however long a run is. A process that writes and reads
+// one topic (every vehicle writes its terrain deformations and reads everyone's) once corrupted
+// instance keys when its writing thread and a DDS receive thread computed keys at the same time:
+// each corrupted sample became an instance of its own in the writer's KEEP_LAST history and was
+// never replaced, so the history grew with the run, and with it the GAPs sent on every
+// heartbeat (Fast DDS 2.9 sends one per hole in the history). These tests count, they do not
+// time: a late-joining reader is replayed the writer's whole history, which must hold exactly
+// `depth` samples of its one key; and every sample a reader receives of one key must carry one
+// instance handle.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "dds/convert.hpp"
+#include "dds/participant.hpp"
+
+using namespace syndds;
+namespace sdds = syndds::dds;
+namespace fdds = eprosima::fastdds::dds;
+
+namespace {
+
+const std::string kConfig = SYNDDS_TEST_CONFIG_DIR;
+constexpr int kDataWriterDepth = 8;  // config/dds/profiles.xml, data_writer
+constexpr int kDomain = 61;
+
+sdds::DdsOptions options(const std::string& run_id) {
+  sdds::DdsOptions o;
+  o.domain_id = kDomain;
+  o.run_id = run_id;
+  o.profiles_file = kConfig + "/dds/profiles.xml";
+  return o;
+}
+
+msg::TerrainDeformation deformation(const std::string& vehicle, std::int64_t frame) {
+  proto::TerrainDeformationMsg d;
+  d.vehicle_id = vehicle;
+  d.source = "vehicle/" + vehicle;
+  d.frame = frame;
+  d.spacing_m = 0.05;
+  d.vertices.push_back({static_cast<std::int32_t>(frame % 1000), 3, -0.01, 0.0, 0.01, 1e4});
+  return sdds::to_dds(d);
+}
+
+// Polls `done` every 10 ms for at most `limit_s`; true once it holds.
+template <typename F>
+bool wait_until(F done, double limit_s) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+int matched_readers(sdds::Writer<msg::TerrainDeformation>& w) {
+  fdds::PublicationMatchedStatus s;
+  w.raw()->get_publication_matched_status(s);
+  return s.current_count;
+}
+
+// Counts the samples a reader takes, and the distinct instance handles per key.
+class CountingListener : public fdds::DataReaderListener {
+ public:
+  void on_data_available(fdds::DataReader* reader) override {
+    msg::TerrainDeformation sample;
+    fdds::SampleInfo info;
+    while (reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK) {
+      if (!info.valid_data) continue;
+      std::lock_guard lock(mutex_);
+      ++count_[sample.vehicle_id()];
+      handles_[sample.vehicle_id()].insert(info.instance_handle);
+    }
+  }
+  int count(const std::string& key) {
+    std::lock_guard lock(mutex_);
+    return count_[key];
+  }
+  std::size_t handles(const std::string& key) {
+    std::lock_guard lock(mutex_);
+    return handles_[key].size();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, int> count_;
+  std::map<std::string, std::set<fdds::InstanceHandle_t>> handles_;
+};
+
+}  // namespace
+
+TEST(DdsHistory, WriterThatAlsoReadsItsTopicKeepsOnlyDepthSamplesPerKey) {
+  const std::string run = "history-bound";
+  constexpr int kSamples = 20000;
+  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
+
+  // "a" writes and reads the topic in one participant, as a vehicle does; "b" floods a's reader
+  // while a writes, so a's receive thread computes keys while its writing thread does.
+  sdds::Participant a(options(run));
+  sdds::Participant b(options(run));
+  auto writer_a = a.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "a");
+  auto writer_b = b.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "b");
+  std::atomic<int> received_from_b{0};
+  auto reader_a = a.make_reader<msg::TerrainDeformation>(
+      topic, sdds::profiles::kDataReader,
+      [&](msg::TerrainDeformation&& m) {
+        if (m.vehicle_id() == "b") ++received_from_b;
+      },
+      sdds::Participant::Scope::all_vehicles);
+  ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_b) == 1; }, 10.0));
+  ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_a) == 1; }, 10.0));
+
+  std::thread flood([&] {
+    for (int k = 0; k < kSamples; ++k) writer_b->write(deformation("b", k));
+  });
+  for (int k = 0; k < kSamples; ++k) ASSERT_TRUE(writer_a->write(deformation("a", k)));
+  flood.join();
+  // The reader keeps the newest 64 per key; it need not take all, but must see the last one.
+  ASSERT_TRUE(writer_b->wait_for_acknowledgments(10.0));
+  ASSERT_TRUE(writer_a->wait_for_acknowledgments(10.0));
+
+  // A reader that joins now is replayed a's whole history (TRANSIENT_LOCAL): one key, so at
+  // most `depth` samples. Every extra sample is an instance a corrupted key left behind.
+  sdds::Participant late(options(run));
+  CountingListener counter;
+  {
+    // Through the project's own reader, but with a listener that sees the SampleInfo.
+    auto probe = late.make_reader<msg::TerrainDeformation>(
+        topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
+        sdds::Participant::Scope::one_vehicle, "a");
+    ASSERT_EQ(probe->raw()->set_listener(&counter), ReturnCode_t::RETCODE_OK);
+    ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_a) == 2; }, 10.0));
+    ASSERT_TRUE(writer_a->wait_for_acknowledgments(10.0));
+    ASSERT_TRUE(wait_until([&] { return counter.count("a") >= kDataWriterDepth; }, 10.0));
+    // Anything more would have arrived with the acknowledged replay; give stragglers a bound.
+    wait_until([&] { return counter.count("a") > kDataWriterDepth; }, 0.5);
+    probe->raw()->set_listener(nullptr);
+  }
+  EXPECT_EQ(counter.count("a"), kDataWriterDepth)
+      << "writer a's history holds samples of instances that are not its key";
+  EXPECT_EQ(counter.handles("a"), 1u);
+}
+
+TEST(DdsHistory, SamplesOfOneKeyCarryOneInstanceHandle) {
+  // The receiving side of the same race: a participant writes one topic in its main thread
+  // while its reader of that topic computes the keys of what arrives.
+  const std::string run = "history-handles";
+  constexpr int kSamples = 20000;
+  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
+  sdds::Participant a(options(run));
+  sdds::Participant b(options(run));
+  auto writer_a = a.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "a");
+  auto writer_b = b.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "b");
+  CountingListener counter;
+  auto reader_a = a.make_reader<msg::TerrainDeformation>(
+      topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
+      sdds::Participant::Scope::one_vehicle, "b");
+  ASSERT_EQ(reader_a->raw()->set_listener(&counter), ReturnCode_t::RETCODE_OK);
+  ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_b) == 1; }, 10.0));
+
+  std::thread flood([&] {
+    for (int k = 0; k < kSamples; ++k) writer_b->write(deformation("b", k));
+  });
+  for (int k = 0; k < kSamples; ++k) ASSERT_TRUE(writer_a->write(deformation("a", k)));
+  flood.join();
+  ASSERT_TRUE(writer_b->wait_for_acknowledgments(10.0));
+  reader_a->raw()->set_listener(nullptr);
+  EXPECT_GT(counter.count("b"), 0);
+  EXPECT_EQ(counter.handles("b"), 1u) << "samples of key b were given several instance handles";
+}
