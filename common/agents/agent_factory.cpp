@@ -1,6 +1,7 @@
 #include "agents/agent_factory.hpp"
 
 #include "agents/controller_agent.hpp"
+#include "agents/follower_agent.hpp"
 #include "agents/sensor_agent.hpp"
 
 #include <filesystem>
@@ -17,6 +18,9 @@ proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& membe
     }
     if (member_id == scenario::controller_member(v.id) && v.controller.type == "path_follower") {
       return std::make_unique<ControllerAgent>(s, v);
+    }
+    if (member_id == scenario::controller_member(v.id) && v.controller.type == "follower") {
+      return std::make_unique<FollowerAgent>(s, v);
     }
     if (member_id == scenario::sensor_member(v.id) && v.has_rendered_sensors()) {
       return std::make_unique<SensorAgent>(

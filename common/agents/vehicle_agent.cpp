@@ -69,6 +69,11 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
                                                          scenario.seed, step_s_,
                                                          scenario.time.heartbeat_s);
   }
+  if (vehicle.v2v) {
+    v2v_ = std::make_unique<convoy::V2VBroadcaster>(*vehicle.v2v, vehicle_id_, member_id_,
+                                                    vehicle.params.wheels.radius_m,
+                                                    scenario.seed);
+  }
 }
 
 std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
@@ -85,6 +90,7 @@ std::vector<proto::Topic> VehicleAgent::publications() const {
     pubs.insert(pubs.end(), {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
                              proto::Topic::wheel_speeds});
   }
+  if (v2v_) pubs.push_back(proto::Topic::v2v_message);
   return pubs;
 }
 
@@ -126,8 +132,12 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     }
   }
   if (sensors_) {
-    append_messages(sensors_->take_interoceptive(ctx.sim_time_s), vehicle_id_, member_id_,
-                    ctx.frame, outputs);
+    const auto batch = sensors_->take_interoceptive(ctx.sim_time_s);
+    append_messages(batch, vehicle_id_, member_id_, ctx.frame, outputs);
+    if (v2v_) {
+      v2v_->observe(batch);
+      for (auto& m : v2v_->step(ctx.frame, ctx.sim_time_s)) outputs.v2v_messages.push_back(m);
+    }
   }
   outputs.vehicle_states.push_back(state_message(ctx.frame, ctx.sim_time_s));
   if (soil_) {

@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "agents/scm_messages.hpp"
+#include "convoy/v2v.hpp"
 #include "protocol/agent.hpp"
 #include "scm/scm_terrain.hpp"
 #include "sensors/rig.hpp"
@@ -55,6 +56,7 @@ class VehicleAgent final : public proto::Agent {
   std::int64_t steps_per_frame_;
   std::shared_ptr<scm::ScmTerrain> soil_;
   std::unique_ptr<sensors::VehicleSensors> sensors_;  // interoceptive sensors, if any
+  std::unique_ptr<convoy::V2VBroadcaster> v2v_;       // V2V broadcasts, if configured
   std::uint32_t rank_ = 0;
   double spacing_m_ = 0.0;
   bool snapshot_provider_ = false;  // writes the terrain snapshot late joiners start from

@@ -13,7 +13,7 @@ struct SpeedProfile {
   enum class Kind { constant, ramp };
   Kind kind = Kind::constant;
   double target_mps = 5.0;   // constant value, or the cap of the ramp
-  double accel_mps2 = 0.5;   // ramp slope
+  double accel_mps2 = 0.47;  // ramp slope (the paper's convoy leaders)
   double start_mps = 0.0;    // ramp start value
   double at(double time_s) const {
     if (kind == Kind::constant) return target_mps;

@@ -33,6 +33,8 @@ struct FrameSamples {
   std::vector<WheelSpeedsMsg> wheel_speeds;
   std::vector<ImageMsg> images;
   std::vector<PointCloudMsg> point_clouds;
+  std::vector<V2VMessageMsg> v2v_messages;
+  std::vector<VehicleEventMsg> vehicle_events;
 
   /// The list of one topic, for code that handles every topic alike.
   template <Topic T>
@@ -47,7 +49,9 @@ struct FrameSamples {
     else if constexpr (T == Topic::magnetometer) return magnetometers;
     else if constexpr (T == Topic::wheel_speeds) return wheel_speeds;
     else if constexpr (T == Topic::image) return images;
-    else return point_clouds;
+    else if constexpr (T == Topic::point_cloud) return point_clouds;
+    else if constexpr (T == Topic::v2v_message) return v2v_messages;
+    else return vehicle_events;
   }
   template <Topic T>
   const std::vector<typename TopicTraits<T>::Msg>& list() const {

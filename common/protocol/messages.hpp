@@ -37,11 +37,14 @@ enum class Topic : std::uint8_t {
   wheel_speeds,
   image,
   point_cloud,
+  v2v_message,
+  vehicle_event,
 };
 inline constexpr Topic kAllDataTopics[] = {
     Topic::vehicle_state, Topic::driver_command, Topic::terrain_deformation,
     Topic::terrain_snapshot, Topic::collision_event, Topic::gps_fix, Topic::imu, Topic::magnetometer,
-    Topic::wheel_speeds, Topic::image, Topic::point_cloud};
+    Topic::wheel_speeds, Topic::image, Topic::point_cloud, Topic::v2v_message,
+    Topic::vehicle_event};
 /// Stable short name used in manifests, logs and DDS topic names ("vehicle_state").
 std::string_view to_string(Topic topic);
 /// Inverse of to_string; returns false for unknown names.
@@ -195,6 +198,32 @@ struct PointCloudMsg {
   std::vector<PointMsg> points;
 };
 
+/// Vehicle-to-vehicle broadcast: what a vehicle tells the others about itself, from its own
+/// sensors (GPS, compass, tachometer: noise and lag included, never ground truth).
+struct V2VMessageMsg {
+  std::string vehicle_id;         // the sender
+  std::string source;
+  std::int64_t frame = 0;         // frame it was published in
+  std::uint64_t sequence = 0;     // the sender's message number (0, 1, ...; dropped ones too)
+  double sensor_time_s = 0.0;     // when its position (GPS fix) was measured
+  double latitude_deg = 0.0;
+  double longitude_deg = 0.0;
+  double altitude_m = 0.0;
+  double speed_mps = 0.0;         // from the wheel tachometer
+  double heading_rad = 0.0;       // compass: clockwise from true north, [0, 2 pi)
+};
+
+/// Something that happened to a vehicle and is worth a row in events.csv: a follower that lost
+/// (or found again) its leader, a command the vehicle rejected. `kind` is a short word.
+struct VehicleEventMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  double sim_time_s = 0.0;
+  std::string kind;
+  std::string detail;
+};
+
 /// Message type and stable name of each data topic, and the topic of each message type.
 template <Topic T>
 struct TopicTraits;
@@ -221,6 +250,8 @@ SYNDDS_TOPIC(magnetometer, MagnetometerMsg)
 SYNDDS_TOPIC(wheel_speeds, WheelSpeedsMsg)
 SYNDDS_TOPIC(image, ImageMsg)
 SYNDDS_TOPIC(point_cloud, PointCloudMsg)
+SYNDDS_TOPIC(v2v_message, V2VMessageMsg)
+SYNDDS_TOPIC(vehicle_event, VehicleEventMsg)
 #undef SYNDDS_TOPIC
 
 /// Calls f(std::integral_constant<Topic, T>{}) for every data topic, in enum order.

@@ -39,6 +39,40 @@ std::string csv_safe(std::string s) {
   return s;
 }
 
+nlohmann::json stat_json(const convoy::Stat& s) {
+  return {{"mean", s.mean}, {"min", s.min}, {"max", s.max}, {"samples", s.samples}};
+}
+
+nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& r : reports) {
+    out.push_back({{"follower", r.follower},
+                   {"follows", r.leader},
+                   {"distance_gap_m", stat_json(r.distance_gap_m)},
+                   {"time_gap_s", stat_json(r.time_gap_s)},
+                   {"cross_track_m", stat_json(r.cross_track_m)},
+                   {"obstacles_hit", r.obstacles_hit},
+                   {"leader_lost_events", r.leader_lost_events}});
+  }
+  return out;
+}
+
+std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
+  std::string text = fmt::format("  {:<10} {:<8} {:>22} {:>20} {:>16} {:>9} {:>11}\n", "follower",
+                                 "follows", "distance gap m (mean/min/max)",
+                                 "time gap s (mean/min/max)", "cross-track m (mean/max)",
+                                 "obstacles", "leader lost");
+  for (const auto& r : reports) {
+    text += fmt::format("  {:<10} {:<8} {:>9.1f} {:>6.1f} {:>6.1f}   {:>8.2f} {:>6.2f} {:>6.2f} "
+                        "  {:>10.2f} {:>6.2f} {:>9} {:>11}\n",
+                        r.follower, r.leader, r.distance_gap_m.mean, r.distance_gap_m.min,
+                        r.distance_gap_m.max, r.time_gap_s.mean, r.time_gap_s.min,
+                        r.time_gap_s.max, r.cross_track_m.mean, r.cross_track_m.max,
+                        r.obstacles_hit, r.leader_lost_events);
+  }
+  return text;
+}
+
 }  // namespace
 
 RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions options)
@@ -47,9 +81,12 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
       scenario_file_(scenario.file),
       heartbeat_s_(scenario.time.heartbeat_s),
       members_(scenario.member_ids()) {
+  bool v2v = false;
   for (const auto& v : scenario.vehicles) {
     vehicle_ids_.push_back(v.id);
     totals_[v.id];
+    v2v = v2v || v.v2v.has_value();
+    if (v.controller.type == "follower") followers_.emplace_back(v.id, v.controller.convoy.leader);
   }
   if (scenario.terrain.deformable()) {
     soil_ = std::make_unique<scm::ScmTerrain>(scenario.terrain.scm);
@@ -77,12 +114,16 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
     wheel_speeds_ = open_csv(dir / "wheel_speeds.csv",
                              (std::string(stamp) + "fl_rad_s,fr_rad_s,rl_rad_s,rr_rad_s").c_str());
   }
+  if (v2v) {
+    v2v_ = open_csv(dir / "v2v.csv", "frame,vehicle,sequence,sensor_time_s,latitude_deg,"
+                                     "longitude_deg,altitude_m,speed_mps,heading_rad");
+  }
   flush();
   write_summary(nullptr);
 }
 
 RecorderAgent::~RecorderAgent() {
-  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_}) {
+  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_, v2v_}) {
     if (f) std::fclose(f);
   }
 }
@@ -90,7 +131,9 @@ RecorderAgent::~RecorderAgent() {
 std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
   std::vector<proto::Subscription> subs = {{proto::Topic::vehicle_state, ""},
                                            {proto::Topic::driver_command, ""},
-                                           {proto::Topic::collision_event, ""}};
+                                           {proto::Topic::collision_event, ""},
+                                           {proto::Topic::vehicle_event, ""}};
+  if (v2v_) subs.push_back({proto::Topic::v2v_message, ""});
   if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
   if (gps_) {
     for (auto t : {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
@@ -109,6 +152,7 @@ void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
 
 void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
   if (!final_inputs.empty()) record(final_inputs);
+  if (!followers_.empty()) write_convoy_report();
   if (end.control.status == proto::RunStatus::aborted) {
     note_event(last_frame_, "run_aborted", "", end.control.reason);
   } else {
@@ -146,6 +190,9 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     t.max_speed_mps = std::max(t.max_speed_mps, speed);
     ++t.samples;
     last_frame_ = std::max(last_frame_, s.frame);
+    if (!followers_.empty()) {
+      tracks_[s.vehicle_id].push_back({s.sim_time_s, Vec2(p.x(), p.y()), speed});
+    }
   }
   std::fwrite(out.data(), 1, out.size(), vehicles_);
   out.clear();
@@ -162,7 +209,21 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
                    e.frame, e.sim_time_s, e.vehicle_id, csv_safe(e.obstacle_id), e.impulse_ns);
     ++totals_[e.vehicle_id].collisions;
   }
+  for (const auto& e : samples.vehicle_events) {
+    fmt::format_to(std::back_inserter(out), "{},{:.9g},{},{},{}\n", e.frame, e.sim_time_s,
+                   csv_safe(e.kind), e.vehicle_id, csv_safe(e.source + ": " + e.detail));
+    ++totals_[e.vehicle_id].events[e.kind];
+  }
   std::fwrite(out.data(), 1, out.size(), events_);
+  if (v2v_) {
+    out.clear();
+    for (const auto& m : samples.v2v_messages) {
+      fmt::format_to(std::back_inserter(out), "{},{},{},{:.9g},{:.10f},{:.10f},{:.4f},{:.6g},{:.6g}\n",
+                     m.frame, m.vehicle_id, m.sequence, m.sensor_time_s, m.latitude_deg,
+                     m.longitude_deg, m.altitude_m, m.speed_mps, m.heading_rad);
+    }
+    std::fwrite(out.data(), 1, out.size(), v2v_);
+  }
   if (gps_) record_sensors(samples);
   flush();
   if (soil_) {
@@ -223,9 +284,22 @@ void RecorderAgent::note_event(std::int64_t frame, const std::string& kind,
 }
 
 void RecorderAgent::flush() {
-  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_}) {
+  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_, v2v_}) {
     if (f) std::fflush(f);
   }
+}
+
+void RecorderAgent::write_convoy_report() {
+  convoy_.clear();
+  for (const auto& [follower, leader] : followers_) {
+    const VehicleTotals& t = totals_.at(follower);
+    const auto lost = t.events.find("leader_lost");
+    convoy_.push_back(convoy::follower_report(follower, leader, tracks_[follower], tracks_[leader],
+                                              t.collisions,
+                                              lost == t.events.end() ? 0 : lost->second));
+  }
+  write_text_atomically(fs::path(options_.output_dir) / "convoy.json",
+                        convoy_json(convoy_).dump(2) + "\n");
 }
 
 void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
@@ -270,6 +344,7 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                         {"mean_speed_mps", t.mean_speed_mps()},
                         {"max_speed_mps", t.max_speed_mps},
                         {"collisions", t.collisions},
+                        {"events", t.events},
                         {"final_position", {t.last_position.x(), t.last_position.y(),
                                             t.last_position.z()}}});
   }
@@ -281,6 +356,7 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                     {"deformation_bytes_per_frame_max", terrain_max_frame_bytes_},
                     {"grid_hash", fmt::format("{:016x}", soil_->grid_hash())}};
   }
+  if (!convoy_.empty()) j["convoy"] = convoy_json(convoy_);
   const fs::path dir(options_.output_dir);
   write_text_atomically(dir / "summary.json", j.dump(2) + "\n");
 
@@ -310,6 +386,7 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                             m.lost ? "  (lost)" : "");
       }
     }
+    if (!convoy_.empty()) text += convoy_table(convoy_);
   }
   write_text_atomically(dir / "summary.txt", text);
 }

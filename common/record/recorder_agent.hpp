@@ -7,6 +7,7 @@
 #include <map>
 #include <string>
 
+#include "convoy/convoy_report.hpp"
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
 #include "scm/scm_terrain.hpp"
@@ -26,6 +27,7 @@ struct VehicleTotals {
   double max_speed_mps = 0.0;
   std::uint64_t samples = 0;
   std::uint64_t collisions = 0;
+  std::map<std::string, std::uint64_t> events;  // vehicle events by kind (leader_lost, ...)
   Vec3 last_position = Vec3::Zero();
   double mean_speed_mps() const { return samples ? speed_sum_mps / samples : 0.0; }
 };
@@ -50,12 +52,15 @@ class RecorderAgent final : public proto::Agent {
                   const std::string& detail);
 
   const std::map<std::string, VehicleTotals>& totals() const { return totals_; }
+  /// The convoy report (one entry per follower), computed when the run ends.
+  const std::vector<convoy::FollowerReport>& convoy_report() const { return convoy_; }
   std::int64_t last_recorded_frame() const { return last_frame_; }
 
  private:
   void record(const proto::FrameSamples& samples);
   void record_sensors(const proto::FrameSamples& samples);
   void write_summary(const proto::RunControlMsg* end);
+  void write_convoy_report();
   void flush();
 
   std::string member_id_ = scenario::kRecorderMember;
@@ -73,6 +78,11 @@ class RecorderAgent final : public proto::Agent {
   std::FILE* imu_ = nullptr;
   std::FILE* compass_ = nullptr;
   std::FILE* wheel_speeds_ = nullptr;
+  std::FILE* v2v_ = nullptr;  // only when some vehicle broadcasts V2V messages
+  // Convoys: (follower, vehicle followed) pairs and every vehicle's track, for the report.
+  std::vector<std::pair<std::string, std::string>> followers_;
+  std::map<std::string, convoy::Track> tracks_;
+  std::vector<convoy::FollowerReport> convoy_;
   std::map<std::string, VehicleTotals> totals_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
   std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)

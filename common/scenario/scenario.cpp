@@ -140,7 +140,7 @@ control::SpeedProfile parse_speed(const YamlNode& node) {
   s.kind = kind == "ramp" ? control::SpeedProfile::Kind::ramp : control::SpeedProfile::Kind::constant;
   s.target_mps = m.number("target_mps", std::nullopt, 0, 100);
   if (s.kind == control::SpeedProfile::Kind::ramp) {
-    s.accel_mps2 = m.positive("accel_mps2", std::nullopt);
+    s.accel_mps2 = m.positive("accel_mps2", s.accel_mps2);  // the paper's leaders: 0.47
     s.start_mps = m.number("start_mps", 0.0, 0, 100);
   }
   m.finish();
@@ -150,7 +150,29 @@ control::SpeedProfile parse_speed(const YamlNode& node) {
 ControllerConfig parse_controller(const YamlNode& node) {
   MapReader m(node);
   ControllerConfig c;
-  c.type = m.choice("type", std::nullopt, {"path_follower", "external", "none"});
+  c.type = m.choice("type", std::nullopt, {"path_follower", "follower", "external", "none"});
+  if (c.type == "follower") {
+    auto& f = c.convoy;
+    f.leader = m.required("follow").as_string();
+    if (auto n = m.optional("gap")) {
+      MapReader g(*n);
+      f.time_gap_s = g.number("time_s", f.time_gap_s, 0.0, 10.0);
+      f.standstill_m = g.number("standstill_m", f.standstill_m, 3.0, 100.0);
+      g.finish();
+    }
+    if (auto n = m.optional("lookahead")) {
+      MapReader l(*n);
+      f.lookahead_min_m = l.number("min_m", f.lookahead_min_m, 0.5, 50.0);
+      f.lookahead_time_s = l.number("time_s", f.lookahead_time_s, 0.0, 10.0);
+      l.finish();
+    }
+    f.max_speed_mps = m.number("max_speed_mps", f.max_speed_mps, 0.1, 100.0);
+    f.gap_gain_per_s = m.number("gap_gain_per_s", f.gap_gain_per_s, 0.0, 10.0);
+    if (auto n = m.optional("speed_pid")) f.speed_pid = parse_pid(*n, f.speed_pid);
+    f.fix_gain = m.number("gps_gain", f.fix_gain, 0.0, 1.0);
+    f.leader_fix_gain = m.number("v2v_gain", f.leader_fix_gain, 0.0, 1.0);
+    f.leader_lost_after_s = m.number("leader_lost_after_s", f.leader_lost_after_s, 0.05, 600.0);
+  }
   if (c.type == "path_follower") {
     MapReader p(m.required("path"));
     auto wp = p.required("waypoints");
@@ -256,11 +278,32 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   if (auto n = m.optional("sensors")) {
     v.sensors = parse_vehicle_sensors(*n, config_dir, heartbeat_s);
   }
-  if (auto c = m.optional("controller")) {
-    v.controller = parse_controller(*c);
+  std::optional<YamlNode> controller_node = m.optional("controller");
+  if (controller_node) {
+    v.controller = parse_controller(*controller_node);
   } else {
     v.controller.type = "none";
   }
+  std::optional<YamlNode> v2v_node = m.optional("v2v");
+  if (v2v_node) {
+    MapReader r(*v2v_node);
+    convoy::V2VConfig c;
+    c.rate_hz = r.number("rate_hz", c.rate_hz, 0.01, 1.0 / heartbeat_s);
+    c.latency_s = r.number("latency_s", c.latency_s, 0.0, 60.0);
+    c.drop_probability = r.number("drop_probability", c.drop_probability, 0.0, 1.0);
+    r.finish();
+    v.v2v = c;
+  }
+  // V2V and the follower work from the vehicle's own GPS, compass and tachometer.
+  auto needs_own_sensors = [&](const YamlNode& where, const char* what) {
+    const auto* rig = v.sensors ? &v.sensors->rig : nullptr;
+    if (!rig || rig->gps.empty() || rig->magnetometers.empty() || rig->tachometers.empty()) {
+      where.fail(std::string(what) + " needs the vehicle's own GPS, magnetometer and tachometer: "
+                "give the vehicle a sensor rig with all three (e.g. sensors: convoy)");
+    }
+  };
+  if (v2v_node) needs_own_sensors(*v2v_node, "v2v");
+  if (v.controller.type == "follower") needs_own_sensors(*controller_node, "a follower controller");
   if (start) {
     v.start = parse_start(*start);
   } else if (v.controller.type == "path_follower") {
@@ -308,7 +351,7 @@ std::vector<std::string> Scenario::member_ids() const {
   std::vector<std::string> out;
   for (const auto& v : vehicles) out.push_back(vehicle_member(v.id));
   for (const auto& v : vehicles) {
-    if (v.controller.type == "path_follower") out.push_back(controller_member(v.id));
+    if (v.controller.is_builtin()) out.push_back(controller_member(v.id));
     if (v.controller.type == "external") out.push_back(external_member(v.id));
   }
   for (const auto& v : vehicles) {
@@ -366,6 +409,23 @@ Scenario parse_scenario(const YamlNode& root, const std::string& text, const Ove
     }
   }
   if (s.vehicles.empty()) vehicles.fail("needs at least one vehicle");
+  // A follower follows another vehicle of this scenario, one that broadcasts V2V.
+  {
+    const auto nodes = vehicles.elements();
+    for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
+      const auto& v = s.vehicles[i];
+      if (v.controller.type != "follower") continue;
+      const std::string& leader = v.controller.convoy.leader;
+      const VehicleConfig* l = s.find_vehicle(leader);
+      if (!l || leader == v.id) {
+        nodes[i].fail("controller.follow: '" + leader + "' is not another vehicle of this scenario");
+      }
+      if (!l->v2v) {
+        nodes[i].fail("controller.follow: vehicle '" + leader +
+                      "' sends no V2V messages (give it a v2v: block)");
+      }
+    }
+  }
   if (!s.obstacles.empty()) {
     // Obstacles without a z rest on the ground: a sphere on its lowest point, a box or a
     // cylinder on its base.

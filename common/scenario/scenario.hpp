@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "control/path_follower.hpp"
+#include "convoy/follower.hpp"
+#include "convoy/v2v.hpp"
 #include "protocol/barrier.hpp"
 #include "scm/scm_params.hpp"
 #include "sensors/rig.hpp"
@@ -48,10 +50,13 @@ struct TerrainConfig {
 };
 
 struct ControllerConfig {
-  std::string type = "path_follower";  // path_follower | external | none
-  std::vector<Vec2> waypoints;
+  std::string type = "path_follower";  // path_follower | follower | external | none
+  std::vector<Vec2> waypoints;         // path_follower
   bool closed = false;
   control::PathFollowerConfig follower;
+  convoy::FollowerConfig convoy;       // follower: the vehicle followed, gaps, gains
+  /// Runs as the member controller/<id> (path_follower and follower).
+  bool is_builtin() const { return type == "path_follower" || type == "follower"; }
 };
 
 /// The sensors a vehicle carries (`sensors:` of a vehicle entry).
@@ -70,6 +75,7 @@ struct VehicleConfig {
   Pose start;
   ControllerConfig controller;
   std::optional<VehicleSensorsConfig> sensors;
+  std::optional<convoy::V2VConfig> v2v;  // broadcasts V2V messages (needs GPS, compass, tachometer)
   /// GPS, IMU, compass or tachometer: simulated in the vehicle process at the dynamics rate.
   bool has_interoceptive_sensors() const;
   /// Cameras or lidars: rendered by the vehicle's own sensor process ("sensor/<id>").

@@ -1,5 +1,7 @@
 #include "dds/convert.hpp"
 
+#include <cmath>
+
 #include "core/error.hpp"
 
 namespace syndds::dds {
@@ -475,6 +477,60 @@ proto::PointCloudMsg from_dds(const msg::PointCloud& m) {
     o.points.push_back({p.x(), p.y(), p.z(), p.intensity(), p.range(), p.channel(), p.sample()});
   }
   return o;
+}
+
+msg::V2VMessage to_dds(const proto::V2VMessageMsg& m) {
+  msg::V2VMessage o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.number(m.sequence);
+  o.sensor_time_s(m.sensor_time_s);
+  o.latitude_deg(m.latitude_deg);
+  o.longitude_deg(m.longitude_deg);
+  o.altitude_m(m.altitude_m);
+  o.speed_mps(m.speed_mps);
+  o.heading_rad(m.heading_rad);
+  return o;
+}
+// Validated: a follower steers by these numbers, so a NaN or an impossible coordinate is a
+// malformed sample (ProtocolError naming the field), not something to drive towards.
+proto::V2VMessageMsg from_dds(const msg::V2VMessage& m) {
+  const std::string what = "v2v_message from " + m.source() + " (vehicle " + m.vehicle_id() + ")";
+  auto check = [&](const char* field, double v, double lo, double hi) {
+    if (!std::isfinite(v) || v < lo || v > hi) {
+      throw ProtocolError(what + ": " + field + " = " + std::to_string(v) + " is not in [" +
+                          std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    return v;
+  };
+  proto::V2VMessageMsg o;
+  o.vehicle_id = m.vehicle_id();
+  o.source = m.source();
+  o.frame = m.frame();
+  o.sequence = m.number();
+  o.sensor_time_s = check("sensor_time_s", m.sensor_time_s(), 0.0, 1e9);
+  o.latitude_deg = check("latitude_deg", m.latitude_deg(), -90.0, 90.0);
+  o.longitude_deg = check("longitude_deg", m.longitude_deg(), -180.0, 180.0);
+  o.altitude_m = check("altitude_m", m.altitude_m(), -1e5, 1e5);
+  o.speed_mps = check("speed_mps", m.speed_mps(), -1e3, 1e3);
+  o.heading_rad = check("heading_rad", m.heading_rad(), -7.0, 7.0);
+  return o;
+}
+
+msg::VehicleEvent to_dds(const proto::VehicleEventMsg& m) {
+  msg::VehicleEvent o;
+  o.vehicle_id(m.vehicle_id);
+  o.source(m.source);
+  o.frame(m.frame);
+  o.sim_time_s(m.sim_time_s);
+  o.kind(m.kind);
+  o.detail(m.detail);
+  return o;
+}
+proto::VehicleEventMsg from_dds(const msg::VehicleEvent& m) {
+  return proto::VehicleEventMsg{m.vehicle_id(), m.source(),    m.frame(),
+                                m.sim_time_s(), m.kind(),      m.detail()};
 }
 
 }  // namespace syndds::dds

@@ -46,6 +46,10 @@ msg::Image to_dds(const proto::ImageMsg& m);
 proto::ImageMsg from_dds(const msg::Image& m);
 msg::PointCloud to_dds(const proto::PointCloudMsg& m);
 proto::PointCloudMsg from_dds(const msg::PointCloud& m);
+msg::V2VMessage to_dds(const proto::V2VMessageMsg& m);
+proto::V2VMessageMsg from_dds(const msg::V2VMessage& m);
+msg::VehicleEvent to_dds(const proto::VehicleEventMsg& m);
+proto::VehicleEventMsg from_dds(const msg::VehicleEvent& m);
 
 /// The generated type of each data topic.
 template <proto::Topic T>
@@ -64,6 +68,8 @@ SYNDDS_DDS_TOPIC(magnetometer, Magnetometer)
 SYNDDS_DDS_TOPIC(wheel_speeds, WheelSpeeds)
 SYNDDS_DDS_TOPIC(image, Image)
 SYNDDS_DDS_TOPIC(point_cloud, PointCloud)
+SYNDDS_DDS_TOPIC(v2v_message, V2VMessage)
+SYNDDS_DDS_TOPIC(vehicle_event, VehicleEvent)
 #undef SYNDDS_DDS_TOPIC
 
 }  // namespace syndds::dds

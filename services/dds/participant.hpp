@@ -76,6 +76,8 @@ SYNDDS_DDS_TYPE(Magnetometer)
 SYNDDS_DDS_TYPE(WheelSpeeds)
 SYNDDS_DDS_TYPE(Image)
 SYNDDS_DDS_TYPE(PointCloud)
+SYNDDS_DDS_TYPE(V2VMessage)
+SYNDDS_DDS_TYPE(VehicleEvent)
 #undef SYNDDS_DDS_TYPE
 
 /// The generated PubSubType computes instance keys in member buffers (m_keyBuffer, m_md5), but

@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
                              program("syndds_vehicle") + shared + " --vehicle " + quote(v.id));
     }
     for (const auto& v : s.vehicles) {
-      if (v.controller.type != "path_follower") continue;
+      if (!v.controller.is_builtin()) continue;
       processes.emplace_back(scenario::controller_member(v.id),
                              program("syndds_controller") + shared + " --vehicle " + quote(v.id));
     }

@@ -1,0 +1,59 @@
+#include "agents/follower_agent.hpp"
+
+#include <numbers>
+
+namespace syndds::agents {
+namespace {
+
+convoy::FollowerVehicle follower_vehicle(const vehicle::VehicleParams& p) {
+  convoy::FollowerVehicle v;
+  v.wheelbase_m = p.wheelbase_m();
+  v.max_steer_rad = p.steering.max_angle_deg * std::numbers::pi / 180.0;
+  v.wheel_radius_m = p.wheels.radius_m;
+  return v;
+}
+
+// The follower converts latitude / longitude with its own GPS's origin and model.
+sensors::GeodeticConverter converter(const scenario::VehicleConfig& v) {
+  const auto& rig = v.sensors->rig;
+  return sensors::GeodeticConverter(rig.geodetic_origin, rig.gps.front().model);
+}
+
+}  // namespace
+
+FollowerAgent::FollowerAgent(const scenario::Scenario&, const scenario::VehicleConfig& vehicle)
+    : vehicle_id_(vehicle.id),
+      leader_id_(vehicle.controller.convoy.leader),
+      member_id_(scenario::controller_member(vehicle.id)),
+      follower_(vehicle.controller.convoy, follower_vehicle(vehicle.params), converter(vehicle)) {}
+
+std::vector<proto::Subscription> FollowerAgent::subscriptions() const {
+  return {{proto::Topic::gps_fix, vehicle_id_},
+          {proto::Topic::magnetometer, vehicle_id_},
+          {proto::Topic::wheel_speeds, vehicle_id_},
+          {proto::Topic::v2v_message, leader_id_}};
+}
+
+void FollowerAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                         proto::FrameSamples& outputs) {
+  if (ctx.frame == 0) return;  // nothing measured yet; the vehicle holds its initial inputs
+  convoy::OwnReadings own{inputs.gps_fixes, inputs.magnetometers, inputs.wheel_speeds};
+  std::vector<convoy::FollowerEvent> events;
+  // The inputs describe the end of frame k-1: that is the time the follower estimates for.
+  const double now = ctx.sim_time_s - ctx.heartbeat_s;
+  const auto cmd = follower_.update(now, ctx.heartbeat_s, own, inputs.v2v_messages, events);
+  proto::DriverCommandMsg out;
+  out.vehicle_id = vehicle_id_;
+  out.source = member_id_;
+  out.frame = ctx.frame;
+  out.steering = cmd.steering;
+  out.throttle = cmd.throttle;
+  out.braking = cmd.braking;
+  outputs.driver_commands.push_back(out);
+  for (const auto& e : events) {
+    outputs.vehicle_events.push_back(
+        {vehicle_id_, member_id_, ctx.frame, ctx.sim_time_s, e.kind, e.detail});
+  }
+}
+
+}  // namespace syndds::agents

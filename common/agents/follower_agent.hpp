@@ -1,0 +1,35 @@
+#pragma once
+// The convoy follower member (controller/<id> with `controller: {type: follower}`): reads its
+// vehicle's own GPS, compass and wheel-speed samples and the V2V messages of the vehicle it
+// follows, all stamped k-1, and publishes the DriverCommand stamped k, plus a VehicleEvent when
+// it loses or finds again its leader. Never reads a true vehicle state.
+#include "convoy/follower.hpp"
+#include "protocol/agent.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::agents {
+
+class FollowerAgent final : public proto::Agent {
+ public:
+  FollowerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);
+
+  const std::string& member_id() const override { return member_id_; }
+  std::string vehicle_key() const override { return vehicle_id_; }
+  proto::MemberKind kind() const override { return proto::MemberKind::controller; }
+  std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override {
+    return {proto::Topic::driver_command, proto::Topic::vehicle_event};
+  }
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+            proto::FrameSamples& outputs) override;
+
+  const convoy::ConvoyFollower& follower() const { return follower_; }
+
+ private:
+  std::string vehicle_id_;
+  std::string leader_id_;
+  std::string member_id_;
+  convoy::ConvoyFollower follower_;
+};
+
+}  // namespace syndds::agents

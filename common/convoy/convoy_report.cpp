@@ -1,0 +1,101 @@
+#include "convoy/convoy_report.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace syndds::convoy {
+namespace {
+
+class Accumulator {
+ public:
+  void add(double v) {
+    sum_ += v;
+    min_ = std::min(min_, v);
+    max_ = std::max(max_, v);
+    ++n_;
+  }
+  Stat stat() const {
+    if (n_ == 0) return {};
+    return {sum_ / static_cast<double>(n_), min_, max_, n_};
+  }
+
+ private:
+  double sum_ = 0.0;
+  double min_ = std::numeric_limits<double>::infinity();
+  double max_ = -std::numeric_limits<double>::infinity();
+  std::size_t n_ = 0;
+};
+
+}  // namespace
+
+double distance_to_track(const std::vector<Vec2>& track, const std::vector<double>& arc,
+                         const Vec2& p, double& u, bool& inside) {
+  double best = std::numeric_limits<double>::infinity();
+  u = 0.0;
+  for (std::size_t i = 0; i + 1 < track.size(); ++i) {
+    const Vec2 ab = track[i + 1] - track[i];
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - track[i]).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    const double d = (track[i] + t * ab - p).norm();
+    if (d < best) {
+      best = d;
+      u = arc[i] + t * (arc[i + 1] - arc[i]);
+    }
+  }
+  if (track.size() == 1) {
+    best = (track[0] - p).norm();
+    u = 0.0;
+  }
+  const double end = arc.empty() ? 0.0 : arc.back();
+  inside = u > 1e-9 && u < end - 1e-9;
+  return best;
+}
+
+FollowerReport follower_report(const std::string& follower, const std::string& leader,
+                               const Track& follower_track, const Track& leader_track,
+                               std::size_t obstacles_hit, std::size_t leader_lost_events) {
+  FollowerReport r;
+  r.follower = follower;
+  r.leader = leader;
+  r.obstacles_hit = obstacles_hit;
+  r.leader_lost_events = leader_lost_events;
+
+  // The leader's track as a polyline with distinct points (a standing vehicle adds nothing),
+  // and the time it passed each point (the first time).
+  std::vector<Vec2> track;
+  std::vector<double> arc, passed_s;
+  for (const auto& p : leader_track) {
+    if (!track.empty() && (p.position - track.back()).norm() < 0.05) continue;
+    arc.push_back(track.empty() ? 0.0 : arc.back() + (p.position - track.back()).norm());
+    track.push_back(p.position);
+    passed_s.push_back(p.time_s);
+  }
+
+  Accumulator distance, time_gap, cross;
+  const std::size_t n = std::min(follower_track.size(), leader_track.size());
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto& f = follower_track[k];
+    distance.add((f.position - leader_track[k].position).norm());
+    if (track.size() < 2) continue;
+    double u = 0.0;
+    bool inside = false;
+    const double d = distance_to_track(track, arc, f.position, u, inside);
+    if (!inside) continue;
+    cross.add(d);
+    if (f.speed_mps > 0.5) {
+      const auto it = std::upper_bound(arc.begin(), arc.end(), u);
+      const std::size_t i = static_cast<std::size_t>(it - arc.begin()) - 1;
+      const double len = arc[i + 1] - arc[i];
+      const double w = len > 0.0 ? (u - arc[i]) / len : 0.0;
+      const double t_leader = passed_s[i] + w * (passed_s[i + 1] - passed_s[i]);
+      time_gap.add(f.time_s - t_leader);
+    }
+  }
+  r.distance_gap_m = distance.stat();
+  r.time_gap_s = time_gap.stat();
+  r.cross_track_m = cross.stat();
+  return r;
+}
+
+}  // namespace syndds::convoy
