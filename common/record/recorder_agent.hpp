@@ -54,6 +54,8 @@ class RecorderAgent final : public proto::Agent {
   const std::map<std::string, VehicleTotals>& totals() const { return totals_; }
   /// The convoy report (one entry per follower), computed when the run ends.
   const std::vector<convoy::FollowerReport>& convoy_report() const { return convoy_; }
+  /// Every vehicle's recorded track (kept only when the scenario has followers).
+  const std::map<std::string, convoy::Track>& tracks() const { return tracks_; }
   std::int64_t last_recorded_frame() const { return last_frame_; }
 
  private:

@@ -170,7 +170,8 @@ TEST(Scenario, FullDynamicsIsAccepted) {
 // Every scenario shipped in config/scenarios loads (vehicle files, rigs, height maps, presets).
 TEST(Scenario, EveryShippedScenarioLoads) {
   std::size_t n = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(kConfigDir + "/scenarios")) {
+  for (const auto& entry :
+       std::filesystem::recursive_directory_iterator(kConfigDir + "/scenarios")) {
     if (entry.path().extension() != ".yaml") continue;
     SCOPED_TRACE(entry.path().string());
     const auto s = load_scenario(entry.path().string());
@@ -178,5 +179,5 @@ TEST(Scenario, EveryShippedScenarioLoads) {
     EXPECT_FALSE(s.member_ids().empty());
     ++n;
   }
-  EXPECT_GE(n, 4u);  // default, scm_crossing, hills, chase_video
+  EXPECT_GE(n, 13u);  // default, scm_crossing, hills, chase_video, the nine convoys
 }
