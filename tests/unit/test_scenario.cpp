@@ -181,3 +181,66 @@ TEST(Scenario, EveryShippedScenarioLoads) {
   }
   EXPECT_GE(n, 13u);  // default, scm_crossing, hills, chase_video, the nine convoys
 }
+
+// Convoys: a follower follows another vehicle that broadcasts V2V, and both sides need their
+// own GPS, compass and tachometer; every mistake is named with the file and line.
+TEST(Scenario, ConvoyMistakesAreNamed) {
+  const std::string leader = R"(time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}
+vehicles:
+  - id: l1
+    model: hmmwv
+    sensors: convoy
+    v2v: {rate_hz: 10, latency_s: 0.1, drop_probability: 0.2}
+    controller:
+      type: path_follower
+      path: {waypoints: [[0, 0], [10, 0]]}
+      speed: {profile: ramp, target_mps: 3}
+)";
+  const std::string follower = R"(  - id: f1
+    model: hmmwv
+    start: {x: -12, y: 0}
+    sensors: convoy
+    controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_m: 8}}
+)";
+  const auto s = parse(leader + follower);
+  ASSERT_EQ(s.vehicles.size(), 2u);
+  EXPECT_EQ(s.vehicles[0].controller.follower.speed_profile.accel_mps2, 0.47);  // the paper's
+  ASSERT_TRUE(s.vehicles[0].v2v.has_value());
+  EXPECT_EQ(s.vehicles[0].v2v->latency_s, 0.1);
+  EXPECT_EQ(s.vehicles[1].controller.type, "follower");
+  EXPECT_EQ(s.vehicles[1].controller.convoy.leader, "l1");
+  EXPECT_EQ(s.vehicles[1].controller.convoy.time_gap_s, 1.5);
+  EXPECT_EQ(s.vehicles[1].controller.convoy.standstill_m, 8.0);
+  const auto members = s.member_ids();
+  EXPECT_NE(std::find(members.begin(), members.end(), "controller/f1"), members.end());
+
+  auto replaced = [](std::string text, const std::string& from, const std::string& to) {
+    text.replace(text.find(from), from.size(), to);
+    return text;
+  };
+  EXPECT_NE(error_of(leader + replaced(follower, "follow: l1", "follow: l9"))
+                .find("test.yaml:11:5: vehicles[1]: controller.follow: 'l9' is not another vehicle"),
+            std::string::npos)
+      << error_of(leader + replaced(follower, "follow: l1", "follow: l9"));
+  EXPECT_NE(error_of(leader + replaced(follower, "follow: l1", "follow: f1")).find("is not another"),
+            std::string::npos);
+  EXPECT_NE(error_of(replaced(leader, "    v2v: {rate_hz: 10, latency_s: 0.1, drop_probability: 0.2}\n", "") +
+                     follower)
+                .find("vehicle 'l1' sends no V2V messages"),
+            std::string::npos);
+  EXPECT_NE(error_of(leader + replaced(follower, "    sensors: convoy\n", ""))
+                .find("controller: a follower controller needs the vehicle's own GPS, magnetometer"),
+            std::string::npos)
+      << error_of(leader + replaced(follower, "    sensors: convoy\n", ""));
+  EXPECT_NE(error_of(replaced(leader, "    sensors: convoy\n", "")).find("v2v: v2v needs"),
+            std::string::npos)
+      << error_of(replaced(leader, "    sensors: convoy\n", ""));
+  EXPECT_NE(error_of(replaced(leader, "drop_probability: 0.2", "drop_probability: 2"))
+                .find("v2v.drop_probability"),
+            std::string::npos)
+      << error_of(replaced(leader, "drop_probability: 0.2", "drop_probability: 2"));
+  EXPECT_NE(error_of(leader + replaced(follower, "gap: {", "gap: {spacing_m: 3, "))
+                .find("unknown key"),
+            std::string::npos)
+      << error_of(leader + replaced(follower, "gap: {", "gap: {spacing_m: 3, "));
+}
