@@ -27,23 +27,6 @@ std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(const scenario::Scenar
   throw ConfigError("vehicle '" + config.id + "': unknown dynamics '" + config.dynamics + "'");
 }
 
-std::string validate_command(const proto::DriverCommandMsg& cmd) {
-  auto check = [](const char* name, double v, double lo, double hi) -> std::string {
-    if (!std::isfinite(v)) return std::string(name) + " is not a finite number";
-    if (v < lo || v > hi) {
-      return std::string(name) + " = " + std::to_string(v) + " is outside [" +
-             std::to_string(lo) + ", " + std::to_string(hi) + "]";
-    }
-    return "";
-  };
-  for (const auto& err : {check("steering", cmd.steering, -1, 1),
-                          check("throttle", cmd.throttle, 0, 1),
-                          check("braking", cmd.braking, 0, 1)}) {
-    if (!err.empty()) return err;
-  }
-  return "";
-}
-
 std::uint32_t member_rank(const scenario::Scenario& s, const std::string& member_id) {
   const auto members = s.member_ids();
   const auto it = std::find(members.begin(), members.end(), member_id);
@@ -83,7 +66,8 @@ std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
 }
 
 std::vector<proto::Topic> VehicleAgent::publications() const {
-  std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event};
+  std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event,
+                                    proto::Topic::vehicle_event};
   if (soil_) pubs.push_back(proto::Topic::terrain_deformation);
   if (snapshot_provider_) pubs.push_back(proto::Topic::terrain_snapshot);
   if (sensors_) {
@@ -99,8 +83,24 @@ void VehicleAgent::log_terrain_hashes(const std::string& file) {
   if (!hash_log_) throw ConfigError(file + ": cannot create terrain hash log");
 }
 
+void VehicleAgent::note_rejected(const std::vector<proto::RejectedSample>& rejected) {
+  for (const auto& r : rejected) {
+    if (r.topic == proto::Topic::driver_command && r.key == vehicle_id_) intrusions_.push_back(r);
+  }
+}
+
 void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                         proto::FrameSamples& outputs) {
+  // Commands the transport refused (a writer that is not the declared controller's
+  // participant) since the last frame: each is an event, never an input.
+  for (const auto& r : intrusions_) {
+    ++rejected_;
+    outputs.vehicle_events.push_back({vehicle_id_, member_id_, ctx.frame, ctx.sim_time_s,
+                                      "command_rejected",
+                                      "claimed " + r.source + " stamped frame " +
+                                          std::to_string(r.frame) + ": " + r.reason});
+  }
+  intrusions_.clear();
   if (soil_) {
     // The other vehicles' deformations of frame k-1, merged by the SCM rule (order-free).
     for (const auto& d : inputs.terrain_deformations) {
@@ -115,11 +115,15 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
   }
   // The newest valid command stamped k-1 (several writers: the last in canonical order wins).
   for (const auto& cmd : inputs.driver_commands) {
-    const std::string error = validate_command(cmd);
+    const std::string error = proto::validate_command(cmd);
     if (!error.empty()) {
       ++rejected_;
       spdlog::error("{}: rejected driver_command from {} stamped frame {}: {}", member_id_,
                     cmd.source, cmd.frame, error);
+      outputs.vehicle_events.push_back({vehicle_id_, member_id_, ctx.frame, ctx.sim_time_s,
+                                        "command_rejected",
+                                        "from " + cmd.source + " stamped frame " +
+                                            std::to_string(cmd.frame) + ": " + error});
       continue;
     }
     model_->set_inputs({cmd.steering, cmd.throttle, cmd.braking});

@@ -25,7 +25,7 @@ std::unique_ptr<vehicle::VehicleModel> make_vehicle_model(
 std::uint32_t member_rank(const scenario::Scenario& scenario, const std::string& member_id);
 
 /// Checks a received command; returns an empty string if valid, else which field is wrong.
-std::string validate_command(const proto::DriverCommandMsg& cmd);
+using proto::validate_command;
 
 class VehicleAgent final : public proto::Agent {
  public:
@@ -38,6 +38,7 @@ class VehicleAgent final : public proto::Agent {
   std::vector<proto::Topic> publications() const override;
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
+  void note_rejected(const std::vector<proto::RejectedSample>& rejected) override;
 
   const vehicle::VehicleModel& model() const { return *model_; }
   std::uint64_t rejected_commands() const { return rejected_; }
@@ -62,6 +63,7 @@ class VehicleAgent final : public proto::Agent {
   bool snapshot_provider_ = false;  // writes the terrain snapshot late joiners start from
   std::unique_ptr<vehicle::VehicleModel> model_;
   std::uint64_t rejected_ = 0;
+  std::vector<proto::RejectedSample> intrusions_;  // refused by the transport, not yet reported
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> hash_log_{nullptr, &std::fclose};
 };
 

@@ -85,6 +85,19 @@ struct RunEnd {
   RunControlMsg control;
 };
 
+/// A sample the transport refused before it reached the frame inbox: its writer is not the
+/// participant that announced itself as the member named in its `source` (docs/protocol.md,
+/// "Who may write what"). Only the DDS runtime produces these; they arrive when they arrive,
+/// so what an agent makes of them is not part of a run's deterministic result.
+struct RejectedSample {
+  Topic topic = Topic::driver_command;
+  std::string key;           // vehicle_id of the sample
+  std::string source;        // the member it claims to come from
+  std::int64_t frame = 0;    // the frame it claims
+  std::string writer;        // GUID prefix of the participant that really wrote it
+  std::string reason;
+};
+
 class Agent {
  public:
   virtual ~Agent() = default;
@@ -108,6 +121,10 @@ class Agent {
   /// samples stamped with the final frame when they could still be gathered (always after a
   /// completed run; after an abort only if every member had finished that frame).
   virtual void finish(const RunEnd& end, const FrameSamples& final_inputs) {}
+
+  /// Samples of subscribed topics the transport refused since the last frame (called in the
+  /// thread that runs frames, before a step).
+  virtual void note_rejected(const std::vector<RejectedSample>& rejected) {}
 };
 
 using AgentPtr = std::unique_ptr<Agent>;

@@ -1,5 +1,8 @@
 #include "protocol/messages.hpp"
 
+#include <cmath>
+#include <string>
+
 namespace syndds::proto {
 
 std::string_view to_string(MemberKind kind) {
@@ -30,6 +33,23 @@ bool topic_from_string(std::string_view name, Topic& topic) {
     }
   }
   return false;
+}
+
+std::string validate_command(const DriverCommandMsg& cmd) {
+  auto check = [](const char* name, double v, double lo, double hi) -> std::string {
+    if (!std::isfinite(v)) return std::string(name) + " is not a finite number";
+    if (v < lo || v > hi) {
+      return std::string(name) + " = " + std::to_string(v) + " is outside [" +
+             std::to_string(lo) + ", " + std::to_string(hi) + "]";
+    }
+    return "";
+  };
+  for (const auto& err : {check("steering", cmd.steering, -1, 1),
+                          check("throttle", cmd.throttle, 0, 1),
+                          check("braking", cmd.braking, 0, 1)}) {
+    if (!err.empty()) return err;
+  }
+  return "";
 }
 
 std::string_view to_string(RunStatus status) {

@@ -224,6 +224,10 @@ struct VehicleEventMsg {
   std::string detail;
 };
 
+/// Checks a driver command: empty if valid, else which field is wrong and why (NaN, out of
+/// range). Vehicles apply only valid commands; the recorder marks the others rejected.
+std::string validate_command(const DriverCommandMsg& cmd);
+
 /// Message type and stable name of each data topic, and the topic of each message type.
 template <Topic T>
 struct TopicTraits;

@@ -99,7 +99,8 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   vehicles_ = open_csv(dir / "vehicles.csv",
                        "frame,time_s,vehicle,x,y,z,qw,qx,qy,qz,vx,vy,vz,speed_mps,steering,"
                        "throttle,braking,gear,engine_speed_rpm");
-  commands_ = open_csv(dir / "commands.csv", "frame,time_s,vehicle,source,steering,throttle,braking");
+  commands_ = open_csv(dir / "commands.csv",
+                       "frame,time_s,vehicle,source,steering,throttle,braking,rejected");
   events_ = open_csv(dir / "events.csv", "frame,time_s,kind,vehicle,detail");
   bool interoceptive = false;
   for (const auto& v : scenario.vehicles) interoceptive = interoceptive || v.has_interoceptive_sensors();
@@ -197,9 +198,10 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
   std::fwrite(out.data(), 1, out.size(), vehicles_);
   out.clear();
   for (const auto& c : samples.driver_commands) {
-    fmt::format_to(std::back_inserter(out), "{},{:.9g},{},{},{:.9g},{:.9g},{:.9g}\n", c.frame,
+    // `rejected`: the vehicle refuses it (NaN, out of range; the reason is in events.csv).
+    fmt::format_to(std::back_inserter(out), "{},{:.9g},{},{},{:.9g},{:.9g},{:.9g},{}\n", c.frame,
                    static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id, c.source, c.steering,
-                   c.throttle, c.braking);
+                   c.throttle, c.braking, proto::validate_command(c).empty() ? 0 : 1);
     last_frame_ = std::max(last_frame_, c.frame);
   }
   std::fwrite(out.data(), 1, out.size(), commands_);

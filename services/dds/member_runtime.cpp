@@ -102,11 +102,13 @@ void MemberRuntime::setup() {
     }
   };
   announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
-      topics::kMemberAnnounce, profiles::kProtocolReader, [this, guard](msg::MemberAnnounce&& m) {
+      topics::kMemberAnnounce, profiles::kProtocolReader,
+      [this, guard](msg::MemberAnnounce&& m, const fdds::SampleInfo& info) {
         guard("member_announce", [&] {
-          if (m.kind() != msg::MEMBER_COORDINATOR) return;
           auto a = from_dds(m);
           std::lock_guard lock(mutex_);
+          note_announcement(a, writer_prefix(info));
+          if (a.kind != proto::MemberKind::coordinator) return;
           if (!coordinator_) {
             coordinator_ = std::move(a);
           } else if (coordinator_->participant_guid != a.participant_guid && failure_.empty()) {
@@ -158,11 +160,11 @@ void MemberRuntime::setup() {
     const std::string name = topics::data(T);
     if (subscribes(T)) {
       std::get<static_cast<std::size_t>(T)>(data_readers_) = participant_->make_reader<Dds>(
-          name, profiles::kDataReader, [this, guard](Dds&& m) {
+          name, profiles::kDataReader, [this, guard](Dds&& m, const fdds::SampleInfo& info) {
             guard(proto::TopicTraits<T>::name, [&] {
               auto s = from_dds(m);
               std::unique_lock lock(mutex_);
-              if (inbox_.add<T>(std::move(s))) cv_.notify_all();
+              admit_locked<T>(std::move(s), writer_prefix(info));
             });
           },
           only_key(T).empty() ? Participant::Scope::all_vehicles : Participant::Scope::one_vehicle,
@@ -177,6 +179,58 @@ void MemberRuntime::setup() {
                                                           profiles::kProtocolWriter);
   announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
                                                                     profiles::kProtocolWriter);
+}
+
+void MemberRuntime::note_announcement(const proto::MemberAnnounceMsg& a,
+                                      const std::string& writer) {
+  // An announcement names its participant; it counts only if that participant wrote it.
+  if (a.participant_guid != writer) {
+    spdlog::error("{}: ignored the announcement of '{}': it names participant {} but was written "
+                  "by {}", agent_.member_id(), a.member_id, a.participant_guid, writer);
+    return;
+  }
+  const auto [it, inserted] = members_.emplace(a.member_id, a.participant_guid);
+  if (!inserted && it->second != a.participant_guid) {
+    spdlog::error("{}: participant {} (pid {} on {}) announced itself as '{}', which participant "
+                  "{} announced first: its samples are refused", agent_.member_id(),
+                  a.participant_guid, a.pid, a.host, a.member_id, it->second);
+    return;
+  }
+  if (!inserted) return;
+  // Samples that arrived before their writer's announcement: decide now.
+  std::vector<std::function<void()>> waiting;
+  waiting.swap(unannounced_);
+  for (auto& retry : waiting) retry();
+}
+
+template <proto::Topic T>
+void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
+                                 const std::string& writer) {
+  const auto it = members_.find(sample.source);
+  if (it == members_.end()) {
+    // Its writer's announcement has not arrived yet (different writers are not ordered):
+    // park the sample until it does. A sample whose source never announces itself stays
+    // parked and is never used; the data barrier then names what is missing.
+    unannounced_.push_back([this, s = std::move(sample), writer]() mutable {
+      admit_locked<T>(std::move(s), writer);
+    });
+    return;
+  }
+  if (it->second != writer) {
+    proto::RejectedSample r;
+    r.topic = T;
+    r.key = sample.vehicle_id;
+    r.source = sample.source;
+    r.frame = sample.frame;
+    r.writer = writer;
+    r.reason = "written by participant " + writer + ", not by " + sample.source + " (participant " +
+               it->second + ")";
+    spdlog::warn("{}: refused a {} sample for vehicle '{}' stamped frame {}: {}",
+                 agent_.member_id(), proto::TopicTraits<T>::name, r.key, r.frame, r.reason);
+    rejected_.push_back(std::move(r));
+    return;
+  }
+  if (inbox_.add<T>(std::move(sample))) cv_.notify_all();
 }
 
 void MemberRuntime::announce() {
@@ -366,10 +420,13 @@ void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
     proto::FrameGrantMsg grant = std::move(front);
     grants_.pop_front();
     proto::FrameSamples inputs = inbox_.take(input_frame, grant.manifest);
+    std::vector<proto::RejectedSample> rejected;
+    rejected.swap(rejected_);
     stepping_ = true;
     lock.unlock();
     std::string error;
     try {
+      if (!rejected.empty()) agent_.note_rejected(rejected);
       run_frame(grant, inputs);
     } catch (const std::exception& e) {
       error = "frame " + std::to_string(grant.frame) + ": " + e.what();

@@ -76,6 +76,12 @@ Participant::~Participant() {
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
 }
 
+std::string writer_prefix(const fdds::SampleInfo& info) {
+  std::ostringstream out;
+  out << info.sample_identity.writer_guid().guidPrefix;
+  return out.str();
+}
+
 std::string Participant::guid_prefix() const {
   std::ostringstream out;
   out << participant_->guid().guidPrefix;

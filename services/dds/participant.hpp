@@ -20,6 +20,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <type_traits>
 
 #include "protocol/messages.hpp"
 
@@ -122,11 +123,16 @@ class Writer {
   fdds::DataWriter* writer_;
 };
 
-/// Calls `on_sample` from the DDS receive thread for every valid sample taken.
+/// The GUID prefix of a sample's writer: the prefix of the participant that wrote it, printed as
+/// Fast DDS prints it (lowercase hex bytes joined by dots), the form announcements carry.
+std::string writer_prefix(const fdds::SampleInfo& info);
+
+/// Calls `on_sample` from the DDS receive thread for every valid sample taken, with the
+/// sample's SampleInfo (who wrote it).
 template <typename T>
 class Reader : public fdds::DataReaderListener {
  public:
-  using Callback = std::function<void(T&&)>;
+  using Callback = std::function<void(T&&, const fdds::SampleInfo&)>;
   explicit Reader(Callback on_sample) : on_sample_(std::move(on_sample)) {}
   ~Reader() override {
     if (reader_) subscriber_->delete_datareader(reader_);
@@ -138,7 +144,7 @@ class Reader : public fdds::DataReaderListener {
     fdds::SampleInfo info;
     T sample;
     while (reader->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK) {
-      if (info.valid_data) on_sample_(std::move(sample));
+      if (info.valid_data) on_sample_(std::move(sample), info);
       sample = T();
     }
   }
@@ -191,11 +197,27 @@ class Participant : private fdds::DomainParticipantListener {
   /// Readers of data topics match only the writers they need (partitions per vehicle), so a
   /// controller is not even matched with the other vehicles' state writers: no samples, no
   /// heartbeats, no acknowledgements travel between them.
-  template <typename T>
+  /// `on_sample(T&&)` or `on_sample(T&&, const SampleInfo&)` (to know who wrote it).
+  template <typename T, typename F>
   std::unique_ptr<Reader<T>> make_reader(const std::string& topic_name, const char* profile,
-                                         typename Reader<T>::Callback on_sample,
-                                         Scope scope = Scope::protocol,
+                                         F&& on_sample, Scope scope = Scope::protocol,
                                          const std::string& vehicle_id = "") {
+    typename Reader<T>::Callback callback;
+    if constexpr (std::is_invocable_v<F&, T&&, const fdds::SampleInfo&>) {
+      callback = std::forward<F>(on_sample);
+    } else {
+      callback = [f = std::forward<F>(on_sample)](T&& sample, const fdds::SampleInfo&) mutable {
+        f(std::move(sample));
+      };
+    }
+    return make_reader_impl<T>(topic_name, profile, std::move(callback), scope, vehicle_id);
+  }
+
+ private:
+  template <typename T>
+  std::unique_ptr<Reader<T>> make_reader_impl(const std::string& topic_name, const char* profile,
+                                              typename Reader<T>::Callback on_sample,
+                                              Scope scope, const std::string& vehicle_id) {
     fdds::Topic* t = topic<T>(topic_name);
     fdds::Subscriber* subscriber = scope == Scope::protocol       ? subscriber_
                                    : scope == Scope::all_vehicles ? data_subscriber("")
@@ -208,7 +230,6 @@ class Participant : private fdds::DomainParticipantListener {
     return reader;
   }
 
- private:
   void on_participant_discovery(fdds::DomainParticipant* participant,
                                 eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override;
   [[noreturn]] void fail(const std::string& what) const;

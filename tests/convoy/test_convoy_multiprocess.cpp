@@ -49,3 +49,44 @@ TEST(Convoy, OneLeaderThreeFollowersDistributedEqualsSingleProcess) {
   EXPECT_EQ(static_cast<std::size_t>(frames), listed);
   EXPECT_GE(frames, 15 * 60);  // 15 Hz for 60 s
 }
+
+// A participant that copies the controller's member id into commands of its own is refused:
+// vehicles.csv equals the undisturbed single-process run, and every refused command is an
+// event of the vehicle (events.csv, summary.json), never a row of commands.csv.
+TEST(Intrusion, CommandsWithACopiedSourceAreRefusedAndRecorded) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  const std::string single = single_process_csv(run, scenario, "--duration 4");
+  auto launcher = std::make_unique<Process>(
+      kSource + "/launch_scripts/run_scenario.sh " + scenario + " --duration 4 --output " +
+          (run.dir / "out").string() + run.common_args(),
+      run.dir / "launcher.log");
+  Process rogue(std::string(SYNDDS_ROGUE) + " --domain " + std::to_string(run.domain) +
+                    " --run-id " + run.run_id + " --profiles " + kConfig +
+                    "/dds/profiles.xml --vehicle a --source controller/a --seconds 60",
+                run.dir / "rogue.log");
+  const auto code = launcher->wait(90.0);
+  ASSERT_TRUE(code.has_value());
+  ASSERT_EQ(*code, 0) << launcher->log();
+  ASSERT_TRUE(rogue.wait(20.0).has_value());
+  const std::string rogue_log = rogue.log();
+  const long written = std::stol(rogue_log.substr(rogue_log.find("wrote ") + 6));
+  ASSERT_GT(written, 50) << rogue_log;  // it did try, in most frames
+
+  const fs::path out = run.dir / "out";
+  EXPECT_EQ(read_file(out / "vehicles.csv"), single);
+  const std::string events = read_file(out / "events.csv");
+  std::size_t refused = 0;
+  for (std::size_t pos = events.find(",command_rejected,a,"); pos != std::string::npos;
+       pos = events.find(",command_rejected,a,", pos + 1)) {
+    ++refused;
+  }
+  EXPECT_GT(refused, 50u) << events.substr(0, 2000);
+  EXPECT_NE(events.find("claimed controller/a"), std::string::npos);
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  EXPECT_EQ(summary["vehicles"][0]["id"], "a");
+  EXPECT_EQ(summary["vehicles"][0]["events"]["command_rejected"].get<std::size_t>(), refused);
+  // No refused command reached the recorder: every row has the controller's own values.
+  const std::string commands = read_file(out / "commands.csv");
+  EXPECT_EQ(commands.find(",1,1,0,"), std::string::npos) << "a rogue command was recorded";
+}
