@@ -23,6 +23,7 @@ PACKAGES=(
   libeigen3-dev libode-dev libembree-dev
   libopencv-dev libyaml-cpp-dev libspdlog-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  cyclonedds-dev cyclonedds-tools
   iproute2 util-linux procps
 )
 
