@@ -1,0 +1,180 @@
+// The CycloneDDS example controller (examples/cyclone_controller, C on CycloneDDS) as the
+// external controller of a real run: the coordinator, vehicle and recorder are the Fast DDS
+// programs, the controller talks to them over UDP from another DDS implementation.
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+
+#include "harness.hpp"
+
+using namespace syndds::test;
+
+namespace {
+
+const std::string kController = kBin + "/syndds_cyclone_controller";
+const std::string kScenario = kSource + "/tests/multiprocess/scenarios/cyclone_external.yaml";
+
+// The path given to the controller (it is not in the scenario) and its end.
+constexpr double kPath[][2] = {{0, 0}, {20, 0}, {35, 15}};
+constexpr std::size_t kPathPoints = sizeof kPath / sizeof kPath[0];
+
+std::string controller_command(const TestRun& run) {
+  return kController + run.common_args() +
+         " --vehicle cy --waypoints '0,0;20,0;35,15' --speed 5 --interface lo";
+}
+
+double distance_to_path(double x, double y) {
+  double best = 1e9;
+  for (std::size_t i = 0; i + 1 < kPathPoints; ++i) {
+    const double ax = kPath[i][0], ay = kPath[i][1];
+    const double dx = kPath[i + 1][0] - ax, dy = kPath[i + 1][1] - ay;
+    const double t = std::clamp(((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0);
+    best = std::min(best, std::hypot(ax + t * dx - x, ay + t * dy - y));
+  }
+  return best;
+}
+
+struct Row {
+  long frame;
+  double x, y, speed;
+};
+
+std::vector<Row> rows_of(const std::string& csv) {
+  std::vector<Row> rows;
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    const auto f = split_csv(line);
+    if (f.size() < 14 || f[2] != "cy") continue;
+    rows.push_back({std::stol(f[0]), std::stod(f[3]), std::stod(f[4]), std::stod(f[13])});
+  }
+  return rows;
+}
+
+// One run with syndds_plan's processes plus the CycloneDDS controller; returns vehicles.csv.
+std::string run_once(const TestRun& run, const std::string& name) {
+  const fs::path out = run.dir / name;
+  auto processes = plan(run, kScenario, out.string(), "");
+  processes.push_back({"external/cy", controller_command(run)});
+  std::vector<std::unique_ptr<Process>> procs;
+  for (const auto& p : processes) {
+    procs.push_back(std::make_unique<Process>(p.command, run.dir / (name + "-" + log_name(p.member))));
+  }
+  const auto codes = wait_all(procs, 60.0);
+  for (std::size_t i = 0; i < codes.size(); ++i) {
+    EXPECT_EQ(codes[i], 0) << processes[i].member << "\n" << describe_logs(procs);
+  }
+  return read_file(out / "vehicles.csv");
+}
+
+bool cyclone_built() { return fs::exists(kController); }
+
+}  // namespace
+
+// The controller drives the vehicle along its path to the end, where it stops; every command
+// it sent was accepted; a second run gives the same trajectory byte for byte.
+TEST(CycloneController, DrivesAlongItsPathAndRunsAreIdentical) {
+  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  TestRun run;
+  const std::string first = run_once(run, "first");
+  const auto rows = rows_of(first);
+  ASSERT_EQ(rows.size(), 1401u) << first.substr(0, 2000);  // frames 0..1400
+
+  double max_off_path = 0.0, max_speed = 0.0;
+  for (const auto& r : rows) {
+    max_off_path = std::max(max_off_path, distance_to_path(r.x, r.y));
+    max_speed = std::max(max_speed, r.speed);
+  }
+  const Row& last = rows.back();
+  std::printf("cyclone controller: end at (%.2f, %.2f), %.2f m from the path's end; "
+              "max %.2f m off the path; top speed %.2f m/s\n",
+              last.x, last.y, std::hypot(last.x - 35.0, last.y - 15.0), max_off_path, max_speed);
+  EXPECT_LT(std::hypot(last.x - 35.0, last.y - 15.0), 2.0);  // stopped at the end of its path
+  EXPECT_LT(std::abs(last.speed), 0.2);
+  EXPECT_LT(max_off_path, 1.5);  // followed it (the 45 degree corner is cut a little)
+  EXPECT_GT(max_speed, 4.0);     // at about the requested 5 m/s
+  EXPECT_LT(max_speed, 6.0);
+
+  // Every command came from external/cy and none was rejected by the vehicle.
+  std::istringstream commands(read_file(run.dir / "first" / "commands.csv"));
+  std::string line;
+  std::getline(commands, line);
+  std::size_t count = 0;
+  while (std::getline(commands, line)) {
+    const auto f = split_csv(line);
+    ASSERT_GE(f.size(), 8u) << line;
+    EXPECT_EQ(f[3], "external/cy") << line;
+    EXPECT_EQ(f[7], "0") << line;
+    ++count;
+  }
+  EXPECT_EQ(count, 1400u);  // frames 1..1400: there is no state to steer by in frame 0
+  const auto summary = nlohmann::json::parse(read_file(run.dir / "first" / "summary.json"));
+  EXPECT_EQ(summary["status"], "completed");
+
+  EXPECT_EQ(run_once(run, "second"), first);
+}
+
+// kill -9 of the controller: its 2 s participant lease expires, the coordinator names it lost
+// and aborts; the launcher exits 2.
+TEST(CycloneController, KilledControllerIsNamedLostWithinThreeSeconds) {
+  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  // The launcher of this build (not the default build/ folder), with a longer run.
+  const std::string build_dir = fs::path(kBin).parent_path().string();
+  Process launcher("env SYNDDS_BUILD_DIR=" + build_dir + " " + kSource +
+                       "/launch_scripts/run_scenario.sh " + kScenario + " --output " +
+                       out.string() + " --duration 60" + run.common_args(),
+                   run.dir / "launcher.log");
+  Process controller(controller_command(run), run.dir / "cyclone.log");
+  // Well into the run (100 frames recorded), kill the controller.
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher.log() << controller.log();
+  controller.signal(SIGKILL);
+  const auto t_kill = Clock::now();
+  ASSERT_TRUE(controller.wait(5).has_value());
+
+  const fs::path coordinator_log = out / "logs" / "coordinator.log";
+  const bool named = wait_until(
+      [&] {
+        return read_file(coordinator_log).find("member external/cy lost") != std::string::npos;
+      },
+      15);
+  const double detected_s = std::chrono::duration<double>(Clock::now() - t_kill).count();
+  ASSERT_TRUE(named) << read_file(coordinator_log);
+  std::printf("kill -9 of the cyclone controller to the coordinator naming it lost: %.2f s\n",
+              detected_s);
+  EXPECT_LT(detected_s, 3.0);
+  EXPECT_NE(read_file(coordinator_log)
+                .find("run aborted: member external/cy lost: liveliness lost"),
+            std::string::npos)
+      << read_file(coordinator_log);
+
+  const auto code = launcher.wait(40);
+  ASSERT_TRUE(code.has_value()) << launcher.log();
+  EXPECT_EQ(*code, 2) << launcher.log();
+  EXPECT_NE(launcher.log().find("aborted: member external/cy lost"), std::string::npos)
+      << launcher.log();
+}
+
+// kill -9 of the coordinator: the controller sees its participant's lease expire and exits 3
+// saying so (as every syndds member does).
+TEST(CycloneController, ExitsWithStatus3WhenTheCoordinatorIsLost) {
+  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  auto processes = plan(run, kScenario, out.string(), "--duration 60");
+  ASSERT_EQ(processes[0].member, "coordinator");
+  auto procs = start_all(run, processes);
+  Process controller(controller_command(run), run.dir / "cyclone.log");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << describe_logs(procs) << controller.log();
+  procs[0]->signal(SIGKILL);
+  const auto code = controller.wait(20);
+  ASSERT_TRUE(code.has_value()) << controller.log();
+  EXPECT_EQ(*code, 3) << controller.log();
+  EXPECT_NE(controller.log().find("error: the coordinator was lost"), std::string::npos)
+      << controller.log();
+  wait_all(procs, 20);
+}
