@@ -178,3 +178,26 @@ TEST(CycloneController, ExitsWithStatus3WhenTheCoordinatorIsLost) {
       << controller.log();
   wait_all(procs, 20);
 }
+
+// Bad command lines are refused before any DDS work, naming the option, with status 1.
+TEST(CycloneController, BadCommandLinesNameTheOption) {
+  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  TestRun run;
+  const std::string base = kController + " --domain 1 --run-id r --vehicle cy";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {base + " --waypoints '0,0;10'", "--waypoints: point 2: expected ','"},
+      {base + " --waypoints '0,0;0,0'", "--waypoints: point 2 repeats point 1"},
+      {base + " --waypoints '0,0;10,0' --speed fast", "--speed: expected a number, got \"fast\""},
+      {base + " --waypoints '0,0;10,0' --speed -2", "--speed: must be between 0.1 and 30"},
+      {kController + " --run-id r --vehicle cy --waypoints '0,0;1,0'", "--domain: is required"},
+      {base, "--waypoints: is required"},
+      {base + " --waypoints '0,0;10,0' --sped 3", "--sped: unknown option"},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    Process p(cases[i].first, run.dir / ("cli" + std::to_string(i) + ".log"));
+    const auto code = p.wait(10);
+    ASSERT_TRUE(code.has_value()) << cases[i].first;
+    EXPECT_EQ(*code, 1) << cases[i].first << "\n" << p.log();
+    EXPECT_NE(p.log().find(cases[i].second), std::string::npos) << cases[i].first << "\n" << p.log();
+  }
+}
