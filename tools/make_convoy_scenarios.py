@@ -3,7 +3,8 @@
 {1L3F,2L2F,3L1F}_{rigid,scm_hard,scm_soft}.yaml.
 
 One shared S-shaped path with obstacles standing 3 m (edge to centre line) beside it; four
-vehicles lined up 12 m apart on its straight lead-in, leaders first (human-driven: path
+vehicles lined up 12 m apart on its straight lead-in (and leaders stopping 12 m apart on its
+straight finish), leaders first (human-driven: path
 followers with the paper's 0.47 m/s2 speed ramp), then followers (each follows the vehicle
 ahead of it from its own GPS, compass, tachometer and that vehicle's V2V messages). The last
 vehicle carries a chase camera that writes a video.
@@ -134,7 +135,11 @@ def scenario(mix, terrain):
         lines.append("    v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}")
         lines.append("    controller:")
         if k < leaders:
-            path = ([(x0, 0)] if x0 != 0 else []) + PATH
+            # Each leader starts and stops SPACING_M behind the one ahead: the same path, cut
+            # short at the end, so that no two vehicles are sent to the same place.
+            end_x = PATH[-1][0] - SPACING_M * k
+            path = ([(x0, 0)] if x0 != 0 else []) + [p for p in PATH if p[0] < end_x]
+            path.append((end_x, 0))
             lines.append("      type: path_follower")
             lines.append(f"      path: {{waypoints: {fmt_pts(path)}}}")
             lines.append(f"      speed: {{profile: ramp, target_mps: {TARGET_MPS:g}}}")

@@ -210,7 +210,14 @@ void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
   if (it == members_.end()) {
     // Its writer's announcement has not arrived yet (different writers are not ordered):
     // park the sample until it does. A sample whose source never announces itself stays
-    // parked and is never used; the data barrier then names what is missing.
+    // parked and is never used; the data barrier then names what is missing. Bounded: a
+    // participant flooding samples under names nobody announced cannot grow this forever.
+    constexpr std::size_t kMaxParked = 4096;
+    if (unannounced_.size() >= kMaxParked) {
+      spdlog::warn("{}: {} samples wait for members that never announced themselves; dropping "
+                   "the oldest", agent_.member_id(), unannounced_.size());
+      unannounced_.erase(unannounced_.begin(), unannounced_.begin() + kMaxParked / 2);
+    }
     unannounced_.push_back([this, s = std::move(sample), writer]() mutable {
       admit_locked<T>(std::move(s), writer);
     });

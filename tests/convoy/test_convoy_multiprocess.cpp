@@ -58,7 +58,8 @@ TEST(Intrusion, CommandsWithACopiedSourceAreRefusedAndRecorded) {
   const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
   const std::string single = single_process_csv(run, scenario, "--duration 4");
   auto launcher = std::make_unique<Process>(
-      kSource + "/launch_scripts/run_scenario.sh " + scenario + " --duration 4 --output " +
+      "env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource + "/launch_scripts/run_scenario.sh " +
+          scenario + " --duration 4 --output " +
           (run.dir / "out").string() + run.common_args(),
       run.dir / "launcher.log");
   Process rogue(std::string(SYNDDS_ROGUE) + " --domain " + std::to_string(run.domain) +
