@@ -19,15 +19,20 @@ void ControllerAgent::step(const proto::FrameContext& ctx, const proto::FrameSam
     if (state.vehicle_id != vehicle_id_) continue;
     const auto cmd =
         follower_.update(state.sim_time_s, state.pose, state.linear_velocity, ctx.heartbeat_s);
-    proto::DriverCommandMsg out;
-    out.vehicle_id = vehicle_id_;
-    out.source = member_id_;
-    out.frame = ctx.frame;
-    out.steering = cmd.steering;
-    out.throttle = cmd.throttle;
-    out.braking = cmd.braking;
-    outputs.driver_commands.push_back(out);
+    outputs.driver_commands.push_back(command_message(vehicle_id_, member_id_, ctx.frame, cmd));
   }
+}
+
+proto::DriverCommandMsg command_message(const std::string& vehicle_id, const std::string& source,
+                                        std::int64_t frame, const vehicle::DriverInputs& inputs) {
+  proto::DriverCommandMsg out;
+  out.vehicle_id = vehicle_id;
+  out.source = source;
+  out.frame = frame;
+  out.steering = inputs.steering;
+  out.throttle = inputs.throttle;
+  out.braking = inputs.braking;
+  return out;
 }
 
 }  // namespace syndds::agents

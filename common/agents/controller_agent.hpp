@@ -9,6 +9,10 @@
 
 namespace syndds::agents {
 
+/// The DriverCommand a controller member publishes for `inputs`.
+proto::DriverCommandMsg command_message(const std::string& vehicle_id, const std::string& source,
+                                        std::int64_t frame, const vehicle::DriverInputs& inputs);
+
 class ControllerAgent final : public proto::Agent {
  public:
   ControllerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);

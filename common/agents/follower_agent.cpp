@@ -1,5 +1,7 @@
 #include "agents/follower_agent.hpp"
 
+#include "agents/controller_agent.hpp"
+
 #include <numbers>
 
 namespace syndds::agents {
@@ -42,14 +44,7 @@ void FollowerAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
   // The inputs describe the end of frame k-1: that is the time the follower estimates for.
   const double now = ctx.sim_time_s - ctx.heartbeat_s;
   const auto cmd = follower_.update(now, ctx.heartbeat_s, own, inputs.v2v_messages, events);
-  proto::DriverCommandMsg out;
-  out.vehicle_id = vehicle_id_;
-  out.source = member_id_;
-  out.frame = ctx.frame;
-  out.steering = cmd.steering;
-  out.throttle = cmd.throttle;
-  out.braking = cmd.braking;
-  outputs.driver_commands.push_back(out);
+  outputs.driver_commands.push_back(command_message(vehicle_id_, member_id_, ctx.frame, cmd));
   for (const auto& e : events) {
     outputs.vehicle_events.push_back(
         {vehicle_id_, member_id_, ctx.frame, ctx.sim_time_s, e.kind, e.detail});

@@ -58,16 +58,17 @@ nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
 }
 
 std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
-  std::string text = fmt::format("  {:<10} {:<8} {:>22} {:>20} {:>16} {:>9} {:>11}\n", "follower",
-                                 "follows", "distance gap m (mean/min/max)",
-                                 "time gap s (mean/min/max)", "cross-track m (mean/max)",
-                                 "obstacles", "leader lost");
+  // Gaps in metres and seconds, cross-track in metres (definitions: docs/convoy.md).
+  std::string text = fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>9} {:>11}\n", "follower",
+                                 "follows", "gap m mean/min/max", "gap s mean/min/max",
+                                 "cross m mean/max", "obstacles", "leader_lost");
   for (const auto& r : reports) {
-    text += fmt::format("  {:<10} {:<8} {:>9.1f} {:>6.1f} {:>6.1f}   {:>8.2f} {:>6.2f} {:>6.2f} "
-                        "  {:>10.2f} {:>6.2f} {:>9} {:>11}\n",
-                        r.follower, r.leader, r.distance_gap_m.mean, r.distance_gap_m.min,
-                        r.distance_gap_m.max, r.time_gap_s.mean, r.time_gap_s.min,
-                        r.time_gap_s.max, r.cross_track_m.mean, r.cross_track_m.max,
+    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>9} {:>11}\n", r.follower, r.leader,
+                        fmt::format("{:.1f}/{:.1f}/{:.1f}", r.distance_gap_m.mean,
+                                    r.distance_gap_m.min, r.distance_gap_m.max),
+                        fmt::format("{:.2f}/{:.2f}/{:.2f}", r.time_gap_s.mean, r.time_gap_s.min,
+                                    r.time_gap_s.max),
+                        fmt::format("{:.2f}/{:.2f}", r.cross_track_m.mean, r.cross_track_m.max),
                         r.obstacles_hit, r.leader_lost_events);
   }
   return text;

@@ -32,7 +32,7 @@ TEST(Convoy, OneLeaderThreeFollowersDistributedEqualsSingleProcess) {
   }
   const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
   EXPECT_EQ(summary["convoy"], report);
-  EXPECT_NE(launcher->log().find("cross-track"), std::string::npos) << launcher->log();
+  EXPECT_NE(launcher->log().find("cross m mean/max"), std::string::npos) << launcher->log();
 
   // The chase camera's video: as many frames as frames.csv lists, 320 x 180.
   const fs::path video = out / "sensors" / "f3" / "chase_camera.avi";
