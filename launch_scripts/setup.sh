@@ -24,6 +24,7 @@ PACKAGES=(
   libopencv-dev libyaml-cpp-dev libspdlog-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   cyclonedds-dev cyclonedds-tools
+  python3
   iproute2 util-linux procps
 )
 
