@@ -68,14 +68,15 @@ std::string run_once(const TestRun& run, const std::string& name) {
   return read_file(out / "vehicles.csv");
 }
 
-bool cyclone_built() { return fs::exists(kController); }
+// The controller is a build dependency of this test binary: missing, it is a failure.
+void require_controller() { ASSERT_TRUE(fs::exists(kController)) << kController << " not built"; }
 
 }  // namespace
 
 // The controller drives the vehicle along its path to the end, where it stops; every command
 // it sent was accepted; a second run gives the same trajectory byte for byte.
 TEST(CycloneController, DrivesAlongItsPathAndRunsAreIdentical) {
-  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  ASSERT_NO_FATAL_FAILURE(require_controller());
   TestRun run;
   const std::string first = run_once(run, "first");
   const auto rows = rows_of(first);
@@ -118,7 +119,7 @@ TEST(CycloneController, DrivesAlongItsPathAndRunsAreIdentical) {
 // kill -9 of the controller: its 2 s participant lease expires, the coordinator names it lost
 // and aborts; the launcher exits 2.
 TEST(CycloneController, KilledControllerIsNamedLostWithinThreeSeconds) {
-  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  ASSERT_NO_FATAL_FAILURE(require_controller());
   TestRun run;
   const fs::path out = run.dir / "out";
   // The launcher of this build (not the default build/ folder), with a longer run.
@@ -161,7 +162,7 @@ TEST(CycloneController, KilledControllerIsNamedLostWithinThreeSeconds) {
 // kill -9 of the coordinator: the controller sees its participant's lease expire and exits 3
 // saying so (as every syndds member does).
 TEST(CycloneController, ExitsWithStatus3WhenTheCoordinatorIsLost) {
-  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  ASSERT_NO_FATAL_FAILURE(require_controller());
   TestRun run;
   const fs::path out = run.dir / "out";
   auto processes = plan(run, kScenario, out.string(), "--duration 60");
@@ -181,7 +182,7 @@ TEST(CycloneController, ExitsWithStatus3WhenTheCoordinatorIsLost) {
 
 // Bad command lines are refused before any DDS work, naming the option, with status 1.
 TEST(CycloneController, BadCommandLinesNameTheOption) {
-  if (!cyclone_built()) GTEST_SKIP() << kController << " not built (CycloneDDS not found)";
+  ASSERT_NO_FATAL_FAILURE(require_controller());
   TestRun run;
   const std::string base = kController + " --domain 1 --run-id r --vehicle cy";
   const std::vector<std::pair<std::string, std::string>> cases = {
