@@ -182,18 +182,20 @@ void MemberRuntime::setup() {
 }
 
 void MemberRuntime::note_announcement(const proto::MemberAnnounceMsg& a,
-                                      const std::string& writer) {
+                                      const GuidPrefix& writer) {
   // An announcement names its participant; it counts only if that participant wrote it.
-  if (a.participant_guid != writer) {
-    spdlog::error("{}: ignored the announcement of '{}': it names participant {} but was written "
-                  "by {}", agent_.member_id(), a.member_id, a.participant_guid, writer);
+  GuidPrefix named;
+  if (!parse_guid_prefix(a.participant_guid, named) || named != writer) {
+    spdlog::error("{}: ignored the announcement of '{}': it names participant '{}' but was "
+                  "written by {}", agent_.member_id(), a.member_id, a.participant_guid,
+                  to_string(writer));
     return;
   }
-  const auto [it, inserted] = members_.emplace(a.member_id, a.participant_guid);
-  if (!inserted && it->second != a.participant_guid) {
+  const auto [it, inserted] = members_.emplace(a.member_id, named);
+  if (!inserted && it->second != named) {
     spdlog::error("{}: participant {} (pid {} on {}) announced itself as '{}', which participant "
                   "{} announced first: its samples are refused", agent_.member_id(),
-                  a.participant_guid, a.pid, a.host, a.member_id, it->second);
+                  a.participant_guid, a.pid, a.host, a.member_id, to_string(it->second));
     return;
   }
   if (!inserted) return;
@@ -205,7 +207,7 @@ void MemberRuntime::note_announcement(const proto::MemberAnnounceMsg& a,
 
 template <proto::Topic T>
 void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
-                                 const std::string& writer) {
+                                 const GuidPrefix& writer) {
   const auto it = members_.find(sample.source);
   if (it == members_.end()) {
     // Its writer's announcement has not arrived yet (different writers are not ordered):
@@ -229,9 +231,9 @@ void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
     r.key = sample.vehicle_id;
     r.source = sample.source;
     r.frame = sample.frame;
-    r.writer = writer;
-    r.reason = "written by participant " + writer + ", not by " + sample.source + " (participant " +
-               it->second + ")";
+    r.writer = to_string(writer);
+    r.reason = "written by participant " + r.writer + ", not by " + sample.source +
+               " (participant " + to_string(it->second) + ")";
     spdlog::warn("{}: refused a {} sample for vehicle '{}' stamped frame {}: {}",
                  agent_.member_id(), proto::TopicTraits<T>::name, r.key, r.frame, r.reason);
     rejected_.push_back(std::move(r));

@@ -63,11 +63,11 @@ class MemberRuntime {
   void setup();
   void announce();
   /// Records who announced itself as which member (with mutex_ held).
-  void note_announcement(const proto::MemberAnnounceMsg& a, const std::string& writer);
+  void note_announcement(const proto::MemberAnnounceMsg& a, const GuidPrefix& writer);
   /// Stores a data sample in the inbox if its writer is the participant that announced itself
   /// as the sample's source; otherwise records the rejection (with mutex_ held).
   template <proto::Topic T>
-  void admit_locked(typename proto::TopicTraits<T>::Msg sample, const std::string& writer);
+  void admit_locked(typename proto::TopicTraits<T>::Msg sample, const GuidPrefix& writer);
   bool wait_for_coordinator(const std::atomic<bool>& interrupt);
   bool wait_inputs(std::int64_t frame, const proto::Manifest& manifest, double timeout_s,
                    const std::atomic<bool>& interrupt);
@@ -99,7 +99,7 @@ class MemberRuntime {
   bool stopping_ = false;     // the run is ending here: no frame may start any more
   std::int64_t next_frame_ = 0;
   std::string failure_;       // set when a frame failed; the main thread ends the run
-  std::map<std::string, std::string> members_;  // member id -> participant that announced it
+  std::map<std::string, GuidPrefix> members_;  // member id -> participant that announced it
   std::vector<std::function<void()>> unannounced_;  // samples waiting for their writer's
                                                     // announcement
   std::vector<proto::RejectedSample> rejected_;     // not yet told to the agent

@@ -76,10 +76,16 @@ Participant::~Participant() {
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
 }
 
-std::string writer_prefix(const fdds::SampleInfo& info) {
+std::string to_string(const GuidPrefix& prefix) {
   std::ostringstream out;
-  out << info.sample_identity.writer_guid().guidPrefix;
+  out << prefix;
   return out.str();
+}
+
+bool parse_guid_prefix(const std::string& text, GuidPrefix& prefix) {
+  std::istringstream in(text);
+  in >> prefix;
+  return !in.fail() && to_string(prefix) == text;
 }
 
 std::string Participant::guid_prefix() const {

@@ -123,9 +123,16 @@ class Writer {
   fdds::DataWriter* writer_;
 };
 
-/// The GUID prefix of a sample's writer: the prefix of the participant that wrote it, printed as
-/// Fast DDS prints it (lowercase hex bytes joined by dots), the form announcements carry.
-std::string writer_prefix(const fdds::SampleInfo& info);
+using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
+
+/// The GUID prefix of a sample's writer: the prefix of the participant that wrote it.
+inline const GuidPrefix& writer_prefix(const fdds::SampleInfo& info) {
+  return info.sample_identity.writer_guid().guidPrefix;
+}
+/// A prefix as announcements carry it: lowercase hex bytes joined by dots.
+std::string to_string(const GuidPrefix& prefix);
+/// The inverse; false when `text` is not 12 dot-separated hex bytes.
+bool parse_guid_prefix(const std::string& text, GuidPrefix& prefix);
 
 /// Calls `on_sample` from the DDS receive thread for every valid sample taken, with the
 /// sample's SampleInfo (who wrote it).
