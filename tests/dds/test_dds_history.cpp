@@ -92,50 +92,60 @@ class CountingListener : public fdds::DataReaderListener {
   std::map<std::string, std::set<fdds::InstanceHandle_t>> handles_;
 };
 
+// Participant "a" writes key "a" and reads the topic, as a vehicle does; participant "b" writes
+// key "b" into a's reader at the same time, so a's receive thread computes keys while its
+// writing thread does.
+struct WriterAndFlood {
+  static constexpr int kSamples = 20000;
+  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
+  sdds::Participant a;
+  sdds::Participant b;
+  std::unique_ptr<sdds::Writer<msg::TerrainDeformation>> writer_a;
+  std::unique_ptr<sdds::Writer<msg::TerrainDeformation>> writer_b;
+
+  explicit WriterAndFlood(const std::string& run)
+      : a(options(run)),
+        b(options(run)),
+        writer_a(a.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "a")),
+        writer_b(b.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "b")) {}
+
+  /// Both write kSamples at once; returns how many of a's writes DDS refused.
+  int write_both() {
+    std::thread flood([&] {
+      for (int k = 0; k < kSamples; ++k) writer_b->write(deformation("b", k));
+    });
+    int refused = 0;
+    for (int k = 0; k < kSamples; ++k) refused += writer_a->write(deformation("a", k)) ? 0 : 1;
+    flood.join();
+    return refused;
+  }
+};
+
 }  // namespace
 
 TEST(DdsHistory, WriterThatAlsoReadsItsTopicKeepsOnlyDepthSamplesPerKey) {
-  const std::string run = "history-bound";
-  constexpr int kSamples = 20000;
-  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
-
-  // "a" writes and reads the topic in one participant, as a vehicle does; "b" floods a's reader
-  // while a writes, so a's receive thread computes keys while its writing thread does.
-  sdds::Participant a(options(run));
-  sdds::Participant b(options(run));
-  auto writer_a = a.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "a");
-  auto writer_b = b.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "b");
-  std::atomic<int> received_from_b{0};
-  auto reader_a = a.make_reader<msg::TerrainDeformation>(
-      topic, sdds::profiles::kDataReader,
-      [&](msg::TerrainDeformation&& m) {
-        if (m.vehicle_id() == "b") ++received_from_b;
-      },
+  WriterAndFlood w("history-bound");
+  auto reader_a = w.a.make_reader<msg::TerrainDeformation>(
+      w.topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
       sdds::Participant::Scope::all_vehicles);
-  ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_b) == 1; }, 10.0));
-  ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_a) == 1; }, 10.0));
-
-  std::thread flood([&] {
-    for (int k = 0; k < kSamples; ++k) writer_b->write(deformation("b", k));
-  });
-  for (int k = 0; k < kSamples; ++k) ASSERT_TRUE(writer_a->write(deformation("a", k)));
-  flood.join();
-  // The reader keeps the newest 64 per key; it need not take all, but must see the last one.
-  ASSERT_TRUE(writer_b->wait_for_acknowledgments(10.0));
-  ASSERT_TRUE(writer_a->wait_for_acknowledgments(10.0));
+  ASSERT_TRUE(wait_until([&] { return matched_readers(*w.writer_b) == 1; }, 10.0));
+  ASSERT_TRUE(wait_until([&] { return matched_readers(*w.writer_a) == 1; }, 10.0));
+  ASSERT_EQ(w.write_both(), 0);
+  ASSERT_TRUE(w.writer_b->wait_for_acknowledgments(10.0));
+  ASSERT_TRUE(w.writer_a->wait_for_acknowledgments(10.0));
 
   // A reader that joins now is replayed a's whole history (TRANSIENT_LOCAL): one key, so at
   // most `depth` samples. Every extra sample is an instance a corrupted key left behind.
-  sdds::Participant late(options(run));
+  sdds::Participant late(options("history-bound"));
   CountingListener counter;
   {
     // Through the project's own reader, but with a listener that sees the SampleInfo.
     auto probe = late.make_reader<msg::TerrainDeformation>(
-        topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
+        w.topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
         sdds::Participant::Scope::one_vehicle, "a");
     ASSERT_EQ(probe->raw()->set_listener(&counter), ReturnCode_t::RETCODE_OK);
-    ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_a) == 2; }, 10.0));
-    ASSERT_TRUE(writer_a->wait_for_acknowledgments(10.0));
+    ASSERT_TRUE(wait_until([&] { return matched_readers(*w.writer_a) == 2; }, 10.0));
+    ASSERT_TRUE(w.writer_a->wait_for_acknowledgments(10.0));
     ASSERT_TRUE(wait_until([&] { return counter.count("a") >= kDataWriterDepth; }, 10.0));
     // Anything more would have arrived with the acknowledged replay; give stragglers a bound.
     wait_until([&] { return counter.count("a") > kDataWriterDepth; }, 0.5);
@@ -147,28 +157,17 @@ TEST(DdsHistory, WriterThatAlsoReadsItsTopicKeepsOnlyDepthSamplesPerKey) {
 }
 
 TEST(DdsHistory, SamplesOfOneKeyCarryOneInstanceHandle) {
-  // The receiving side of the same race: a participant writes one topic in its main thread
-  // while its reader of that topic computes the keys of what arrives.
-  const std::string run = "history-handles";
-  constexpr int kSamples = 20000;
-  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
-  sdds::Participant a(options(run));
-  sdds::Participant b(options(run));
-  auto writer_a = a.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "a");
-  auto writer_b = b.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "b");
+  // The receiving side of the same race: a's reader (of key b) computes the keys of what
+  // arrives while a's main thread writes.
+  WriterAndFlood w("history-handles");
   CountingListener counter;
-  auto reader_a = a.make_reader<msg::TerrainDeformation>(
-      topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
+  auto reader_a = w.a.make_reader<msg::TerrainDeformation>(
+      w.topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
       sdds::Participant::Scope::one_vehicle, "b");
   ASSERT_EQ(reader_a->raw()->set_listener(&counter), ReturnCode_t::RETCODE_OK);
-  ASSERT_TRUE(wait_until([&] { return matched_readers(*writer_b) == 1; }, 10.0));
-
-  std::thread flood([&] {
-    for (int k = 0; k < kSamples; ++k) writer_b->write(deformation("b", k));
-  });
-  for (int k = 0; k < kSamples; ++k) ASSERT_TRUE(writer_a->write(deformation("a", k)));
-  flood.join();
-  ASSERT_TRUE(writer_b->wait_for_acknowledgments(10.0));
+  ASSERT_TRUE(wait_until([&] { return matched_readers(*w.writer_b) == 1; }, 10.0));
+  ASSERT_EQ(w.write_both(), 0);
+  ASSERT_TRUE(w.writer_b->wait_for_acknowledgments(10.0));
   reader_a->raw()->set_listener(nullptr);
   EXPECT_GT(counter.count("b"), 0);
   EXPECT_EQ(counter.handles("b"), 1u) << "samples of key b were given several instance handles";
