@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <numbers>
+#include <sstream>
 
 #include "convoy/v2v.hpp"
 
@@ -146,8 +148,10 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
   const double silence = leader_seen_s_ < 0.0 ? time_s : time_s - leader_seen_s_;
   if (!lost_ && silence > config_.leader_lost_after_s) {
     lost_ = true;
-    events.push_back({"leader_lost", "no v2v message from " + config_.leader + " for " +
-                                         std::to_string(silence).substr(0, 4) + " s"});
+    std::ostringstream detail;
+    detail << "no v2v message from " << config_.leader << " for " << std::fixed
+           << std::setprecision(2) << silence << " s";
+    events.push_back({"leader_lost", detail.str()});
   } else if (lost_ && silence <= config_.leader_lost_after_s) {
     lost_ = false;
     events.push_back({"leader_found", "v2v messages from " + config_.leader + " again"});
