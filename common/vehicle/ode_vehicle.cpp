@@ -111,6 +111,8 @@ struct OdeVehicleModel::Impl {
   std::array<Vec3, 4> wheel_local;     // design wheel centres in the chassis reference frame
   std::array<const AxleParams*, 4> axle{};
   std::array<double, 4> preload{};
+  std::array<double, 4> drive_share{};   // share of the driveline torque per wheel
+  double driveline_inertia = -1.0;       // reflected inertia currently on the wheels
   std::array<TireState, 4> tire_states{};
   std::array<WheelDiagnostics, 4> diag{};
 
@@ -162,7 +164,6 @@ struct OdeVehicleModel::Impl {
     dWorldSetContactSurfaceLayer(world, 0.001);
     contact_group = dJointGroupCreate(0);
 
-    const double r = p.wheels.radius_m;
     const AxleParams* axles[4] = {&p.front, &p.front, &p.rear, &p.rear};
     const double sides[4] = {1.0, -1.0, 1.0, -1.0};
     for (int i = 0; i < 4; ++i) {
@@ -178,19 +179,39 @@ struct OdeVehicleModel::Impl {
     const Vec3& ic = p.chassis.inertia_kgm2;
     dMassSetParameters(&m, p.chassis.mass_kg, 0, 0, 0, ic.x(), ic.y(), ic.z(), 0, 0, 0);
     dBodySetMass(chassis, &m);
-    const double w = p.wheels.width_m;
-    const double i_tilt = p.wheels.mass_kg * (3.0 * r * r + w * w) / 12.0;
+    const double front_share =
+        p.front.driven ? (p.rear.driven ? p.driveline.front_torque_share : 1.0) : 0.0;
     for (int i = 0; i < 4; ++i) {
+      drive_share[i] = 0.5 * (i < 2 ? front_share : 1.0 - front_share);
       wheels[i] = dBodyCreate(world);
-      dMassSetParameters(&m, p.wheels.mass_kg, 0, 0, 0, i_tilt, p.wheels.spin_inertia_kgm2,
-                         i_tilt, 0, 0, 0);
-      dBodySetMass(wheels[i], &m);
     }
+    set_wheel_inertia();
 
     place(start);
     for (int i = 0; i < 4; ++i) make_joint(i);
     make_geoms();
     for (const auto& o : obstacle_list) add_obstacle(o);
+  }
+
+  /// Wheel masses with the driveline inertia of the current gear: the in-gear and drive
+  /// shafts turn with the wheels through the open differentials. Their inertia J (at the
+  /// differentials' input, wheel units) is a rank-one coupling J c c^T of the wheel spins
+  /// (c the torque shares); each wheel gets its share c_i J on its spin inertia, which is exact
+  /// when the driven wheels accelerate alike (an explicit coupling torque would be unstable:
+  /// in first gear J is about 7 times the wheels' own inertia). Re-set on gear changes only.
+  void set_wheel_inertia() {
+    const double j = powertrain.driveline_inertia_at_wheels();
+    if (j == driveline_inertia) return;
+    driveline_inertia = j;
+    const double r = p.wheels.radius_m;
+    const double w = p.wheels.width_m;
+    const double i_tilt = p.wheels.mass_kg * (3.0 * r * r + w * w) / 12.0;
+    for (int i = 0; i < 4; ++i) {
+      dMass m;
+      dMassSetParameters(&m, p.wheels.mass_kg, 0, 0, 0, i_tilt,
+                         p.wheels.spin_inertia_kgm2 + drive_share[i] * j, i_tilt, 0, 0, 0);
+      dBodySetMass(wheels[i], &m);
+    }
   }
 
   /// Puts the chassis at start (x, y, yaw) on the terrain: the chassis plane fits the ground
@@ -311,6 +332,7 @@ struct OdeVehicleModel::Impl {
       dBodySetAngularVel(b, 0, 0, 0);
     }
     powertrain.reset();
+    set_wheel_inertia();
     commanded = DriverInputs{};
     applied = commanded;
     time = 0.0;
@@ -373,6 +395,22 @@ struct OdeVehicleModel::Impl {
     }
   }
 
+  /// A Torsen-type differential (Chrono's simple driveline model): torque splits as `share` :
+  /// 1 - share while the two outputs turn alike; as their speeds part by 0.25 to 0.5 rad/s the
+  /// slower output's share is weighted by a bias growing linearly from 1 to `max_bias`
+  /// (1: an open differential, torque split fixed). Returns (first, second).
+  static std::pair<double, double> torsen_split(double torque, double share, double w_first,
+                                                double w_second, double max_bias) {
+    if (share <= 0.0 || share >= 1.0) return {share * torque, (1.0 - share) * torque};
+    const double parted = std::abs(w_first - w_second);
+    const double bias = 1.0 + (max_bias - 1.0) * clamp((parted - 0.25) / 0.25, 0.0, 1.0);
+    const bool first_slower = std::abs(w_first) < std::abs(w_second);
+    const double weight_first = first_slower ? bias * share : share;
+    const double weight_second = first_slower ? 1.0 - share : bias * (1.0 - share);
+    const double first = torque * weight_first / (weight_first + weight_second);
+    return {first, torque - first};
+  }
+
   void apply_drive_torque(double dt) {
     std::array<double, 4> spin{};
     for (int i = 0; i < 4; ++i) spin[i] = relative_spin(i);
@@ -385,9 +423,20 @@ struct OdeVehicleModel::Impl {
     const Quat qc = body_quat(chassis);
     const double v_forward = vec(dBodyGetLinearVel(chassis)).dot(qc * Vec3::UnitX());
     const double torque = powertrain.step(applied.throttle, w_in, v_forward, dt);
+    set_wheel_inertia();
+    std::array<double, 4> wheel_torque{};
+    const auto [front_torque, rear_torque] =
+        torsen_split(torque, front_share, w_front, w_rear, p.driveline.centre_differential_bias);
+    for (int axle_index : {0, 2}) {
+      const double axle_torque = axle_index == 0 ? front_torque : rear_torque;
+      const auto [left, right] = torsen_split(axle_torque, 0.5, spin[axle_index],
+                                              spin[axle_index + 1],
+                                              p.driveline.axle_differential_bias);
+      wheel_torque[axle_index] = left;
+      wheel_torque[axle_index + 1] = right;
+    }
     for (int i = 0; i < 4; ++i) {
-      const double share = i < 2 ? front_share : 1.0 - front_share;
-      const double t = 0.5 * share * torque;
+      const double t = wheel_torque[i];
       diag[i].drive_torque_nm = t;
       if (t == 0.0) continue;
       const Vec3 axis = spin_axis(i);

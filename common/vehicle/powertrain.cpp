@@ -13,7 +13,6 @@ constexpr double kStoppedMps = 0.1;       // below this, throttle 0 selects neut
 
 Powertrain::Powertrain(const VehicleParams& params)
     : params_(params),
-      capacity_(params.converter_capacity_rpm_per_sqrt_nm()),
       motoring_(params.engine_motoring_torque_nm()) {
   reset();
 }
@@ -47,20 +46,25 @@ double Powertrain::engine_torque(double w_engine, double throttle) const {
 
 std::pair<double, double> Powertrain::converter_torques(double w_engine,
                                                         double w_turbine) const {
-  const double rpm_e = std::max(w_engine, 0.0) * kRadPerSToRpm;
-  const double rpm_t = w_turbine * kRadPerSToRpm;
-  const double k2 = capacity_ * capacity_;
-  const double sr_c = params_.transmission.converter_coupling_speed_ratio;
-  const double stall = params_.transmission.converter_stall_ratio;
-  // Coupling region (also covers rpm_e ~ 0 without dividing by it).
-  if (rpm_t >= sr_c * rpm_e) {
-    const double pump = rpm_e * (rpm_e - rpm_t) / (k2 * (1.0 - sr_c));
-    return {pump, pump};
-  }
-  const double sr = rpm_e > 0.0 ? std::max(rpm_t / rpm_e, 0.0) : 0.0;
-  const double pump = rpm_e * rpm_e / k2;
-  const double ratio = stall + (1.0 - stall) * sr / sr_c;
-  return {pump, ratio * pump};
+  const double wp = std::max(w_engine, 0.0);
+  if (wp <= 0.0) return {0.0, 0.0};  // Chrono: speed ratio 0 and no pump speed, no torque
+  auto forward = [&](double sr) {
+    const double k = params_.converter_capacity(sr);
+    const double pump = (wp / k) * (wp / k);
+    return std::pair{pump, params_.converter_torque_ratio(sr) * pump};
+  };
+  auto reverse = [&](double sr) {  // the turbine drives the pump, no torque multiplication
+    const double k = params_.converter_capacity(1.0 / sr);
+    const double pump = -(wp / k) * (wp / k);
+    return std::pair{pump, pump};
+  };
+  const double sr = w_turbine / wp;
+  if (sr <= 1.0 - kCouplingBand) return forward(std::max(sr, 0.0));
+  if (sr >= 1.0 + kCouplingBand) return reverse(sr);
+  const auto lo = forward(1.0 - kCouplingBand);
+  const auto hi = reverse(1.0 + kCouplingBand);
+  const double t = (sr - (1.0 - kCouplingBand)) / (2.0 * kCouplingBand);
+  return {lo.first + t * (hi.first - lo.first), lo.second + t * (hi.second - lo.second)};
 }
 
 double Powertrain::step(double throttle, double wheel_speed_rad_s, double vehicle_speed_mps,

@@ -35,18 +35,68 @@ AxleParams parse_axle(const YamlNode& node, bool steered_default) {
   return a;
 }
 
+/// Linear interpolation in rows sorted by x, clamped at the ends.
+double interpolate(const std::vector<std::pair<double, double>>& map, double x) {
+  if (map.empty()) return 0.0;
+  if (x <= map.front().first) return map.front().second;
+  if (x >= map.back().first) return map.back().second;
+  auto hi = std::lower_bound(map.begin(), map.end(), x,
+                             [](const auto& p, double v) { return p.first < v; });
+  auto lo = hi - 1;
+  const double t = (x - lo->first) / (hi->first - lo->first);
+  return lo->second + t * (hi->second - lo->second);
+}
+
+/// Rows [x, y] with x strictly increasing; `what` names the columns in errors.
+std::vector<std::pair<double, double>> parse_rows(const YamlNode& node, const char* what) {
+  std::vector<std::pair<double, double>> rows;
+  for (const auto& row : node.elements()) {
+    const auto v = row.as_doubles(2);
+    if (!rows.empty() && v[0] <= rows.back().first) {
+      row.fail(std::string("the first column (") + what + ") must increase");
+    }
+    rows.emplace_back(v[0], v[1]);
+  }
+  if (rows.size() < 2) node.fail(std::string("needs at least two [") + what + "] rows");
+  return rows;
+}
+
+/// A converter map over the speed ratio: from sr 0 to sr 1, values positive.
+ConverterMap parse_converter_map(MapReader& m, std::string_view key, const char* what) {
+  const YamlNode node = m.required(key);
+  ConverterMap rows = parse_rows(node, what);
+  if (rows.front().first != 0.0 || rows.back().first != 1.0) {
+    node.fail("speed ratios must run from 0 to 1 (first row sr 0, last row sr 1)");
+  }
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (!(rows[i].second > 0.0)) node[i].fail("value must be positive");
+  }
+  return rows;
+}
+
 }  // namespace
 
 double VehicleParams::engine_torque_nm(double rpm) const {
-  const auto& map = engine.torque_map_rpm_nm;
-  if (map.empty()) return 0.0;
-  if (rpm <= map.front().first) return map.front().second;
-  if (rpm >= map.back().first) return map.back().second;
-  auto hi = std::lower_bound(map.begin(), map.end(), rpm,
-                             [](const auto& p, double r) { return p.first < r; });
-  auto lo = hi - 1;
-  const double t = (rpm - lo->first) / (hi->first - lo->first);
-  return lo->second + t * (hi->second - lo->second);
+  return interpolate(engine.torque_map_rpm_nm, rpm);
+}
+
+double VehicleParams::converter_capacity(double speed_ratio) const {
+  return interpolate(transmission.converter_capacity_map, clamp(speed_ratio, 0.0, 1.0));
+}
+
+double VehicleParams::converter_torque_ratio(double speed_ratio) const {
+  return interpolate(transmission.converter_torque_ratio_map, clamp(speed_ratio, 0.0, 1.0));
+}
+
+double VehicleParams::driveline_inertia_at_wheels_kgm2(int gear) const {
+  const double final_drive = driveline.final_drive_ratio;
+  double j = driveline.driveshaft_inertia_kgm2 / (final_drive * final_drive);
+  if (gear >= 1 && gear <= static_cast<int>(transmission.forward_ratios.size())) {
+    const double overall = transmission.forward_ratios[static_cast<std::size_t>(gear - 1)] *
+                           final_drive;
+    j += transmission.ingear_shaft_inertia_kgm2 / (overall * overall);
+  }
+  return j;
 }
 
 std::pair<double, double> VehicleParams::engine_peak_torque() const {
@@ -67,12 +117,6 @@ double VehicleParams::static_wheel_load_n(bool front_axle) const {
   const double share = front_axle ? (x - rear.x_m) / wheelbase_m()   // b / L
                                   : (front.x_m - x) / wheelbase_m();  // a / L
   return total_mass_kg() * kGravity * share / 2.0;
-}
-
-double VehicleParams::converter_capacity_rpm_per_sqrt_nm() const {
-  if (transmission.converter_capacity_factor > 0) return transmission.converter_capacity_factor;
-  const auto [torque, rpm] = engine_peak_torque();
-  return rpm / std::sqrt(torque);
 }
 
 double VehicleParams::engine_motoring_torque_nm() const {
@@ -124,15 +168,7 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
   }
   {
     MapReader m(top.required("engine"));
-    auto map_node = m.required("torque_map_rpm_nm");
-    for (const auto& row : map_node.elements()) {
-      const auto v = row.as_doubles(2);
-      if (!p.engine.torque_map_rpm_nm.empty() && v[0] <= p.engine.torque_map_rpm_nm.back().first) {
-        row.fail("rpm values must increase");
-      }
-      p.engine.torque_map_rpm_nm.emplace_back(v[0], v[1]);
-    }
-    if (p.engine.torque_map_rpm_nm.size() < 2) map_node.fail("needs at least two [rpm, Nm] rows");
+    p.engine.torque_map_rpm_nm = parse_rows(m.required("torque_map_rpm_nm"), "rpm, Nm");
     p.engine.idle_rpm = m.positive("idle_rpm", std::nullopt);
     p.engine.max_rpm = m.positive("max_rpm", std::nullopt);
     p.engine.inertia_kgm2 = m.positive("inertia_kgm2", std::nullopt);
@@ -157,10 +193,19 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
     p.transmission.upshift_rpm = m.positive("upshift_rpm", std::nullopt);
     p.transmission.downshift_rpm = m.positive("downshift_rpm", std::nullopt);
     p.transmission.shift_time_s = m.number("shift_time_s", 0.0, 0, 5);
-    p.transmission.converter_stall_ratio = m.number("converter_stall_ratio", 1.0, 1, 10);
-    p.transmission.converter_coupling_speed_ratio =
-        m.number("converter_coupling_speed_ratio", 0.85, 0.1, 1.0);
-    p.transmission.converter_capacity_factor = m.number("converter_capacity_factor", 0.0, 0, kBig);
+    for (const char* old : {"converter_stall_ratio", "converter_coupling_speed_ratio",
+                            "converter_capacity_factor"}) {
+      if (auto n = m.optional(old)) {
+        n->fail("replaced by converter_capacity_map and converter_torque_ratio_map "
+                "(maps over the speed ratio, see docs/vehicle-dynamics.md)");
+      }
+    }
+    p.transmission.converter_capacity_map =
+        parse_converter_map(m, "converter_capacity_map", "speed ratio, K rad/s/sqrt(N m)");
+    p.transmission.converter_torque_ratio_map =
+        parse_converter_map(m, "converter_torque_ratio_map", "speed ratio, torque ratio");
+    p.transmission.ingear_shaft_inertia_kgm2 =
+        m.number("ingear_shaft_inertia_kgm2", 0.0, 0, kBig);
     m.finish();
     if (p.transmission.downshift_rpm >= p.transmission.upshift_rpm) {
       top.required("transmission").fail("downshift_rpm must be below upshift_rpm");
@@ -170,6 +215,10 @@ VehicleParams parse_vehicle_params(const YamlNode& root) {
     MapReader m(top.required("driveline"));
     p.driveline.final_drive_ratio = m.positive("final_drive_ratio", std::nullopt);
     p.driveline.front_torque_share = m.number("front_torque_share", 0.5, 0, 1);
+    p.driveline.driveshaft_inertia_kgm2 = m.number("driveshaft_inertia_kgm2", 0.0, 0, kBig);
+    p.driveline.axle_differential_bias = m.number("axle_differential_bias", 1.0, 1.0, 100.0);
+    p.driveline.centre_differential_bias =
+        m.number("centre_differential_bias", 1.0, 1.0, 100.0);
     m.finish();
   }
   {

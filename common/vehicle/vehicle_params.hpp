@@ -50,27 +50,38 @@ struct EngineParams {
   std::vector<std::pair<double, double>> torque_map_rpm_nm;  // full-throttle curve
   double idle_rpm = 800.0;
   double max_rpm = 2700.0;
-  double inertia_kgm2 = 0.0;
+  double inertia_kgm2 = 0.0;          // motor (crank) shaft, pump included
   double motoring_torque_nm = -1.0;   // closed-throttle drag at max_rpm, linear in rpm
                                       // (< 0: 10 % of the peak torque)
 };
 
+/// One row of a torque-converter map: value at a speed ratio w_turbine / w_pump in [0, 1].
+using ConverterMap = std::vector<std::pair<double, double>>;
+
 struct TransmissionParams {
   std::vector<double> forward_ratios;  // output/input speed ratio per gear (Chrono convention)
   double reverse_ratio = 0.0;
-  double upshift_rpm = 0.0;
+  double upshift_rpm = 0.0;            // turbine (in-gear shaft) speed
   double downshift_rpm = 0.0;
-  double shift_time_s = 0.0;
-  double converter_stall_ratio = 1.0;  // torque multiplication at stall
-  double converter_coupling_speed_ratio = 0.85;  // speed ratio where multiplication ends
-  // K: pump speed (rpm) / sqrt(pump torque, N m) below the coupling point. 0: derived so that
-  // the full-throttle stall speed is the rpm of peak torque.
-  double converter_capacity_factor = 0.0;
+  double shift_time_s = 0.0;           // gear-shift latency: at most one shift per this time
+  // Torque converter as Chrono's ChShaftsTorqueConverter: pump torque (w_pump / K(sr))^2,
+  // K in rad/s / sqrt(N m); turbine torque TR(sr) times the pump torque. Rows [sr, value],
+  // sr from 0 to 1, linear between rows.
+  ConverterMap converter_capacity_map;
+  ConverterMap converter_torque_ratio_map;
+  double ingear_shaft_inertia_kgm2 = 0.0;  // turns at turbine speed, geared to the wheels
 };
 
 struct DrivelineParams {
   double final_drive_ratio = 0.0;      // output/input (Chrono convention, < 1 reduces speed)
   double front_torque_share = 0.5;     // central differential split
+  double driveshaft_inertia_kgm2 = 0.0;  // gearbox output to final drive
+  // Axle differentials: maximum torque bias ratio slow : fast wheel of a Torsen-type
+  // limited-slip differential (1: open). The bias grows from 1 to this value as the wheel
+  // speeds part by 0.25 to 0.5 rad/s, as in Chrono's simple driveline.
+  double axle_differential_bias = 1.0;
+  // The same for the centre differential between the axles (applied to the nominal split).
+  double centre_differential_bias = 1.0;
 };
 
 struct TireParams {
@@ -121,8 +132,13 @@ struct VehicleParams {
   double total_com_x_m() const;
   /// Static vertical load on one wheel of the front (rear) axle on level ground: m g b / L / 2.
   double static_wheel_load_n(bool front) const;
-  /// Torque converter capacity factor K (rpm / sqrt(N m)), derived when the file gives 0.
-  double converter_capacity_rpm_per_sqrt_nm() const;
+  /// Torque-converter capacity factor K(sr) (rad/s / sqrt(N m)) and torque ratio TR(sr),
+  /// linear in the maps, sr clamped to [0, 1].
+  double converter_capacity(double speed_ratio) const;
+  double converter_torque_ratio(double speed_ratio) const;
+  /// Inertia of the driveline parts that turn with the wheels in `gear` (0: neutral), reduced
+  /// to the differentials' input in wheel units: J_ingear / (ratio final)^2 + J_drive / final^2.
+  double driveline_inertia_at_wheels_kgm2(int gear) const;
   /// Closed-throttle engine drag at max_rpm (N m, positive), derived when the file gives < 0.
   double engine_motoring_torque_nm() const;
 };

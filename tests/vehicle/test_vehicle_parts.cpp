@@ -110,22 +110,6 @@ TEST(TireModel, HoldsAtStandstill) {
   EXPECT_EQ(s.deflection_x_m, 0.0);
 }
 
-TEST(Powertrain, ConverterMultipliesTorqueAtStall) {
-  const auto p = load("hmmwv");
-  const Powertrain pt(p);
-  const double w = 1500.0 * 2 * std::numbers::pi / 60;
-  const auto [pump, turbine] = pt.converter_torques(w, 0.0);
-  const double k = p.converter_capacity_rpm_per_sqrt_nm();
-  EXPECT_NEAR(pump, (1500.0 / k) * (1500.0 / k), 1e-9);
-  EXPECT_NEAR(turbine / pump, p.transmission.converter_stall_ratio, 1e-12);
-  // Coupling point: ratio 1; fully coupled: no torque; overrun: engine braking.
-  const double sr_c = p.transmission.converter_coupling_speed_ratio;
-  const auto c = pt.converter_torques(w, sr_c * w);
-  EXPECT_NEAR(c.second / c.first, 1.0, 1e-12);
-  EXPECT_NEAR(pt.converter_torques(w, w).first, 0.0, 1e-9);
-  EXPECT_LT(pt.converter_torques(w, 1.1 * w).second, 0.0);
-}
-
 TEST(Powertrain, ShiftsAtTheConfiguredSpeeds) {
   const auto p = load("hmmwv");
   Powertrain pt(p);
@@ -135,13 +119,13 @@ TEST(Powertrain, ShiftsAtTheConfiguredSpeeds) {
   pt.step(0.5, 0.0, 0.0, 0.002);
   EXPECT_EQ(pt.gear(), 1);
   EXPECT_GT(pt.step(0.5, 0.0, 0.0, 0.002), 0.0);  // launch torque at the wheels
-  // Turbine speed just above the upshift speed in first gear, after the shift time.
+  // Turbine speed just above the upshift speed in first gear, after the shift latency.
   const double to_rad = 2 * std::numbers::pi / 60;
   const double ratio1 = p.transmission.forward_ratios[0] * p.driveline.final_drive_ratio;
-  for (int i = 0; i < 300; ++i) pt.step(0.5, 1.01 * p.transmission.upshift_rpm * to_rad * ratio1, 5.0, 0.002);
+  for (int i = 0; i < 600; ++i) pt.step(0.5, 1.01 * p.transmission.upshift_rpm * to_rad * ratio1, 5.0, 0.002);
   EXPECT_EQ(pt.gear(), 2);
   const double ratio2 = p.transmission.forward_ratios[1] * p.driveline.final_drive_ratio;
-  for (int i = 0; i < 300; ++i) pt.step(0.5, 0.99 * p.transmission.downshift_rpm * to_rad * ratio2, 5.0, 0.002);
+  for (int i = 0; i < 600; ++i) pt.step(0.5, 0.99 * p.transmission.downshift_rpm * to_rad * ratio2, 5.0, 0.002);
   EXPECT_EQ(pt.gear(), 1);
   // Stopped with the throttle closed: neutral.
   pt.step(0.0, 0.0, 0.0, 0.002);
