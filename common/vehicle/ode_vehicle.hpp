@@ -61,8 +61,10 @@ class OdeVehicleModel final : public VehicleModel {
   std::array<WheelDiagnostics, 4> wheel_diagnostics() const;
   const VehicleParams& params() const;
   double time_s() const;
-  /// Simulated time spent settling in the constructor (before time 0).
-  static constexpr double kSettleTimeS = 2.0;
+  /// Simulated time spent settling in the constructor (before time 0): the load ramps up over
+  /// kSettleRampS, then holds.
+  static constexpr double kSettleTimeS = 4.0;
+  static constexpr double kSettleRampS = 3.0;
 
  private:
   struct Impl;
