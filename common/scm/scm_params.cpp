@@ -132,6 +132,7 @@ ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_conf
   p.grid.base_height_m = m.number("base_height_m", 0.0, -1e5, 1e5);
   p.threads = integer(m, "threads", 1, 1, 64);
   p.patch_test_height_m = m.number("patch_test_height_m", p.patch_test_height_m, 0.0, 10.0);
+  p.shear_damping_time_s = m.number("shear_damping_time_s", p.shear_damping_time_s, 0.0, 1.0);
   m.finish();
   try {
     validate(p);
@@ -167,6 +168,8 @@ void validate(const ScmParams& p) {
           "area too large for the grid spacing (indices must fit 32 bits)");
   require(nx >= 0 && ny >= 0, "area holds no grid vertex");
   require(p.patch_test_height_m >= 0.0, "patch_test_height_m must be >= 0");
+  require(p.shear_damping_time_s >= 0.0 && std::isfinite(p.shear_damping_time_s),
+          "shear_damping_time_s must be >= 0");
   require(p.thread_min_vertices >= 1, "thread_min_vertices must be >= 1");
   require(p.threads >= 1 && p.threads <= 64, "threads must be in [1, 64]");
 }

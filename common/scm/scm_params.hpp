@@ -53,13 +53,17 @@ struct ScmParams {
   /// this far above the unloaded soil there; only vertices the body is below carry load.
   /// Chrono's SCM "test height" (SCMTerrain::SetTestHeight, default 0.1 m).
   double patch_test_height_m = 0.1;
+  /// Shear damping time beta (s): the shear stress takes the mobilisation the slip would reach
+  /// beta later, i.e. stiffness-proportional damping of the Janosi shear spring. It damps the
+  /// rocking of a body at rest on soft soil; 0 gives the plain law (docs/scm.md, Deviations).
+  double shear_damping_time_s = 0.005;
   int threads = 1;  // ray-casting threads (results are bit-identical for any count)
   /// Footprint vertices per thread below which a step runs on the calling thread only (waking
   /// workers costs tens of microseconds). Does not change results.
   int thread_min_vertices = 4096;
 };
 
-/// Chrono SynChrono presets (reference/ORACLES.md), the same numbers the YAML files hold.
+/// Chrono SynChrono presets (SynChrono's SCM demos), the same numbers the YAML files hold.
 SoilParams soil_preset(const std::string& name);  // "soft", "mid", "hard"
 
 /// Reads a `soil:` mapping.
@@ -83,6 +87,7 @@ SoilPreset load_soil_preset_file(const std::string& file);
 ///   base_height_m: 0       # optional
 ///   threads: 1             # optional
 ///   patch_test_height_m: 0.1  # optional
+///   shear_damping_time_s: 0.005  # optional
 ///   bulldozing: {...}      # optional, overrides the preset's
 ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_config_dir);
 

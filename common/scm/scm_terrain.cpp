@@ -600,6 +600,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   s.results.assign(nc, ContactResult{});
   const SoilParams& soil = params_.soil;
   const double ke = soil.elastic_stiffness_pa_per_m;
+  const double shear_damping_s = params_.shear_damping_time_s;
   const bool parallel_law = pool_ && 4 * nc >= grain * static_cast<std::size_t>(pool_->parts());
   const int law_parts = parallel_law ? pool_->parts() : 1;
   auto law = [&](int part) {
@@ -616,8 +617,31 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       const Vec3 arm = p - g.centre;
       const Vec3 vel = g.velocity + g.omega.cross(arm);
       const double vn = vel.z();
-      const double vt = std::hypot(vel.x(), vel.y());
-      const double kshear = (r.contact_step == step_ - 1 ? r.kshear : 0.0) + vt * dt;
+      // Shear mobilisation m = tau / tau_max (a horizontal vector, |m| <= 1) follows the slip
+      // path of the body point over the soil: dm = (e - m) ds / K, e the slip direction and ds
+      // the slip length (exact for a step of constant velocity). Monotonic slip j gives
+      // |m| = 1 - exp(-j / K), Janosi-Hanamoto; at rest m keeps its value (a stiff spring of
+      // tangent stiffness tau_max / K, no chatter) and a reversal unwinds it.
+      double mx = 0.0, my = 0.0;
+      if (r.contact_step == step_ - 1) {
+        mx = r.shear_x;
+        my = r.shear_y;
+      }
+      const double sx = vel.x() * dt, sy = vel.y() * dt;
+      const double ds = std::hypot(sx, sy);
+      double fmx = mx, fmy = my;  // mobilisation the force uses (see the shear damping below)
+      if (ds > 0.0) {
+        const double ex = sx / ds, ey = sy / ds;
+        const double decay = std::exp(-ds / soil.janosi_shear_m);
+        mx = ex + (mx - ex) * decay;
+        my = ey + (my - ey) * decay;
+        // Shear damping: the force takes the mobilisation reached after a further slip
+        // |v_t| * beta, i.e. stiffness-proportional damping tau_max (e - m) |v_t| beta / K for
+        // small slips, bounded by the Mohr-Coulomb strength (|m| <= 1).
+        const double ahead = std::exp(-(ds / dt) * shear_damping_s / soil.janosi_shear_m);
+        fmx = ex + (mx - ex) * ahead;
+        fmy = ey + (my - ey) * ahead;
+      }
       r.level = v.z_hit;
       r.step_plastic_flow = 0.0;
       if (sigma > r.sigma_yield) {  // plastic: follow the Bekker curve
@@ -629,14 +653,11 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
         r.step_plastic_flow = r.sinkage_plastic - old_plastic;
       }
       sigma = std::max(0.0, sigma - vn * soil.damping_pa_s_per_m);
-      const double tau =
-          (soil.cohesion_pa + sigma * tan_phi_) * (1.0 - std::exp(-kshear / soil.janosi_shear_m));
-      Vec3 force(0.0, 0.0, cell_area_ * sigma);
-      if (vt > 1e-12) {
-        force.x() -= cell_area_ * tau * vel.x() / vt;
-        force.y() -= cell_area_ * tau * vel.y() / vt;
-      }
-      r.kshear = kshear;
+      const double tau_max = soil.cohesion_pa + sigma * tan_phi_;  // Mohr-Coulomb strength
+      const Vec3 force(-cell_area_ * tau_max * fmx, -cell_area_ * tau_max * fmy,
+                       cell_area_ * sigma);
+      r.shear_x = mx;
+      r.shear_y = my;
       r.sigma = sigma;
       r.contact_step = step_;
       out.force = force;

@@ -155,7 +155,8 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
     double sinkage_plastic = 0.0;
     double sigma_yield = 0.0;
     // Local contact state (never synchronised): belongs to this process's own bodies.
-    double kshear = 0.0;             // accumulated shear displacement j (m)
+    double shear_x = 0.0;            // shear mobilisation m = tau / tau_max (vector, |m| <= 1)
+    double shear_y = 0.0;            //   along the body's slip over this vertex (see the law)
     double sigma = 0.0;              // normal stress of the last step in contact (Pa)
     double step_plastic_flow = 0.0;  // plastic sinkage added in the last step (m)
     std::int64_t contact_step = -2;  // index of the last step in contact

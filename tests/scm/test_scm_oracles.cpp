@@ -127,7 +127,8 @@ TEST(ScmOracle, ElasticUnloadingFollowsKe) {
 }
 
 TEST(ScmOracle, JanosiShearPlateForceFollowsSlip) {
-  const ScmParams p = params("mid", 0.01, 0.5);
+  ScmParams p = params("mid", 0.01, 0.5);
+  p.shear_damping_time_s = 0.0;  // the plain law (the damping is tested below)
   ScmTerrain terrain(p);
   const double side = 0.3, w = 2000.0, area = side * side, ht = 0.01;
   auto rig = settle_plate(terrain, BoxShape{Vec3(side / 2, side / 2, ht)}, Quat::Identity(), ht,
@@ -233,4 +234,51 @@ TEST(ScmOracle, RigidWheelConvergesToBekkerWithStiffUnloading) {
   const WheelRun run = roll_wheel("mid", 0.02, w, b, d, z0, 100.0, 2e-4);
   report("rigid wheel z0, mid, Ke x 100 (m)", z0, run.sinkage_m);
   EXPECT_NEAR(run.sinkage_m, z0, 0.03 * z0) << "Bekker " << z0 << " SCM " << run.sinkage_m;
+}
+
+// The shear mobilisation m (docs/scm.md, per-vertex law) in the same shear box: with the shear
+// damping time beta it leads the slip by v beta (the force at slip j is Janosi's at j + v beta);
+// at rest it holds the stress (a velocity-direction law drops it to zero); reversed, it unwinds
+// along m(s) = -1 + (1 + m1) exp(-s / K) from the reversal's m1.
+TEST(ScmOracle, ShearHoldsAtRestAndUnwindsOnReversal) {
+  const ScmParams p = params("mid", 0.01, 0.5);
+  ScmTerrain terrain(p);
+  const double side = 0.3, w = 2000.0, area = side * side, ht = 0.01;
+  auto rig = settle_plate(terrain, BoxShape{Vec3(side / 2, side / 2, ht)}, Quat::Identity(), ht,
+                          Vec2(0.005, 0.005), w, 0.02);
+  const double k = p.soil.janosi_shear_m, beta = p.shear_damping_time_s, dt = 1e-3, v = 0.01;
+  const double strength =
+      area * p.soil.cohesion_pa + w * std::tan(deg_to_rad(p.soil.friction_angle_deg));
+  // Slide the soil under the fixed plate pose at velocity vx for `steps` steps.
+  const auto slide = [&](double vx, int steps) {
+    rig.body.linear_velocity.x() = vx;
+    for (int n = 0; n < steps; ++n) {
+      const double x = rig.body.pose.position.x();
+      rig.step(terrain, w, dt);
+      rig.body.pose.position.x() = x;
+    }
+    return -rig.last.force.x();
+  };
+  const double lead = std::exp(-v * beta / k);  // the factor the damping applies to 1 - |m|
+  // 20 mm forward: m1 = 1 - exp(-j / K), force from 1 - (1 - m1) lead.
+  const double m1 = 1.0 - std::exp(-0.02 / k);
+  const double f1 = slide(v, 2000);
+  report("shear, 20 mm forward (N)", strength * (1.0 - (1.0 - m1) * lead), f1);
+  EXPECT_NEAR(f1, strength * (1.0 - (1.0 - m1) * lead), 0.02 * strength);
+  // At rest for 1 s: the stress stays (no slip, no damping).
+  const double f_rest = slide(0.0, 1000);
+  report("shear, then 1 s at rest (N)", strength * m1, f_rest);
+  EXPECT_NEAR(f_rest, strength * m1, 0.02 * strength);
+  // Reversed by 5, 10, 30 mm: m(s) = -1 + (1 + m1) exp(-s / K), force from -1 + (1 + m) lead.
+  double s = 0.0;
+  for (const double target : {0.005, 0.010, 0.030}) {
+    const auto steps = static_cast<int>(std::lround((target - s) / (v * dt)));
+    const double f = slide(-v, steps);
+    s = target;
+    const double m = -1.0 + (1.0 + m1) * std::exp(-s / k);
+    const double expected = strength * (-1.0 + (1.0 + m) * lead);
+    const std::string what = "shear, reversed " + std::to_string(s * 1e3).substr(0, 4) + " mm (N)";
+    report(what.c_str(), expected, f);
+    EXPECT_NEAR(f, expected, 0.02 * strength) << "reversed by " << s;
+  }
 }
