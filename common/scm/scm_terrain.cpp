@@ -103,13 +103,15 @@ struct BodyGeometry {
   double half_width = 0.0;
   Eigen::Matrix3d world_to_local = Eigen::Matrix3d::Identity();  // box
   Vec3 half_extents = Vec3::Zero();
+  double slope_cap = 0.0;  // largest horizontal/vertical ratio of the normal stress (see law)
   std::int32_t i0 = 0, i1 = -1, j0 = 0, j1 = -1;  // footprint (inclusive), clipped to area
   std::size_t count = 0;                          // footprint vertices
   std::size_t offset = 0;                         // first global footprint index
 
-  /// Lowest point of the body on the vertical line through (x, y), relative to centre.z();
-  /// false if the line misses the body.
-  bool lowest_on_vertical(double x, double y, double& dz) const {
+  /// Lowest point of the body on the vertical line through (x, y), relative to centre.z(), and
+  /// the face it lies on (0: cylinder mantle; +-(k + 1): box face k or cylinder end cap (k = 1),
+  /// sign of its outward normal along that local axis); false if the line misses the body.
+  bool lowest_on_vertical(double x, double y, double& dz, std::int8_t& face) const {
     const double dx = x - centre.x();
     const double dy = y - centre.y();
     if (cylinder) {
@@ -128,11 +130,15 @@ struct BodyGeometry {
         t_lo = (-b - sq) / (2.0 * a);
         t_hi = (-b + sq) / (2.0 * a);
       }
+      face = 0;
       if (std::abs(az) > 1e-12) {  // end caps: -h <= alpha + t az <= h
         double s0 = (-half_width - alpha) / az;
         double s1 = (half_width - alpha) / az;
         if (s0 > s1) std::swap(s0, s1);
-        t_lo = std::max(t_lo, s0);
+        if (s0 > t_lo) {  // the ray enters through a cap: outward normal -sign(az) axis
+          t_lo = s0;
+          face = az > 0.0 ? -2 : 2;
+        }
         t_hi = std::min(t_hi, s1);
       } else if (std::abs(alpha) > half_width) {
         return false;
@@ -145,6 +151,7 @@ struct BodyGeometry {
     const Vec3 o = world_to_local * Vec3(dx, dy, 0.0);
     const Vec3 d = world_to_local.col(2);
     double t_lo = -kInf, t_hi = kInf;
+    face = 0;
     for (int k = 0; k < 3; ++k) {
       if (std::abs(d[k]) < 1e-12) {
         if (std::abs(o[k]) > half_extents[k]) return false;
@@ -153,12 +160,29 @@ struct BodyGeometry {
       double s0 = (-half_extents[k] - o[k]) / d[k];
       double s1 = (half_extents[k] - o[k]) / d[k];
       if (s0 > s1) std::swap(s0, s1);
-      t_lo = std::max(t_lo, s0);
+      if (s0 > t_lo) {  // entry face so far: outward normal -sign(d[k]) e_k
+        t_lo = s0;
+        face = static_cast<std::int8_t>(d[k] > 0.0 ? -(k + 1) : k + 1);
+      }
       t_hi = std::min(t_hi, s1);
     }
     if (t_lo > t_hi) return false;
     dz = t_lo;
     return true;
+  }
+
+  /// Outward unit normal of the body at a surface point (arm = point - centre) on `face`.
+  Vec3 outward_normal(std::int8_t face, const Vec3& arm) const {
+    if (cylinder) {
+      if (face != 0) return face > 0 ? axis : Vec3(-axis);
+      const Vec3 radial = arm - arm.dot(axis) * axis;
+      const double len = radial.norm();
+      return len > 0.0 ? Vec3(radial / len) : Vec3(-Vec3::UnitZ());
+    }
+    if (face == 0) return -Vec3::UnitZ();
+    const int k = std::abs(face) - 1;
+    const Vec3 e = world_to_local.row(k).transpose();  // local axis k in the world
+    return face > 0 ? e : Vec3(-e);
   }
 };
 
@@ -170,6 +194,7 @@ struct StepVertex {  // one footprint vertex of one body in this step
   std::int32_t patch = -1;    // contact patch (patch vertices reached from a contact only)
   std::int32_t record = -1;   // records_ index (contacts only)
   double z_hit = kInf;        // lowest body point on the vertical through the vertex
+  std::int8_t face = 0;       // body face of that point (BodyGeometry::lowest_on_vertical)
   double surface = kInf;      // unloaded (plastic) surface, level_initial - sinkage_plastic,
   bool has_level = false;     // looked up only if z_hit < the level bound
 };
@@ -407,6 +432,10 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       g.half_extents = box.half_extents_m;
       extent = rot.cwiseAbs() * box.half_extents_m;
     }
+    {  // secant slope of a circle of the body's size over its last grid cell (see the law)
+      const double size = g.cylinder ? g.radius : g.half_extents.maxCoeff();
+      g.slope_cap = std::sqrt(2.0 * size / delta_);
+    }
     if (g.centre.z() - extent.z() >= level_bound_) continue;  // above all soil
     const double xl = (g.centre.x() - extent.x()) / delta_,
                  xh = (g.centre.x() + extent.x()) / delta_;
@@ -459,8 +488,10 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
         v.j = j;
         v.body = static_cast<std::int32_t>(b);
         double dz = 0.0;
-        if (g.lowest_on_vertical(i * delta_, j * delta_, dz)) {
+        std::int8_t face = 0;
+        if (g.lowest_on_vertical(i * delta_, j * delta_, dz, face)) {
           v.z_hit = g.centre.z() + dz;
+          v.face = face;
           if (v.z_hit < level_bound_ + margin) {
             v.surface = surface_of(i, j);
             v.has_level = true;
@@ -503,6 +534,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
       }
       if (h.z_hit < v.z_hit) {
         v.z_hit = h.z_hit;
+        v.face = h.face;
         v.body = h.body;
       }
     }
@@ -652,10 +684,30 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
         r.sinkage_plastic = sinkage - sigma / ke;
         r.step_plastic_flow = r.sinkage_plastic - old_plastic;
       }
-      sigma = std::max(0.0, sigma - vn * soil.damping_pa_s_per_m);
+      // Damping (Chrono's, of the vertical motion): the total stress, clamped at zero, acts
+      // vertically; of it, the soil stress (without the compressive damping) acts along the
+      // body's outward surface normal n, as the radial stress of Bekker and Wong on a rigid
+      // wheel. sigma is per unit horizontal area (the Bekker plate law), so that part adds the
+      // horizontal sigma_n * (-n_h / |n_z|), the slope of the body surface over the vertex,
+      // capped at the secant slope of the body's outline over its last grid cell (the cell is
+      // not small against the body there).
+      const double damped = sigma - vn * soil.damping_pa_s_per_m;
+      const double sigma_n = std::max(0.0, std::min(sigma, damped));
+      sigma = std::max(0.0, damped);
+      double gx = 0.0, gy = 0.0;
+      const Vec3 n = g.outward_normal(v.face, arm);
+      if (n.z() < 0.0) {
+        gx = n.x() / n.z();
+        gy = n.y() / n.z();
+        const double slope = std::hypot(gx, gy);
+        if (slope > g.slope_cap) {
+          gx *= g.slope_cap / slope;
+          gy *= g.slope_cap / slope;
+        }
+      }
       const double tau_max = soil.cohesion_pa + sigma * tan_phi_;  // Mohr-Coulomb strength
-      const Vec3 force(-cell_area_ * tau_max * fmx, -cell_area_ * tau_max * fmy,
-                       cell_area_ * sigma);
+      const Vec3 force(cell_area_ * (sigma_n * gx - tau_max * fmx),
+                       cell_area_ * (sigma_n * gy - tau_max * fmy), cell_area_ * sigma);
       r.shear_x = mx;
       r.shear_y = my;
       r.sigma = sigma;
