@@ -9,9 +9,10 @@
 //   2. groups contact vertices into 4-connected patches (with the vertices the body is less than
 //      the test height above, as Chrono does), b = 2 A / P per patch;
 //   3. applies the per-vertex law: elastic trial Ke (s - s_plastic); above the yield stress
-//      Bekker sigma = (kc / b + kphi) s^n; damping -R v_n; Janosi-Hanamoto shear
-//      tau = (c + sigma tan phi)(1 - exp(-j / K)) opposite the tangential velocity;
-//      force = cell area (sigma n + tau t), summed with torque about the body centre;
+//      Bekker sigma = (kc / b + kphi) s^n, acting along the body's surface normal (per unit
+//      horizontal area); damping -R v_n (vertical); Janosi-Hanamoto shear through a
+//      mobilisation vector m that follows the horizontal slip path, tau = (c + sigma tan phi) m;
+//      summed with torque about the body centre;
 //   4. optionally bulldozes the plastically displaced volume to the rim of each patch.
 // See docs/scm.md for the equations, the sync rule and the limits.
 #include <array>

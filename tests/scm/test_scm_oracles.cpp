@@ -1,6 +1,7 @@
-// SCM against the closed-form oracles of reference/ORACLES.md. Oracle numbers are recomputed
-// here from the formulas; the worked values of ORACLES.md are checked against them loosely, so a
-// typo in either place shows up.
+// SCM against closed-form oracles (Bekker, Theory of Land Locomotion; Wong, Theory of Ground
+// Vehicles: plate and rigid-wheel sinkage, Janosi-Hanamoto shear). Oracle numbers are recomputed
+// here from the formulas; worked values are checked against them loosely, so a typo in either
+// place shows up.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -62,7 +63,7 @@ TEST(ScmOracle, CircularPlateSinkageMatchesBekker) {
   ScmTerrain terrain(p);
   const double r = 0.1, w = 500.0, area = std::numbers::pi * r * r;
   const double z = plate_sinkage(p.soil, w, area, r);
-  EXPECT_NEAR(z, 12.35e-3, 0.05e-3);  // ORACLES.md worked value
+  EXPECT_NEAR(z, 12.35e-3, 0.05e-3);  // worked value
   const double ht = 0.01;
   const auto rig = settle_plate(terrain, CylinderShape{r, 2 * ht}, disc_orientation(), ht,
                                 Vec2(0.0013, 0.0007), w, z);
