@@ -112,7 +112,8 @@ struct OdeVehicleModel::Impl {
   std::array<const AxleParams*, 4> axle{};
   std::array<double, 4> preload{};
   double load_scale = 1.0;               // gravity and preloads (ramped while settling)
-  std::array<double, 4> drive_share{};   // share of the driveline torque per wheel
+  double front_share = 0.0;              // centre differential: front axle's torque share
+  std::array<double, 4> drive_share{};   // nominal share of the driveline torque per wheel
   double driveline_inertia = -1.0;       // reflected inertia currently on the wheels
   std::array<TireState, 4> tire_states{};
   std::array<WheelDiagnostics, 4> diag{};
@@ -180,8 +181,7 @@ struct OdeVehicleModel::Impl {
     const Vec3& ic = p.chassis.inertia_kgm2;
     dMassSetParameters(&m, p.chassis.mass_kg, 0, 0, 0, ic.x(), ic.y(), ic.z(), 0, 0, 0);
     dBodySetMass(chassis, &m);
-    const double front_share =
-        p.front.driven ? (p.rear.driven ? p.driveline.front_torque_share : 1.0) : 0.0;
+    front_share = p.front.driven ? (p.rear.driven ? p.driveline.front_torque_share : 1.0) : 0.0;
     for (int i = 0; i < 4; ++i) {
       drive_share[i] = 0.5 * (i < 2 ? front_share : 1.0 - front_share);
       wheels[i] = dBodyCreate(world);
@@ -195,7 +195,7 @@ struct OdeVehicleModel::Impl {
   }
 
   /// Wheel masses with the driveline inertia of the current gear: the in-gear and drive
-  /// shafts turn with the wheels through the open differentials. Their inertia J (at the
+  /// shafts turn with the wheels through the differentials. Their inertia J (at the
   /// differentials' input, wheel units) is a rank-one coupling J c c^T of the wheel spins
   /// (c the torque shares); each wheel gets its share c_i J on its spin inertia, which is exact
   /// when the driven wheels accelerate alike (an explicit coupling torque would be unstable:
@@ -428,9 +428,7 @@ struct OdeVehicleModel::Impl {
   void apply_drive_torque(double dt) {
     std::array<double, 4> spin{};
     for (int i = 0; i < 4; ++i) spin[i] = relative_spin(i);
-    const double front_share =
-        p.front.driven ? (p.rear.driven ? p.driveline.front_torque_share : 1.0) : 0.0;
-    // Open differentials: the centre input turns at the torque-weighted mean of the axles.
+    // Differential kinematics: the centre input turns at the torque-weighted mean of the axles.
     const double w_front = 0.5 * (spin[0] + spin[1]);
     const double w_rear = 0.5 * (spin[2] + spin[3]);
     const double w_in = front_share * w_front + (1.0 - front_share) * w_rear;

@@ -193,4 +193,14 @@ TEST(VehicleFiles, NewKeysAreStrict) {
   bad = text;
   bad.replace(bad.find("drag_area_m2: 2.4"), 17, "drag_area_m2: -1");
   EXPECT_NE(error_of(bad).find("chassis.drag_area_m2"), std::string::npos) << error_of(bad);
+  // The earlier converter model's keys name their replacement.
+  bad = text;
+  bad.insert(bad.find("  converter_capacity_map:"), "  converter_stall_ratio: 2.0\n");
+  EXPECT_NE(error_of(bad).find("replaced by converter_capacity_map"), std::string::npos)
+      << error_of(bad);
+  // Converter maps cover speed ratios 0 to 1.
+  bad = text;
+  bad.replace(bad.find("- [1.0, 35]"), 11, "- [0.95, 35]");
+  EXPECT_NE(error_of(bad).find("speed ratios must run from 0 to 1"), std::string::npos)
+      << error_of(bad);
 }
