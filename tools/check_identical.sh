@@ -7,6 +7,7 @@
 #
 # Hashed: every file of the run directory that docs/outputs.md calls byte-identical (CSV files,
 # terrain images and their scale, convoy.json); summary.json/txt hold wall times and are left out.
+# A file's copy of the run directory's path is not part of its hash.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 [ $# -ge 2 ] || { sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 1; }
@@ -34,6 +35,7 @@ while IFS= read -r scenario; do
   fi
   (cd "$dir" && find . -type f \( -name '*.csv' -o -name '*.png' -o -name 'terrain_images.json' \
       -o -name 'convoy.json' \) | LC_ALL=C sort | while IFS= read -r f; do
-     echo "$rel ${f#./} $(sha256sum "$f" | cut -c1-16)"; done) >> "$OUT"
+     # terrain_images.json names its images by path: the run directory's own path is not a result
+     echo "$rel ${f#./} $(sed "s#$dir/##g" "$f" | sha256sum | cut -c1-16)"; done) >> "$OUT"
   echo "check_identical: $rel done" >&2
 done < <(find "$ROOT/config/scenarios" -name '*.yaml' | LC_ALL=C sort)
