@@ -6,13 +6,14 @@
 #       [--single-process] [--print-commands] [--domain D] [--run-id ID]
 #       [--transport default|udp] [--discovery-server ADDR:PORT] [--log-level LEVEL]
 #
-# Exit status: 0 completed, 1 bad scenario or command line, 2 run aborted or a process failed,
-# 130 interrupted (Ctrl-C). Logs of every process: OUTPUT/logs/. Programs: build/bin (or
+# Exit status: 0 completed, 1 bad scenario or command line or more than this host can start,
+# 2 run aborted, a process failed, or the run completed without its recorder, 130 interrupted. Logs of every process: OUTPUT/logs/. Programs: build/bin (or
 # $SYNDDS_BUILD_DIR/bin; run launch_scripts/setup.sh first).
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 GRACE_S=${SYNDDS_LAUNCH_GRACE_S:-20}   # after a failure: time for the others to exit cleanly
+PROCESS_MB=${SYNDDS_PROCESS_MB:-100}   # memory one process of a run needs (docs/deployment.md)
 
 die() { echo "run_scenario: $*" >&2; exit "${2:-1}"; }
 usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; }
@@ -44,8 +45,10 @@ done
 stem=$(basename "$SCENARIO" .yaml)
 stem=${stem//[^A-Za-z0-9_.-]/_}
 stamp=$(date +%Y%m%d-%H%M%S)
-[ -n "$OUTPUT" ] || OUTPUT="runs/$stem-$stamp"
-[ -n "$RUN_ID" ] || RUN_ID="$stem-$stamp-$$"
+# The pid keeps two launches of one scenario in the same second apart; the stem is cut so that
+# the run id stays within the 64 characters a run id may have (40 + 1 + 15 + 1 + at most 7).
+[ -n "$OUTPUT" ] || OUTPUT="runs/$stem-$stamp-$$"
+[ -n "$RUN_ID" ] || RUN_ID="${stem:0:40}-$stamp-$$"
 
 if [ "$SINGLE" = 1 ]; then
   if [ "$PRINT" = 1 ]; then
@@ -66,6 +69,21 @@ fi
 plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" \
        --format launcher "${PASS[@]}") || exit 1
 
+# Refuse what this machine cannot start, before starting anything: every process of a run
+# holds about PROCESS_MB of memory (Fast DDS participant, shared-memory transport; measured in
+# docs/deployment.md), and the user may only have so many processes.
+nproc_run=$(printf '%s\n' "$plan" | grep -c $'\t')
+avail_mb=$(awk '/^MemAvailable:/ {print int($2 / 1024)}' /proc/meminfo 2>/dev/null)
+if [ -n "$avail_mb" ] && [ $((nproc_run * PROCESS_MB)) -gt "$avail_mb" ]; then
+  die "$nproc_run processes need about $((nproc_run * PROCESS_MB)) MB ($PROCESS_MB MB each) but this machine has $avail_mb MB available: run fewer vehicles or spread the run over hosts (docs/deployment.md)"
+fi
+max_user=$(ulimit -u)
+if [ "$max_user" != unlimited ]; then
+  running_user=$(ps -U "$(id -u)" -o pid= 2>/dev/null | wc -l)
+  [ $((running_user + nproc_run)) -le "$max_user" ] ||
+    die "$nproc_run processes would exceed this user's limit of $max_user processes ($running_user running; ulimit -u)"
+fi
+
 mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
 : > "$OUTPUT/logs/pids"
 names=(); pids=(); codes=()
@@ -79,8 +97,15 @@ kill_children() {
   done
 }
 trap kill_children EXIT
+# The coordinator comes first in the plan. Starting stops as soon as the run has ended (the
+# coordinator exited: join timeout, bad configuration) or the user interrupted: with hundreds of
+# processes starting takes long, and nothing started after the end can take part.
 while IFS=$'\t' read -r member cmd; do
   [ -n "$member" ] || continue
+  if [ $interrupted = 1 ] || { [ ${#pids[@]} -gt 0 ] && ! kill -0 "${pids[0]}" 2>/dev/null; }; then
+    echo "run_scenario: the run ended while processes were starting; $member and the rest were not started" >&2
+    break
+  fi
   log="$OUTPUT/logs/${member//\//_}.log"
   ( eval "exec $cmd" ) > "$log" 2>&1 &
   names+=("$member"); pids+=($!); codes+=("")
@@ -97,7 +122,11 @@ stop_all() {  # $1 = signal
 # The coordinator is the authority on the run: when it exits (completed or aborted) every other
 # process has GRACE_S seconds to follow before it is stopped. A member that fails before that
 # either makes the coordinator abort (on_member_loss: abort) or is left behind (continue).
-failed=""; deadline=0; killed=0; coordinator_code=""; recorder_code=0; notes=()
+failed=""; deadline=0; killed=0; coordinator_code=""; recorder_code=0; notes=(); early=""; early_log=""; recorder_what=""
+# Until the coordinator says every member joined, a member that exits can never join: the run
+# cannot start, and waiting out the join timeout would only hide why.
+started() { grep -q "all members joined" "$OUTPUT/logs/coordinator.log" 2>/dev/null; }
+run_started=0
 while :; do
   alive=0
   for i in "${!pids[@]}"; do
@@ -118,9 +147,20 @@ while :; do
       [ "${codes[$i]}" -gt 130 ] && what="${names[$i]} was killed by signal $((codes[$i] - 128))"
       [ -n "$failed" ] || failed=$what
       notes+=("$what")
+      [ "${names[$i]}" = recorder ] && recorder_what=$what
+    fi
+    if [ "${names[$i]}" != coordinator ] && [ -z "$early" ] && [ $run_started = 0 ] && ! started; then
+      early="${names[$i]} exited (status ${codes[$i]}) before the run started"
+      early_log="$OUTPUT/logs/${names[$i]//\//_}.log"
+      [ -n "$failed" ] || failed=$early
     fi
   done
   [ $alive -eq 0 ] && break
+  [ $run_started = 1 ] || ! started || run_started=1
+  if [ -n "$early" ] && [ $killed = 0 ]; then
+    echo "run_scenario: $early; stopping every process (see ${OUTPUT}/logs)" >&2
+    stop_all TERM; killed=1; deadline=$((SECONDS + 5))
+  fi
   if [ $interrupted = 1 ] && [ $killed = 0 ]; then
     echo "run_scenario: interrupted; stopping every process" >&2
     stop_all TERM; killed=1; deadline=$((SECONDS + 5))
@@ -150,7 +190,15 @@ fi
 
 # One line saying why: the coordinator's verdict (as recorded), else who failed first.
 reason=""
-if [ -f "$summary" ] && ! head -n1 "$summary" | grep -q " is running"; then
+if [ -n "$early" ]; then
+  reason="$early: $(grep -h -E "error|Error|failed" "$early_log" 2>/dev/null | tail -n1)"
+  reason=${reason%: }
+elif [ "$coordinator_code" = 0 ] && [ "$recorder_code" != 0 ]; then
+  # The coordinator completed the run; what is missing is the record of it.
+  upto=$(sed -n 's/.*"recorded_up_to_frame": *\(-\{0,1\}[0-9]*\).*/\1/p' "$OUTPUT/summary.json" 2>/dev/null | head -n1)
+  reason="the run completed but the recording is incomplete: $recorder_what"
+  [ -n "$upto" ] && reason="$reason (frames 0 to $upto are in $OUTPUT)"
+elif [ -f "$summary" ] && ! head -n1 "$summary" | grep -q " is running"; then
   reason=$(head -n1 "$summary")
 fi
 if [ -z "$reason" ]; then

@@ -1,0 +1,177 @@
+// The launcher (launch_scripts/run_scenario.sh) as a user runs it: run ids and output folders of
+// its own, refusing what the machine cannot start, ending a run that cannot start at once, and
+// saying plainly when the run completed but its recording did not.
+#include <nlohmann/json.hpp>
+
+#include <regex>
+
+#include "harness.hpp"
+
+namespace syndds::test {
+namespace {
+
+const std::string kScenarios = kSource + "/tests/multiprocess/scenarios/";
+const std::string kLauncher = kSource + "/launch_scripts/run_scenario.sh";
+
+/// A bin folder with the real programs, except `fakes` (program name -> shell script body).
+fs::path bin_with_fakes(const TestRun& run, const std::map<std::string, std::string>& fakes) {
+  const fs::path bin = run.dir / "build" / "bin";
+  fs::create_directories(bin);
+  for (const auto& entry : fs::directory_iterator(kBin)) {
+    const std::string name = entry.path().filename().string();
+    if (fakes.contains(name)) continue;
+    fs::create_symlink(entry.path(), bin / name);
+  }
+  for (const auto& [name, body] : fakes) {
+    std::ofstream(bin / name) << "#!/bin/sh\n" << body << "\n";
+    fs::permissions(bin / name, fs::perms::owner_all, fs::perm_options::add);
+  }
+  return bin;
+}
+
+/// The launcher in `cwd` with `args`; its programs from `build` (the folder holding bin/).
+std::unique_ptr<Process> launch(const TestRun& run, const fs::path& cwd, const std::string& args,
+                                const std::string& log_name, const std::string& env = "",
+                                const fs::path& build = fs::path(kBin) / "..") {
+  return std::make_unique<Process>("env -C " + cwd.string() + " SYNDDS_BUILD_DIR=" +
+                                       build.string() + " " + env + " " + kLauncher + " " + args,
+                                   run.dir / log_name);
+}
+
+// A scenario file with a long name still gets a run id every process accepts (at most 64
+// characters), and the run completes.
+TEST(Launcher, LongScenarioNameGivesAValidRunId) {
+  TestRun run;
+  const std::string stem(60, 'x');
+  const fs::path scenario = run.dir / (stem + "_two_vehicles.yaml");
+  fs::copy_file(kScenarios + "two_vehicles.yaml", scenario);
+  auto launcher = launch(run, run.dir,
+                         scenario.string() + " --duration 0.3 --domain " +
+                             std::to_string(run.domain) + " --output " + (run.dir / "out").string(),
+                         "launcher.log");
+  const auto code = launcher->wait(90);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 0) << launcher->log();
+  std::smatch m;
+  const std::string log = launcher->log();
+  ASSERT_TRUE(std::regex_search(log, m, std::regex("for run (\\S+) ")));
+  EXPECT_LE(m[1].str().size(), 64u) << m[1];
+}
+
+// Two launches of one scenario in the same second get their own output folder and run id.
+TEST(Launcher, LaunchesInTheSameSecondDoNotShareAFolder) {
+  TestRun run;
+  const std::string scenario = kScenarios + "two_vehicles.yaml";
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    auto a = launch(run, run.dir, scenario + " --print-commands", "a.log");
+    auto b = launch(run, run.dir, scenario + " --print-commands", "b.log");
+    ASSERT_EQ(a->wait(30), 0) << a->log();
+    ASSERT_EQ(b->wait(30), 0) << b->log();
+    const std::regex output_re("--output (\\S*runs/\\S+-(\\d{8}-\\d{6})\\S*)");
+    const std::regex run_re("--run-id (\\S+)");
+    std::smatch ma, mb, ra, rb;
+    const std::string la = a->log(), lb = b->log();
+    ASSERT_TRUE(std::regex_search(la, ma, output_re)) << la;
+    ASSERT_TRUE(std::regex_search(lb, mb, output_re)) << lb;
+    if (ma[2] != mb[2]) continue;  // the second changed between the two: try again
+    EXPECT_NE(ma[1], mb[1]);
+    ASSERT_TRUE(std::regex_search(la, ra, run_re));
+    ASSERT_TRUE(std::regex_search(lb, rb, run_re));
+    EXPECT_NE(ra[1], rb[1]);
+    return;
+  }
+  FAIL() << "no two launches within one second in 5 attempts";
+}
+
+// A member that exits before it joined can never join: the launcher ends the run at once and
+// names it, instead of waiting out the coordinator's join timeout (60 s in this scenario).
+TEST(Launcher, MemberThatExitsBeforeJoiningEndsTheRunAtOnce) {
+  TestRun run;
+  const fs::path scenario = run.dir / "slow_join.yaml";
+  std::string text = read_file(kScenarios + "two_vehicles.yaml");
+  text = std::regex_replace(text, std::regex("join_timeout_s: 20"), "join_timeout_s: 60");
+  std::ofstream(scenario) << text;
+  const fs::path bin = bin_with_fakes(
+      run, {{"syndds_vehicle", "echo \"error: this vehicle cannot start\" >&2; exit 3"}});
+  auto launcher = launch(run, run.dir,
+                         scenario.string() + run.common_args() + " --output " +
+                             (run.dir / "out").string(),
+                         "launcher.log", "", bin.parent_path());
+  const auto code = launcher->wait(40);
+  ASSERT_TRUE(code.has_value()) << "still waiting for the join timeout\n" << launcher->log();
+  EXPECT_EQ(*code, 2) << launcher->log();
+  const std::string log = launcher->log();
+  EXPECT_NE(log.find("exited (status 3) before the run started"), std::string::npos) << log;
+  EXPECT_NE(log.find("this vehicle cannot start"), std::string::npos) << log;
+  for (const auto& [member, pid] : launched_pids(run.dir / "out")) {
+    EXPECT_NE(::kill(pid, 0), 0) << member << " still runs";
+  }
+}
+
+// Once the run has ended, the launcher starts nothing more: here the coordinator fails at once
+// and 40 vehicles with their controllers and the recorder (82 processes) are to be started.
+TEST(Launcher, StopsStartingOnceTheRunHasEnded) {
+  TestRun run;
+  const fs::path scenario = run.dir / "many.yaml";
+  std::ofstream s(scenario);
+  s << "name: many\ntime: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1.0}\nvehicles:\n";
+  for (int i = 0; i < 40; ++i) {
+    s << "  - id: v" << i << "\n    model: hmmwv\n    controller: {type: path_follower, path: "
+      << "{waypoints: [[0, " << 10 * i << "], [50, " << 10 * i << "]]}, speed: {target_mps: 2}}\n";
+  }
+  s.close();
+  const fs::path bin = bin_with_fakes(run, {{"syndds_coordinator", "exit 1"},
+                                            {"syndds_vehicle", "exec sleep 60"},
+                                            {"syndds_controller", "exec sleep 60"}});
+  auto launcher = launch(run, run.dir,
+                         scenario.string() + run.common_args() + " --output " +
+                             (run.dir / "out").string(),
+                         "launcher.log", "SYNDDS_PROCESS_MB=1 SYNDDS_LAUNCH_GRACE_S=2", bin.parent_path());
+  const auto code = launcher->wait(60);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_NE(*code, 0) << launcher->log();
+  const auto started = launched_pids(run.dir / "out");
+  EXPECT_LT(started.size(), 82u) << launcher->log();
+  EXPECT_NE(launcher->log().find("were not started"), std::string::npos) << launcher->log();
+  for (const auto& [member, pid] : started) EXPECT_NE(::kill(pid, 0), 0) << member << " runs";
+}
+
+// The launcher refuses a run that needs more memory than the machine has, before starting
+// anything (here: each process said to need 100 TB).
+TEST(Launcher, RefusesWhatTheMachineCannotStart) {
+  TestRun run;
+  auto launcher = launch(run, run.dir,
+                         kScenarios + "two_vehicles.yaml" + run.common_args() + " --output " +
+                             (run.dir / "out").string(),
+                         "launcher.log", "SYNDDS_PROCESS_MB=100000000");
+  const auto code = launcher->wait(30);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 1) << launcher->log();
+  EXPECT_NE(launcher->log().find("MB available"), std::string::npos) << launcher->log();
+  EXPECT_FALSE(fs::exists(run.dir / "out" / "logs" / "pids"));
+}
+
+// on_member_loss: continue keeps the run going without a killed recorder; the coordinator
+// completes it, and the launcher says that the run completed but its recording did not (exit 2:
+// the results are incomplete).
+TEST(Launcher, KilledRecorderIsReportedAsAnIncompleteRecording) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kScenarios + "continue_run.yaml");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
+  const int pid = launched_pid(out, "recorder");
+  ASSERT_NE(pid, 0);
+  ASSERT_EQ(::kill(pid, SIGKILL), 0);
+  const auto code = launcher->wait(40);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 2) << launcher->log();
+  EXPECT_NE(launcher->log().find("the run completed but the recording is incomplete: recorder "
+                                 "was killed by signal 9"),
+            std::string::npos)
+      << launcher->log();
+  EXPECT_NE(read_file(out / "logs" / "coordinator.log").find("run completed"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace syndds::test
