@@ -7,8 +7,9 @@
 #       [--transport default|udp] [--discovery-server ADDR:PORT] [--log-level LEVEL]
 #
 # Exit status: 0 completed, 1 bad scenario or command line or more than this host can start,
-# 2 run aborted, a process failed, or the run completed without its recorder, 130 interrupted. Logs of every process: OUTPUT/logs/. Programs: build/bin (or
-# $SYNDDS_BUILD_DIR/bin; run launch_scripts/setup.sh first).
+# 2 run aborted, a process failed, or the run completed without its recorder, 130 interrupted.
+# Logs of every process: OUTPUT/logs/. Programs: build/bin (or $SYNDDS_BUILD_DIR/bin; run
+# launch_scripts/setup.sh first).
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
