@@ -10,7 +10,7 @@
 //    origin on the ellipsoid surface (meridian M, prime vertical N):
 //    lat = lat0 + y / M, lon = lon0 + x / (N cos lat0), alt = alt0 + z. It ignores the origin
 //    altitude (relative error h / R: 4e-5 at 260 m) and the curvature of the plane; this is
-//    the "WGS84 tangent plane" number of ORACLES.md.
+//    the "WGS84 tangent plane" number of docs/sources.md.
 //  - sphere: Chrono::Sensor's approximation on a sphere of radius 6371000 m:
 //    lat = lat0 + y / R, lon = lon0 + x / (R cos lat), alt = alt0 + z (cosine of the new
 //    latitude, as Chrono does).

@@ -5,7 +5,7 @@
 using namespace syndds;
 using namespace syndds::sensors;
 
-// ORACLES.md: from (43.070 N, -89.400 E, 260 m), local (100, 100, 0).
+// docs/sources.md: from (43.070 N, -89.400 E, 260 m), local (100, 100, 0).
 TEST(Geodesy, SphereMatchesChronoOracle) {
   const Geodetic g = sphere_enu_to_geodetic(kDefaultOrigin, Vec3(100, 100, 0));
   EXPECT_NEAR(g.lat_deg, 43.070899322, 1e-8);

@@ -92,7 +92,7 @@ TEST(Imu, CentripetalAccelerationAtALeverArm) {
 }
 
 // Noise: 10^4 samples, std within 5 % of the configured values (ADIS16448-class numbers,
-// ORACLES.md: discrete std = density * sqrt(rate)).
+// docs/sources.md: discrete std = density * sqrt(rate)).
 TEST(Imu, WhiteNoiseStdMatchesConfiguration) {
   ImuConfig cfg;
   cfg.rate_hz = 500.0;

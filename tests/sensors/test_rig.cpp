@@ -47,7 +47,7 @@ TEST(SensorRig, DefaultRigHasThePapersSensors) {
   EXPECT_DOUBLE_EQ(rig.gps[0].lag_s, 0.1);
   ASSERT_EQ(rig.imus.size(), 1u);
   EXPECT_DOUBLE_EQ(rig.imus[0].rate_hz, 100.0);
-  // Noise density times sqrt(rate) (ORACLES.md, ADIS16448-class).
+  // Noise density times sqrt(rate) (docs/sources.md, ADIS16448-class).
   EXPECT_NEAR(rig.imus[0].accelerometer.white_std.x(), 4e-3 * 10.0, 1e-15);
   EXPECT_NEAR(rig.imus[0].gyroscope.white_std.z(), 3.4e-4 * 10.0, 1e-15);
   EXPECT_EQ(rig.magnetometers.size(), 1u);

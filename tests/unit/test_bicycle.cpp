@@ -41,7 +41,7 @@ TEST(BicycleModel, LowSpeedTurningRadiusMatchesGeometry) {
   const double lr = -p.rear.x_m;
   const double r_rear = p.wheelbase_m() / std::tan(delta);
   EXPECT_NEAR(r_ref, std::hypot(r_rear, lr), 0.05 * r_ref);
-  EXPECT_NEAR(r_rear, 19.16, 0.01);  // ORACLES.md: L 3.378 m, delta 10 deg
+  EXPECT_NEAR(r_rear, 19.16, 0.01);  // docs/sources.md: L 3.378 m, delta 10 deg
 }
 
 TEST(BicycleModel, BrakingDistanceFollowsFrictionLimit) {

@@ -1,4 +1,4 @@
-// Full ODE vehicle against the closed-form oracles of reference/ORACLES.md.
+// Full ODE vehicle against the closed-form oracles of docs/sources.md.
 // Measured numbers are printed with a "[measured]" tag (docs/vehicle-dynamics.md quotes them).
 #include <gtest/gtest.h>
 

@@ -167,7 +167,7 @@ TEST(VehicleFiles, ShippedFilesLoadAndAreConsistent) {
                 p.total_mass_kg() * kGravity, 1e-6);
   }
   const auto h = load("hmmwv");
-  EXPECT_NEAR(h.total_mass_kg(), 2600.0, 50.0);  // ORACLES.md: whole vehicle about 2.6 t
+  EXPECT_NEAR(h.total_mass_kg(), 2600.0, 50.0);  // docs/sources.md: whole vehicle about 2.6 t
   EXPECT_NEAR(h.wheelbase_m(), 3.378, 1e-9);
   EXPECT_NEAR(h.track_m(), 1.819, 1e-9);
 }
