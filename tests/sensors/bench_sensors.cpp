@@ -1,5 +1,5 @@
 // Camera and lidar throughput on a realistic scene: 100 x 100 m terrain at 0.1 m (2 M
-// triangles), 4 vehicles, 30 obstacles. Run: build-sensors/tests/sensors/bench_sensors
+// triangles), 4 vehicles, 30 obstacles. Run: build/tests/sensors/bench_sensors
 #include <algorithm>
 #include <chrono>
 #include <cstdio>

@@ -1,6 +1,6 @@
 // Renders the benchmark scene for a visual check: a vehicle drives along x over soft soil
 // and leaves a rut; writes PNG frames of its front camera and a chase camera, a chase video,
-// and one lidar scan as PLY. Run: build-sensors/tests/sensors/render_example OUT_DIR
+// and one lidar scan as PLY. Run: build/tests/sensors/render_example OUT_DIR
 #include <cmath>
 #include <cstdio>
 #include <string>
