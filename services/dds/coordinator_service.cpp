@@ -211,7 +211,8 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
     // The run completed; a member that failed afterwards (while finishing) did not change that,
     // but it is named: its own exit status says it failed.
     lock.lock();
-    for (const auto& [member, why] : barrier_->failed_after_end()) {
+    failed_after_end_ = barrier_->failed_after_end();
+    for (const auto& [member, why] : failed_after_end_) {
       spdlog::error("coordinator: {} failed after the run completed: {}", member, why);
     }
     return kExitCompleted;

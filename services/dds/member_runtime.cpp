@@ -374,8 +374,16 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   // feed the session and wake it.
   std::unique_lock lock(mutex_);
   bool told_admitted = !options_.late_join;
+  bool told_interrupted = false;
   while (true) {
-    if (interrupt.load()) session_->on_interrupt(now());
+    if (interrupt.load() && !told_interrupted) {
+      told_interrupted = true;
+      session_->on_interrupt(now());
+      if (session_->phase() == proto::MemberSession::Phase::running) {
+        spdlog::warn("{}: interrupted; waiting up to {:g} s for the coordinator's verdict",
+                     agent_.member_id(), options_.interrupt_grace_s);
+      }
+    }
     auto action = session_->poll(now());
     if (!told_admitted && session_->admitted()) {
       told_admitted = true;
