@@ -209,3 +209,16 @@ TEST(RunEnd, FailureAfterCompletionIsTheMembersOwnNotALoss) {
   EXPECT_EQ(failed.at("recorder"), "failed while finishing the run: disk full");
   for (const auto& m : coordinator.result().stats.members) EXPECT_FALSE(m.lost) << m.member_id;
 }
+
+// The members that left travel with the grant (on_member_loss: continue).
+TEST(RunEnd, GrantCarriesTheDepartedMembersOverTheWire) {
+  proto::FrameGrantMsg g;
+  g.frame = 12;
+  g.sim_time_s = 0.12;
+  g.joiners = {"sensor/a"};
+  g.departed = {"vehicle/b", "controller/b"};
+  const proto::FrameGrantMsg back = sdds::from_dds(sdds::to_dds(g));
+  EXPECT_EQ(back.frame, 12);
+  EXPECT_EQ(back.joiners, g.joiners);
+  EXPECT_EQ(back.departed, g.departed);
+}
