@@ -65,8 +65,9 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
           t0 + std::chrono::duration_cast<Clock::duration>(
                    std::chrono::duration<double>(frame * options_.heartbeat_s)));
     }
+    // Nobody joins late or departs here: every agent lives (and fails) with this process.
     FrameContext ctx{frame, static_cast<double>(frame) * options_.heartbeat_s,
-                     options_.heartbeat_s, {}};
+                     options_.heartbeat_s, {}, {}};
     FrameSamples current;
     for (std::size_t i = 0; i < agents_.size(); ++i) {
       const auto step_t0 = Clock::now();
