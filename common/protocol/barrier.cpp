@@ -35,14 +35,41 @@ std::string Barrier::on_join(const std::string& member, double now_s) {
   return "";
 }
 
+std::string Barrier::on_config_mismatch(const std::string& member, const std::string& why,
+                                        double now_s) {
+  auto it = members_.find(member);
+  if (it == members_.end()) {
+    return "ignoring join of '" + member + "': not a member of this scenario";
+  }
+  if (it->second.late || phase_ != Phase::joining) {
+    // The run (or its start) does not depend on it: refusing it harms nobody else.
+    return "refusing member " + member + ": " + why;
+  }
+  if (!pending_abort_) pending_abort_ = "member " + member + " " + why;
+  return "";
+}
+
 std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
   auto it = members_.find(done.member_id);
   if (it == members_.end()) {
     return "ignoring done from '" + done.member_id + "': not a member of this scenario";
   }
   Member& m = it->second;
-  if (!done.error.empty() && !pending_abort_ && phase_ != Phase::stopped &&
-      phase_ != Phase::aborted) {
+  if (!done.error.empty()) {
+    if (phase_ == Phase::stopped) {
+      // The run completed before it failed: not the run's failure, and not a loss either.
+      if (m.joined && m.active_from >= 0 && !m.left) {
+        failed_after_end_.emplace(done.member_id, done.error);
+        m.finished = true;  // nothing more will come from it
+      }
+      return "";
+    }
+    if (phase_ == Phase::aborted || pending_abort_) return "";
+    if (m.left || m.active_from < 0) {
+      // Not (or no longer) in the barrier: nobody waits for it, so its failure is its own.
+      return "ignoring the failure of " + done.member_id + ", which is not in the barrier: " +
+             done.error;
+    }
     // A member that fails says why before it goes: that is the run's reason, not "lost".
     pending_abort_ = "member " + done.member_id + " failed: " + done.error;
     return "";
@@ -75,7 +102,13 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
   auto it = members_.find(member);
   if (it == members_.end() || it->second.lost) return;
   if (phase_ == Phase::stopped || phase_ == Phase::aborted) {
-    it->second.lost = true;
+    // Not a loss of the run: its stats were sent with the end. Whether it confirmed the end
+    // is decided when asked (failed_after_end): its confirmation may still be on its way.
+    if (phase_ == Phase::stopped) {
+      lost_after_end_.emplace(member, why);
+    } else {
+      it->second.lost = true;
+    }
     return;
   }
   it->second.lost = true;
@@ -88,6 +121,7 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
     if (!pending_abort_) pending_abort_ = "member " + member + " lost: " + why;
   } else {
     it->second.left = true;
+    departed_.push_back(member);
   }
 }
 
@@ -233,6 +267,8 @@ Barrier::Action Barrier::poll(double now_s) {
   a.grant.frame = frame_;
   a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
   a.grant.manifest = manifest;
+  a.grant.departed = std::move(departed_);
+  departed_.clear();
   if (frame_ < config_.final_frame) a.grant.joiners = admit_joiners(frame_, now_s);
   return a;
 }
@@ -253,9 +289,23 @@ std::vector<std::string> Barrier::pending_members() const {
   return out;
 }
 
+std::map<std::string, std::string> Barrier::failed_after_end() const {
+  std::map<std::string, std::string> out = failed_after_end_;
+  for (const auto& [name, why] : lost_after_end_) {
+    const Member& m = members_.at(name);
+    if (m.joined && m.active_from >= 0 && !m.left && !m.finished && !out.contains(name)) {
+      out[name] = "ended without confirming the end of the run (" + why + ")";
+    }
+  }
+  return out;
+}
+
 bool Barrier::all_finished() const {
   for (const auto& [name, m] : members_) {
-    if (m.joined && m.active_from >= 0 && !m.lost && !m.finished) return false;
+    if (m.joined && m.active_from >= 0 && !m.lost && !m.finished &&
+        !lost_after_end_.contains(name)) {
+      return false;
+    }
   }
   return true;
 }

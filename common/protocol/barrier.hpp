@@ -44,6 +44,10 @@ class Barrier {
 
   /// Events. A non-empty return value is a warning: the event was ignored and why.
   std::string on_join(const std::string& member, double now_s);
+  /// A member announced itself with another scenario (fingerprint) or protocol version. One
+  /// the run waits for at the start aborts it (before anything ran); a late member is refused
+  /// (the warning names it) and the run goes on without it.
+  std::string on_config_mismatch(const std::string& member, const std::string& why, double now_s);
   std::string on_done(const FrameDoneMsg& done, double now_s);
   void on_member_lost(const std::string& member, const std::string& why, double now_s);
   void on_interrupt(const std::string& why, double now_s);
@@ -58,6 +62,10 @@ class Barrier {
   bool is_member(const std::string& member) const { return members_.contains(member); }
   /// After stop: true once every member still alive replied `finished`.
   bool all_finished() const;
+  /// After a completed run: members that failed while finishing (their FrameDone error, or
+  /// their process ended before confirming), member -> why. The run stays completed; those
+  /// members report their own failure in their exit status.
+  std::map<std::string, std::string> failed_after_end() const;
   RunStatsMsg stats(double now_s) const;
 
  private:
@@ -97,6 +105,9 @@ class Barrier {
   Manifest last_manifest_;            // what was published in last_completed_
   std::string last_done_member_;
   std::optional<std::string> pending_abort_;
+  std::vector<std::string> departed_;  // left since the last grant, for the next one
+  std::map<std::string, std::string> failed_after_end_;  // reported errors
+  std::map<std::string, std::string> lost_after_end_;    // processes gone after the stop
   bool announced_end_ = false;
 };
 

@@ -65,8 +65,9 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
           t0 + std::chrono::duration_cast<Clock::duration>(
                    std::chrono::duration<double>(frame * options_.heartbeat_s)));
     }
+    // Nobody joins late or departs here: every agent lives (and fails) with this process.
     FrameContext ctx{frame, static_cast<double>(frame) * options_.heartbeat_s,
-                     options_.heartbeat_s, {}};
+                     options_.heartbeat_s, {}, {}};
     FrameSamples current;
     for (std::size_t i = 0; i < agents_.size(); ++i) {
       const auto step_t0 = Clock::now();
@@ -76,13 +77,17 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
         agents_[i]->step(ctx, inputs, outputs);
         check_outputs(outputs, frame, agents_[i]->member_id(), agents_[i]->vehicle_key());
       } catch (const std::exception& e) {
-        // Every agent still learns how the run ended (the recorder writes its summary).
+        // Every agent still learns how the run ended (the recorder writes its summary), and, as
+        // in the distributed run, the last complete frame is not lost: the agents that have not
+        // consumed its samples yet (not stepped in this frame) get them as final inputs.
         RunControlMsg control;
         control.status = RunStatus::aborted;
         control.reason = agents_[i]->member_id() + " failed in frame " + std::to_string(frame) +
                          ": " + e.what();
         control.final_frame = completed;
-        for (auto& a : agents_) a->finish(RunEnd{control}, {});
+        for (std::size_t j = 0; j < agents_.size(); ++j) {
+          agents_[j]->finish(RunEnd{control}, j > i ? previous.filtered(subs[j]) : FrameSamples{});
+        }
         throw;
       }
       current.append(outputs);

@@ -293,6 +293,7 @@ struct FrameGrantMsg {
   double sim_time_s = 0.0;  // end time of the granted frame
   Manifest manifest;        // what was published in frame - 1
   std::vector<std::string> joiners;  // late joiners taking part from frame + 1 on
+  std::vector<std::string> departed;  // members lost under on_member_loss: continue since the previous grant
 };
 
 struct FrameDoneMsg {

@@ -141,8 +141,11 @@ int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonAr
   spdlog::set_default_logger(logger);
   spdlog::set_pattern("[%H:%M:%S.%e] [%n] [%^%l%$] %v");
   spdlog::set_level(spdlog::level::from_str(common.log_level));
+  // SIGHUP too: a launcher's terminal that closes must end the run like Ctrl-C, with the
+  // summary saying so, not kill the process where it stands.
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  std::signal(SIGHUP, on_signal);
   try {
     return body();
   } catch (const ConfigError& e) {

@@ -48,7 +48,7 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& args, const DebugArgs
 dds::MemberRuntimeOptions member_options(const CommonArgs& args, const DebugArgs& debug,
                                          const scenario::Scenario& s, const std::string& member);
 
-/// Set by SIGINT / SIGTERM.
+/// Set by SIGINT / SIGTERM / SIGHUP.
 const std::atomic<bool>& interrupted();
 
 /// Scope of the DDS teardown, after the run's outcome was decided and delivered: Fast DDS 2.9.1

@@ -170,10 +170,12 @@ msg::FrameGrant to_dds(const proto::FrameGrantMsg& m) {
   o.sim_time_s(m.sim_time_s);
   o.manifest(manifest(m.manifest));
   o.joiners(m.joiners);
+  o.departed(m.departed);
   return o;
 }
 proto::FrameGrantMsg from_dds(const msg::FrameGrant& m) {
-  return proto::FrameGrantMsg{m.frame(), m.sim_time_s(), manifest(m.manifest()), m.joiners()};
+  return proto::FrameGrantMsg{m.frame(), m.sim_time_s(), manifest(m.manifest()), m.joiners(),
+                              m.departed()};
 }
 
 msg::FrameDone to_dds(const proto::FrameDoneMsg& m) {

@@ -93,16 +93,18 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
                  a.member_id, a.pid, a.host);
     return;
   }
+  std::string mismatch;
   if (a.config_fingerprint != options_.config_fingerprint) {
-    barrier_->on_interrupt("member " + a.member_id + " on " + a.host +
-                               " loaded a different scenario or overrides (fingerprint " +
-                               std::to_string(a.config_fingerprint) + ", coordinator " +
-                               std::to_string(options_.config_fingerprint) + ")",
-                           now());
+    mismatch = "on " + a.host + " loaded a different scenario or overrides (fingerprint " +
+               std::to_string(a.config_fingerprint) + ", coordinator " +
+               std::to_string(options_.config_fingerprint) + ")";
   } else if (a.protocol_version != proto::kProtocolVersion) {
-    barrier_->on_interrupt("member " + a.member_id + " speaks protocol version " +
-                               std::to_string(a.protocol_version),
-                           now());
+    mismatch = "speaks protocol version " + std::to_string(a.protocol_version);
+  }
+  if (!mismatch.empty()) {
+    // A member the start waits for aborts the run; a late one is refused and the run goes on.
+    const std::string refused = barrier_->on_config_mismatch(a.member_id, mismatch, now());
+    if (!refused.empty()) spdlog::error("coordinator: {}", refused);
   } else {
     member_of_guid_[a.participant_guid] = a.member_id;
     const std::string warning = barrier_->on_join(a.member_id, now());
@@ -205,7 +207,16 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   wait_for_finished(lock);
   lock.unlock();
   control_writer_->wait_for_acknowledgments(1.0);
-  if (end.kind == proto::Barrier::Action::Kind::stop) return kExitCompleted;
+  if (end.kind == proto::Barrier::Action::Kind::stop) {
+    // The run completed; a member that failed afterwards (while finishing) did not change that,
+    // but it is named: its own exit status says it failed.
+    lock.lock();
+    failed_after_end_ = barrier_->failed_after_end();
+    for (const auto& [member, why] : failed_after_end_) {
+      spdlog::error("coordinator: {} failed after the run completed: {}", member, why);
+    }
+    return kExitCompleted;
+  }
   return interrupted ? kExitInterrupted : kExitAborted;
 }
 

@@ -32,6 +32,8 @@ class CoordinatorService {
   /// Tears the DDS entities down (also done by the destructor); idempotent.
   void close();
   const proto::RunControlMsg& result() const { return result_; }
+  /// After a completed run: the members that failed after it (member -> why), as logged.
+  const std::map<std::string, std::string>& failed_after_end() const { return failed_after_end_; }
 
  private:
   // Events are handled where they arrive (DDS receive threads) under mutex_, and a grant is
@@ -57,6 +59,7 @@ class CoordinatorService {
   std::int64_t progress_every_ = 1;
   std::map<std::string, std::string> member_of_guid_;  // participant GUID prefix -> member id
   proto::RunControlMsg result_;
+  std::map<std::string, std::string> failed_after_end_;
 
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
   std::unique_ptr<Writer<msg::FrameGrant>> grant_writer_;

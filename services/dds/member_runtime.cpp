@@ -1,6 +1,5 @@
 #include "dds/member_runtime.hpp"
 
-#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -16,11 +15,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr auto kPollInterval = std::chrono::milliseconds(50);  // for signals only
-
-Clock::time_point after(double seconds) {
-  return Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                            std::chrono::duration<double>(seconds));
-}
 
 template <typename W, typename Samples>
 void write_all(W& writer, const Samples& samples, const char* topic, const std::string& key) {
@@ -55,17 +49,34 @@ const char* writer_profile(proto::Topic t) {
 }  // namespace
 
 MemberRuntime::MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options)
-    : agent_(agent), options_(std::move(options)), inbox_(agent.subscriptions()) {}
+    : agent_(agent), options_(std::move(options)) {}
 
 MemberRuntime::~MemberRuntime() { close(); }
 
+double MemberRuntime::now() const {
+  return std::chrono::duration<double>(Clock::now() - t0_).count();
+}
+
+proto::MemberSessionConfig MemberRuntime::session_config() const {
+  proto::MemberSessionConfig c;
+  c.member_id = agent_.member_id();
+  c.run_id = options_.dds.run_id;
+  c.transport = "DDS domain " + std::to_string(options_.dds.domain_id);
+  c.config_fingerprint = options_.config_fingerprint;
+  c.heartbeat_s = options_.heartbeat_s;
+  c.join_timeout_s = options_.join_timeout_s;
+  c.input_timeout_s = options_.input_timeout_s;
+  c.final_timeout_s = options_.final_timeout_s;
+  c.interrupt_grace_s = options_.interrupt_grace_s;
+  c.late_join = options_.late_join;
+  c.skip_data_barrier = options_.debug_skip_data_barrier;
+  return c;
+}
+
 void MemberRuntime::close() {
-  // Stop every DDS callback into this object before its members go: the lost-participant
-  // callback, then the readers, then the writers, and the participant last.
-  {
-    std::unique_lock lock(mutex_);
-    stop_frames(lock);
-  }
+  // Frames run in the thread of run(), so none runs any more. Stop every DDS callback into this
+  // object before its members go: the lost-participant callback, then the readers, then the
+  // writers, and the participant last.
   if (participant_) participant_->set_lost_callback(nullptr);
   announce_reader_.reset();
   grant_reader_.reset();
@@ -81,8 +92,9 @@ void MemberRuntime::setup() {
   participant_ = std::make_unique<Participant>(options_.dds);
   participant_->set_lost_callback([this](const std::string& guid, bool graceful) {
     std::lock_guard lock(mutex_);
-    if (coordinator_ && coordinator_->participant_guid == guid) {
-      coordinator_lost_ = true;
+    const auto& c = session_->coordinator();
+    if (c && c->participant_guid == guid) {
+      session_->on_coordinator_lost(now());
       cv_.notify_all();
     }
   });
@@ -95,9 +107,8 @@ void MemberRuntime::setup() {
       fn();
     } catch (const std::exception& e) {
       std::lock_guard lock(mutex_);
-      if (failure_.empty()) {
-        failure_ = std::string("received a malformed ") + topic + " sample: " + e.what();
-      }
+      session_->on_failure(std::string("received a malformed ") + topic + " sample: " + e.what(),
+                           now());
       cv_.notify_all();
     }
   };
@@ -109,12 +120,7 @@ void MemberRuntime::setup() {
           std::lock_guard lock(mutex_);
           note_announcement(a, writer_prefix(info));
           if (a.kind != proto::MemberKind::coordinator) return;
-          if (!coordinator_) {
-            coordinator_ = std::move(a);
-          } else if (coordinator_->participant_guid != a.participant_guid && failure_.empty()) {
-            failure_ = "a second coordinator (pid " + std::to_string(a.pid) + " on " + a.host +
-                       ") announced run '" + a.run_id + "'";
-          }
+          session_->on_coordinator(a, now());
           cv_.notify_all();
         });
       });
@@ -123,7 +129,7 @@ void MemberRuntime::setup() {
         guard("frame_grant", [&] {
           auto g = from_dds(m);
           std::unique_lock lock(mutex_);
-          grants_.push_back(std::move(g));
+          session_->on_grant(std::move(g), now());
           cv_.notify_all();
         });
       });
@@ -132,7 +138,7 @@ void MemberRuntime::setup() {
         guard("run_control", [&] {
           auto c = from_dds(m);
           std::lock_guard lock(mutex_);
-          control_ = std::move(c);
+          session_->on_control(std::move(c), now());
           cv_.notify_all();
         });
       });
@@ -239,7 +245,7 @@ void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
     rejected_.push_back(std::move(r));
     return;
   }
-  if (inbox_.add<T>(std::move(sample))) cv_.notify_all();
+  if (session_->add(std::move(sample))) cv_.notify_all();
 }
 
 void MemberRuntime::announce() {
@@ -252,59 +258,6 @@ void MemberRuntime::announce() {
   a.pid = process_id();
   a.config_fingerprint = options_.config_fingerprint;
   announce_writer_->write(to_dds(a));
-}
-
-bool MemberRuntime::wait_for_coordinator(const std::atomic<bool>& interrupt) {
-  const auto deadline = after(options_.join_timeout_s);
-  std::unique_lock lock(mutex_);
-  while (!coordinator_) {
-    if (interrupt.load()) {
-      end_reason_ = "interrupted";
-      return false;
-    }
-    if (Clock::now() >= deadline) {
-      end_reason_ = "no coordinator for run '" + options_.dds.run_id + "' on DDS domain " +
-                    std::to_string(options_.dds.domain_id) + " within " +
-                    std::to_string(static_cast<int>(options_.join_timeout_s)) + " s";
-      return false;
-    }
-    cv_.wait_for(lock, kPollInterval);
-  }
-  const auto& c = *coordinator_;
-  const auto& expected = c.expected_members;
-  if (std::find(expected.begin(), expected.end(), agent_.member_id()) == expected.end()) {
-    end_reason_ = "the coordinator of run '" + options_.dds.run_id + "' does not expect member " +
-                  agent_.member_id();
-    return false;
-  }
-  if (c.config_fingerprint != options_.config_fingerprint) {
-    end_reason_ = "scenario mismatch: the coordinator (host " + c.host +
-                  ") loaded a different scenario or overrides (fingerprint " +
-                  std::to_string(c.config_fingerprint) + ", mine " +
-                  std::to_string(options_.config_fingerprint) + ")";
-    return false;
-  }
-  if (c.protocol_version != proto::kProtocolVersion) {
-    end_reason_ = "protocol version mismatch: coordinator " + std::to_string(c.protocol_version) +
-                  ", mine " + std::to_string(proto::kProtocolVersion);
-    return false;
-  }
-  return true;
-}
-
-bool MemberRuntime::wait_inputs(std::int64_t frame, const proto::Manifest& manifest,
-                                double timeout_s, const std::atomic<bool>& interrupt) {
-  const auto deadline = after(timeout_s);
-  std::unique_lock lock(mutex_);
-  while (!inbox_.complete(frame, manifest)) {
-    if (interrupt.load() || coordinator_lost_ || (control_ && frame >= 0 &&
-                                                  control_->final_frame < frame)) {
-      return false;
-    }
-    if (Clock::now() >= deadline) return false;
-    cv_.wait_until(lock, std::min(deadline, Clock::now() + kPollInterval));
-  }
-  return true;
 }
 
 bool MemberRuntime::flush_writers(double timeout_s) {
@@ -325,52 +278,71 @@ void MemberRuntime::publish(const proto::FrameSamples& out) {
 }
 
 void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& published,
-                              double compute_s, bool finished) {
+                              double compute_s, bool finished, const std::string& error) {
   proto::FrameDoneMsg d;
   d.member_id = agent_.member_id();
   d.frame = frame;
   d.published = published;
   d.compute_s = compute_s;
   d.finished = finished;
+  d.error = error;
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
-void MemberRuntime::stop_frames(std::unique_lock<std::mutex>& lock) {
-  stopping_ = true;
-  while (stepping_) cv_.wait_for(lock, kPollInterval);
+void MemberRuntime::run_frame(const proto::FrameContext& ctx,
+                              const proto::FrameSamples& inputs) {
+  const auto t0 = Clock::now();
+  proto::FrameSamples outputs;
+  agent_.step(ctx, inputs, outputs);
+  proto::check_outputs(outputs, ctx.frame, agent_.member_id(), agent_.vehicle_key());
+  if (options_.debug_frame_delay_ms > 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_frame_delay_ms));
+  }
+  const double compute_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const proto::Manifest published = outputs.manifest(agent_.member_id());
+  if (options_.debug_publish_delay_ms > 0) {
+    send_done(ctx.frame, published, compute_s, false);
+    std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_publish_delay_ms));
+    publish(outputs);
+  } else {
+    publish(outputs);
+    send_done(ctx.frame, published, compute_s, false);
+  }
 }
 
-int MemberRuntime::finish(const proto::RunControlMsg& announced,
-                          const std::atomic<bool>& interrupt) {
-  proto::RunControlMsg control = announced;
-  proto::FrameSamples final_inputs;
-  int code = control.status == proto::RunStatus::completed ? kExitCompleted : kExitAborted;
-  bool already_taken = false;
-  {
-    std::lock_guard lock(mutex_);
-    already_taken = control.final_frame <= inbox_.last_taken_frame();
-  }
-  if (control.final_frame >= 0 && !control.final_manifest.empty() && !already_taken) {
-    const bool complete = wait_inputs(control.final_frame, control.final_manifest,
-                                      options_.final_timeout_s, interrupt);
-    std::lock_guard lock(mutex_);
-    if (complete) {
-      final_inputs = inbox_.take(control.final_frame, control.final_manifest);
-    } else {
-      // Never hand out a partial frame: the agent ends with the last complete one, and says so.
-      const std::string missing =
-          inbox_.describe_missing(control.final_frame, control.final_manifest);
-      spdlog::error("{}: final frame {} incomplete, not used: {}", agent_.member_id(),
-                    control.final_frame, missing);
-      control.status = proto::RunStatus::aborted;
-      control.reason = (control.reason.empty() ? "" : control.reason + "; ") + "final frame " +
-                       std::to_string(control.final_frame) + " incomplete at " +
-                       agent_.member_id() + ": " + missing;
-      code = kExitFailed;
+int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
+  using Outcome = proto::MemberSession::Outcome;
+  end_reason_ = end.control.reason;
+  if (!end.error.empty() && done_writer_) {
+    // Tell the coordinator why, so the run's one-line reason names the cause.
+    try {
+      send_done(end.error_frame, {}, 0.0, false, end.error);
+      done_writer_->wait_for_acknowledgments(1.0);
+    } catch (const std::exception&) {
     }
   }
-  agent_.finish(proto::RunEnd{control}, final_inputs);
-  if (end_reason_.empty()) end_reason_ = control.reason;
+  if (end.confirm && end.outcome == Outcome::failed) {
+    spdlog::error("{}: {}", agent_.member_id(), end.control.reason);
+  }
+  int code = kExitCompleted;
+  switch (end.outcome) {
+    case Outcome::completed: code = kExitCompleted; break;
+    case Outcome::aborted: code = kExitAborted; break;
+    case Outcome::failed: code = kExitFailed; break;
+    case Outcome::interrupted: code = kExitInterrupted; break;
+  }
+  std::string failed;
+  try {
+    agent_.finish(proto::RunEnd{end.control}, end.inputs);
+  } catch (const std::exception& e) {
+    // Its own failure, whatever the run's verdict: its exit status says so, and the
+    // coordinator learns it with the confirmation below (a failure after the end, not a loss).
+    failed = std::string("failed while finishing the run: ") + e.what();
+    spdlog::error("{}: {}", agent_.member_id(), failed);
+    end_reason_ = failed;
+    code = kExitFailed;
+  }
+  if (!end.confirm) return code;
   try {
     // Whatever this member wrote must reach its readers before the process (and its shared
     // memory segments) goes away: a sample still in flight when the writer disappears is lost.
@@ -378,7 +350,7 @@ int MemberRuntime::finish(const proto::RunControlMsg& announced,
       spdlog::warn("{}: not every reader acknowledged this member's last samples within 2 s",
                    agent_.member_id());
     }
-    send_done(control.final_frame, {}, 0.0, true);
+    send_done(end.control.final_frame, {}, 0.0, true, failed);
     done_writer_->wait_for_acknowledgments(2.0);
   } catch (const std::exception& e) {
     spdlog::warn("{}: could not confirm the end of the run: {}", agent_.member_id(), e.what());
@@ -386,184 +358,68 @@ int MemberRuntime::finish(const proto::RunControlMsg& announced,
   return code;
 }
 
-// True when pump_locked() has something to do with the first queued grant.
-bool MemberRuntime::frame_ready_locked() const {
-  if (grants_.empty()) return false;
-  const proto::FrameGrantMsg& g = grants_.front();
-  if (!admitted_ || g.frame != next_frame_) return true;  // to skip, or a protocol error
-  return options_.debug_skip_data_barrier || inbox_.complete(g.frame - 1, g.manifest);
-}
-
-// Runs every granted frame whose inputs are complete (in the main thread). One frame runs at a
-// time (stepping_); called with mutex_ held, released while the agent steps.
-void MemberRuntime::pump_locked(std::unique_lock<std::mutex>& lock) {
-  while (ready_ && !stepping_ && !stopping_ && !control_ && failure_.empty() &&
-         !grants_.empty()) {
-    proto::FrameGrantMsg& front = grants_.front();
-    if (!admitted_) {
-      // A late joiner starts with the frame after the grant that names it; grants before that
-      // (also old ones replayed by TRANSIENT_LOCAL) are not its business.
-      const auto& j = front.joiners;
-      if (std::find(j.begin(), j.end(), agent_.member_id()) != j.end()) {
-        admitted_ = true;
-        next_frame_ = front.frame + 1;
-        spdlog::info("{}: admitted; taking part from frame {}", agent_.member_id(), next_frame_);
-      }
-      grants_.pop_front();
-      continue;
-    }
-    if (front.frame < next_frame_) {  // duplicate
-      grants_.pop_front();
-      continue;
-    }
-    if (front.frame > next_frame_) {
-      failure_ = "protocol error: granted frame " + std::to_string(front.frame) +
-                 " while frame " + std::to_string(next_frame_) + " was expected";
-      cv_.notify_all();
-      return;
-    }
-    const std::int64_t input_frame = front.frame - 1;
-    if (!options_.debug_skip_data_barrier && !inbox_.complete(input_frame, front.manifest)) {
-      return;  // the data barrier: the callback storing the last announced sample wakes us
-    }
-    proto::FrameGrantMsg grant = std::move(front);
-    grants_.pop_front();
-    proto::FrameSamples inputs = inbox_.take(input_frame, grant.manifest);
-    std::vector<proto::RejectedSample> rejected;
-    rejected.swap(rejected_);
-    stepping_ = true;
-    lock.unlock();
-    std::string error;
-    try {
-      if (!rejected.empty()) agent_.note_rejected(rejected);
-      run_frame(grant, inputs);
-    } catch (const std::exception& e) {
-      error = "frame " + std::to_string(grant.frame) + ": " + e.what();
-    }
-    lock.lock();
-    stepping_ = false;
-    next_frame_ = grant.frame + 1;
-    if (!error.empty()) failure_ = error;
-    cv_.notify_all();
-  }
-}
-
-void MemberRuntime::run_frame(const proto::FrameGrantMsg& grant,
-                              const proto::FrameSamples& inputs) {
-  const auto t0 = Clock::now();
-  proto::FrameSamples outputs;
-  const proto::FrameContext ctx{grant.frame, grant.sim_time_s, options_.heartbeat_s,
-                                grant.joiners};
-  agent_.step(ctx, inputs, outputs);
-  proto::check_outputs(outputs, grant.frame, agent_.member_id(), agent_.vehicle_key());
-  if (options_.debug_frame_delay_ms > 0) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_frame_delay_ms));
-  }
-  const double compute_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  const proto::Manifest published = outputs.manifest(agent_.member_id());
-  if (options_.debug_publish_delay_ms > 0) {
-    send_done(grant.frame, published, compute_s, false);
-    std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_publish_delay_ms));
-    publish(outputs);
-  } else {
-    publish(outputs);
-    send_done(grant.frame, published, compute_s, false);
-  }
-}
-
 int MemberRuntime::run(const std::atomic<bool>& interrupt) {
-  auto local_abort = [&](const std::string& reason, int code) {
-    end_reason_ = reason;
-    if (code == kExitFailed && done_writer_) {
-      // Tell the coordinator why, so the run's one-line reason names the cause.
-      try {
-        proto::FrameDoneMsg d;
-        d.member_id = agent_.member_id();
-        d.frame = next_frame_;
-        d.error = reason;
-        done_writer_->write(to_dds(d));
-        done_writer_->wait_for_acknowledgments(1.0);
-      } catch (const std::exception&) {
-      }
-    }
-    proto::RunControlMsg c;
-    c.status = proto::RunStatus::aborted;
-    c.reason = reason;
-    agent_.finish(proto::RunEnd{c}, {});
-    return code;
-  };
-
+  using Kind = proto::MemberSession::Action::Kind;
+  {
+    std::lock_guard lock(mutex_);
+    t0_ = Clock::now();
+    session_.emplace(agent_.subscriptions(), session_config(), now());
+  }
   setup();
   announce();
   spdlog::info("{}: announced; waiting for the coordinator of run '{}' on domain {}",
                agent_.member_id(), options_.dds.run_id, options_.dds.domain_id);
-  if (!wait_for_coordinator(interrupt)) {
-    return local_abort(end_reason_, interrupt.load() ? kExitInterrupted : kExitFailed);
-  }
-  {
-    std::lock_guard lock(mutex_);
-    spdlog::info("{}: joined run '{}' (coordinator on {})", agent_.member_id(),
-                 options_.dds.run_id, coordinator_->host);
-  }
 
-  // This thread runs the frames (pump_locked) and watches for the end, failures and deadlines.
-  // DDS callbacks only store what arrives and wake it: a long frame must not block a DDS thread
-  // (it would hold Fast DDS's internal locks, delay acknowledgements, even liveliness).
+  // This thread runs the frames and carries out the session's decisions; DDS callbacks only
+  // feed the session and wake it.
   std::unique_lock lock(mutex_);
-  ready_ = true;
-  admitted_ = !options_.late_join;
-  std::int64_t waiting_frame = -1;
-  auto waiting_since = Clock::now();
+  bool told_admitted = !options_.late_join;
+  bool told_interrupted = false;
   while (true) {
-    cv_.wait_for(lock, kPollInterval, [&] {
-      return control_ || !failure_.empty() || coordinator_lost_ || interrupt.load() ||
-             frame_ready_locked();
-    });
-    // Every way out first stops frames from starting in DDS threads (and waits for one that
-    // runs): the agent's finish() must never overlap a step.
-    if (control_) {
-      const proto::RunControlMsg control = *control_;
-      stop_frames(lock);
-      lock.unlock();
-      return finish(control, interrupt);
+    if (interrupt.load() && !told_interrupted) {
+      told_interrupted = true;
+      session_->on_interrupt(now());
+      if (session_->phase() == proto::MemberSession::Phase::running) {
+        spdlog::warn("{}: interrupted; waiting up to {:g} s for the coordinator's verdict",
+                     agent_.member_id(), options_.interrupt_grace_s);
+      }
     }
-    if (!failure_.empty()) {
-      const std::string failure = failure_;
-      stop_frames(lock);
-      lock.unlock();
-      return local_abort(failure, kExitFailed);
+    auto action = session_->poll(now());
+    if (!told_admitted && session_->admitted()) {
+      told_admitted = true;
+      spdlog::info("{}: admitted; taking part from frame {}", agent_.member_id(),
+                   session_->next_frame());
     }
-    if (interrupt.load()) {
-      stop_frames(lock);
-      lock.unlock();
-      return local_abort("interrupted", kExitInterrupted);
-    }
-    if (coordinator_lost_) {
-      stop_frames(lock);
-      lock.unlock();
-      return local_abort("the coordinator was lost (its process exited or stopped answering)",
-                         kExitFailed);
-    }
-    pump_locked(lock);
-    // A granted frame whose announced inputs do not arrive in time.
-    if (grants_.empty()) {
-      waiting_frame = -1;
-      continue;
-    }
-    const proto::FrameGrantMsg& grant = grants_.front();
-    if (grant.frame != waiting_frame) {
-      waiting_frame = grant.frame;
-      waiting_since = Clock::now();
-    } else if (std::chrono::duration<double>(Clock::now() - waiting_since).count() >
-               options_.input_timeout_s) {
-      const std::int64_t frame = grant.frame;
-      const std::string missing = inbox_.describe_missing(frame - 1, grant.manifest);
-      stop_frames(lock);
-      lock.unlock();
-      return local_abort("frame " + std::to_string(frame) +
-                             ": announced inputs missing after " +
-                             fmt::format("{:g}", options_.input_timeout_s) + " s: " + missing,
-                         kExitFailed);
+    switch (action.kind) {
+      case Kind::wait: {
+        // Woken by every event; the interval bounds how late a signal is noticed.
+        const double wait_s = std::clamp(action.wake_at_s - now(), 0.0,
+                                         std::chrono::duration<double>(kPollInterval).count());
+        cv_.wait_for(lock, std::chrono::duration<double>(wait_s));
+        break;
+      }
+      case Kind::joined:
+        spdlog::info("{}: joined run '{}' (coordinator on {})", agent_.member_id(),
+                     options_.dds.run_id, session_->coordinator()->host);
+        break;
+      case Kind::step: {
+        std::vector<proto::RejectedSample> rejected;
+        rejected.swap(rejected_);
+        lock.unlock();
+        std::string error;
+        try {
+          if (!rejected.empty()) agent_.note_rejected(rejected);
+          run_frame(action.context, action.inputs);
+        } catch (const std::exception& e) {
+          error = e.what();
+        }
+        lock.lock();
+        session_->on_stepped(action.context.frame, error, now());
+        break;
+      }
+      case Kind::finish:
+        lock.unlock();
+        return end_run(action);
     }
   }
 }

@@ -2,9 +2,11 @@
 // Runs one Agent as a barrier member over DDS: announce, wait for the coordinator, then for
 // every grant k: wait until every announced sample stamped k-1 that the agent subscribes to has
 // arrived (the data barrier), step, publish, report done with the manifest of what was written.
+// The rules (which frame runs when, with which inputs, how the run ends) are decided by
+// proto::MemberSession; this class is the plumbing: DDS entities, who may write what, threads.
 #include <atomic>
 #include <condition_variable>
-#include <deque>
+#include <chrono>
 #include <functional>
 #include <map>
 #include <memory>
@@ -16,7 +18,7 @@
 #include "dds/convert.hpp"
 #include "dds/participant.hpp"
 #include "protocol/agent.hpp"
-#include "protocol/frame_inbox.hpp"
+#include "protocol/member_session.hpp"
 
 namespace syndds::dds {
 
@@ -27,6 +29,7 @@ struct MemberRuntimeOptions {
   double join_timeout_s = 30.0;   // waiting for the coordinator's announcement
   double input_timeout_s = 10.0;  // waiting for announced samples once a frame is granted
   double final_timeout_s = 5.0;   // gathering the final frame's samples after the run ended
+  double interrupt_grace_s = 2.0; // after a signal: waiting for the coordinator's verdict
   bool late_join = false;         // may join a run under way: starts after the grant naming it
 
   // Test knobs (never set by the launcher):
@@ -59,46 +62,35 @@ class MemberRuntime {
   const std::string& end_reason() const { return end_reason_; }
 
  private:
-  struct Control;
   void setup();
   void announce();
+  double now() const;
+  proto::MemberSessionConfig session_config() const;
   /// Records who announced itself as which member (with mutex_ held).
   void note_announcement(const proto::MemberAnnounceMsg& a, const GuidPrefix& writer);
   /// Stores a data sample in the inbox if its writer is the participant that announced itself
   /// as the sample's source; otherwise records the rejection (with mutex_ held).
   template <proto::Topic T>
   void admit_locked(typename proto::TopicTraits<T>::Msg sample, const GuidPrefix& writer);
-  bool wait_for_coordinator(const std::atomic<bool>& interrupt);
-  bool wait_inputs(std::int64_t frame, const proto::Manifest& manifest, double timeout_s,
-                   const std::atomic<bool>& interrupt);
-  void pump_locked(std::unique_lock<std::mutex>& lock);
-  bool frame_ready_locked() const;
-  void run_frame(const proto::FrameGrantMsg& grant, const proto::FrameSamples& inputs);
+  void run_frame(const proto::FrameContext& ctx, const proto::FrameSamples& inputs);
   void publish(const proto::FrameSamples& out);
   bool flush_writers(double timeout_s);  // true when every reader acknowledged everything
   void send_done(std::int64_t frame, const proto::Manifest& published, double compute_s,
-                 bool finished);
-  int finish(const proto::RunControlMsg& control, const std::atomic<bool>& interrupt);
-  /// Stops frames from starting and waits for a running one; returns with `lock` held.
-  void stop_frames(std::unique_lock<std::mutex>& lock);
+                 bool finished, const std::string& error = "");
+  /// Carries out the session's finish decision; returns the exit code.
+  int end_run(const proto::MemberSession::Action& end);
 
   proto::Agent& agent_;
   MemberRuntimeOptions options_;
   std::unique_ptr<Participant> participant_;
 
+  // DDS callbacks only store what arrives in the session and wake the thread in run(), which
+  // runs the frames: a long frame must not block a DDS thread (it would hold Fast DDS's
+  // internal locks, delay acknowledgements, even liveliness).
   std::mutex mutex_;
   std::condition_variable cv_;
-  proto::FrameInbox inbox_;
-  std::deque<proto::FrameGrantMsg> grants_;
-  std::optional<proto::RunControlMsg> control_;
-  std::optional<proto::MemberAnnounceMsg> coordinator_;
-  bool coordinator_lost_ = false;
-  bool ready_ = false;        // the coordinator was checked: frames may run
-  bool stepping_ = false;     // a frame is running (in some thread)
-  bool admitted_ = false;     // takes part in the barrier (late joiners: once a grant says so)
-  bool stopping_ = false;     // the run is ending here: no frame may start any more
-  std::int64_t next_frame_ = 0;
-  std::string failure_;       // set when a frame failed; the main thread ends the run
+  std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
+  std::optional<proto::MemberSession> session_;  // from run() on
   std::map<std::string, GuidPrefix> members_;  // member id -> participant that announced it
   std::vector<std::function<void()>> unannounced_;  // samples waiting for their writer's
                                                     // announcement

@@ -329,3 +329,129 @@ TEST(Barrier, AMemberReportingAnErrorAbortsTheRunWithIt) {
   ASSERT_EQ(a.kind, Kind::abort);
   EXPECT_EQ(a.control.reason, "member vehicle/a failed: received a malformed driver_command sample: ...");
 }
+
+// Under the continue policy every other member learns who left: the next grant names the member
+// that left, and no later grant names it again.
+TEST(Barrier, DepartedMemberIsNamedInTheNextGrantExactlyOnce) {
+  auto c = config(10);
+  c.on_member_loss = LossPolicy::continue_run;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  b.on_done(done("vehicle/a", 0), 0.0);
+  b.on_member_lost("controller/a", "process exited", 0.05);
+  b.on_member_lost("controller/a", "process exited", 0.06);  // reported twice: still one entry
+  b.on_done(done("recorder", 0), 0.1);
+  auto g1 = b.poll(0.1);
+  ASSERT_EQ(g1.kind, Kind::grant);
+  EXPECT_EQ(g1.grant.departed, std::vector<std::string>{"controller/a"});
+  b.on_done(done("vehicle/a", 1), 0.2);
+  b.on_done(done("recorder", 1), 0.2);
+  auto g2 = b.poll(0.2);
+  ASSERT_EQ(g2.kind, Kind::grant);
+  EXPECT_TRUE(g2.grant.departed.empty());
+}
+
+// Under the abort policy nobody departs: the run ends instead.
+TEST(Barrier, AbortPolicyNamesNoDeparture) {
+  Barrier b(config(10), 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  auto g = b.poll(0.0);
+  ASSERT_EQ(g.kind, Kind::grant);
+  EXPECT_TRUE(g.grant.departed.empty());
+  b.on_member_lost("vehicle/a", "killed", 0.1);
+  EXPECT_EQ(b.poll(0.1).kind, Kind::abort);
+}
+
+// A late joiner that never took part and goes away is not a departure.
+TEST(Barrier, LateMemberThatNeverTookPartDoesNotDepart) {
+  auto c = config(10);
+  c.on_member_loss = LossPolicy::continue_run;
+  c.late_members = {"sensor/a"};
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  EXPECT_EQ(b.on_join("sensor/a", 0.1), "");
+  b.on_member_lost("sensor/a", "process exited", 0.2);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.3);
+  auto g = b.poll(0.3);
+  ASSERT_EQ(g.kind, Kind::grant);
+  EXPECT_TRUE(g.grant.departed.empty());
+}
+
+// A late sensor started with a stale scenario is refused by name; the run goes on.
+TEST(Barrier, LateMemberWithAnotherScenarioIsRefusedAndTheRunGoesOn) {
+  auto c = config(10);
+  c.late_members = {"sensor/a"};
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  const std::string w = b.on_config_mismatch("sensor/a", "loaded a different scenario", 0.1);
+  EXPECT_NE(w.find("refusing member sensor/a"), std::string::npos) << w;
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.2);
+  auto g = b.poll(5.0);
+  ASSERT_EQ(g.kind, Kind::grant);
+  EXPECT_TRUE(g.grant.joiners.empty());
+  EXPECT_EQ(b.phase(), Barrier::Phase::running);
+}
+
+// A member expected at the start with another scenario still aborts the run at join time.
+TEST(Barrier, StartMemberWithAnotherScenarioAbortsAtJoinTime) {
+  Barrier b(config(), 0.0);
+  EXPECT_EQ(b.on_join("vehicle/a", 0.0), "");
+  EXPECT_EQ(b.on_config_mismatch("recorder", "on h2 loaded a different scenario", 0.1), "");
+  auto a = b.poll(0.1);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.reason, "member recorder on h2 loaded a different scenario");
+}
+
+// The error of a member that is not (a late joiner not admitted) or no longer (left under the
+// continue policy) in the barrier does not abort the run.
+TEST(Barrier, ErrorOfAMemberOutsideTheBarrierIsIgnored) {
+  auto c = config(10);
+  c.on_member_loss = LossPolicy::continue_run;
+  c.late_members = {"sensor/a"};
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  b.on_member_lost("controller/a", "process exited", 0.0);
+  FrameDoneMsg late = done("controller/a", 0);
+  late.error = "frame 0: could not publish";
+  EXPECT_NE(b.on_done(late, 0.1).find("controller/a"), std::string::npos);
+  EXPECT_EQ(b.on_join("sensor/a", 0.1), "");
+  FrameDoneMsg stale = done("sensor/a", 0);
+  stale.error = "scenario mismatch";
+  EXPECT_NE(b.on_done(stale, 0.1).find("sensor/a"), std::string::npos);
+  b.on_done(done("vehicle/a", 0), 0.2);
+  b.on_done(done("recorder", 0), 0.2);
+  EXPECT_EQ(b.poll(0.2).kind, Kind::grant);
+  EXPECT_EQ(b.phase(), Barrier::Phase::running);
+}
+
+// A member that fails after the run completed: the run stays completed, nobody counts it as
+// lost, and the barrier names its failure after the end.
+TEST(Barrier, FailureAfterACompletedRunIsNotALoss) {
+  Barrier b(config(0), 0.0);
+  join_all(b, 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  auto s = b.poll(0.0);
+  ASSERT_EQ(s.kind, Kind::stop);
+  FrameDoneMsg f = done("recorder", 0);
+  f.finished = true;
+  f.error = "cannot write summary.json";
+  b.on_done(f, 0.1);
+  b.on_member_lost("recorder", "its DDS participant left", 0.2);
+  b.on_done([] { auto d = done("vehicle/a", 0); d.finished = true; return d; }(), 0.1);
+  b.on_member_lost("vehicle/a", "its DDS participant left", 0.2);  // after confirming: fine
+  b.on_member_lost("controller/a", "liveliness lost", 0.3);        // gone without confirming
+  EXPECT_TRUE(b.all_finished());
+  EXPECT_EQ(b.phase(), Barrier::Phase::stopped);
+  const auto failed = b.failed_after_end();
+  ASSERT_EQ(failed.size(), 2u);
+  EXPECT_EQ(failed.at("recorder"), "cannot write summary.json");
+  EXPECT_NE(failed.at("controller/a").find("without confirming"), std::string::npos);
+  for (const auto& m : b.stats(0.3).members) EXPECT_FALSE(m.lost) << m.member_id;
+}

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "agents/agent_factory.hpp"
@@ -126,8 +127,96 @@ TEST(VehicleAgent, RejectsNaNAndOutOfRangeCommands) {
   bad.source = "external/x";
   bad.throttle = std::numeric_limits<double>::quiet_NaN();
   in.driver_commands.push_back(bad);
-  vehicle.step({1, 0.01, 0.01, {}}, in, out);
+  vehicle.step({1, 0.01, 0.01, {}, {}}, in, out);
   EXPECT_EQ(vehicle.rejected_commands(), 1u);
   ASSERT_EQ(out.vehicle_states.size(), 1u);
   EXPECT_DOUBLE_EQ(out.vehicle_states[0].throttle, 0.0);  // the bad command was not applied
+}
+
+namespace {
+
+// Writes one vehicle_state of vehicle "x" per frame.
+struct Writer : proto::Agent {
+  std::string id = "vehicle/x";
+  const std::string& member_id() const override { return id; }
+  proto::MemberKind kind() const override { return proto::MemberKind::vehicle; }
+  std::vector<proto::Subscription> subscriptions() const override { return {}; }
+  std::vector<proto::Topic> publications() const override { return {proto::Topic::vehicle_state}; }
+  std::string vehicle_key() const override { return "x"; }
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
+            proto::FrameSamples& out) override {
+    proto::VehicleStateMsg s;
+    s.vehicle_id = "x";
+    s.source = id;
+    s.frame = ctx.frame;
+    out.vehicle_states.push_back(s);
+  }
+};
+
+// Fails in frame `fail_at`.
+struct Failer : proto::Agent {
+  std::string id = "controller/x";
+  std::int64_t fail_at = 3;
+  const std::string& member_id() const override { return id; }
+  proto::MemberKind kind() const override { return proto::MemberKind::controller; }
+  std::vector<proto::Subscription> subscriptions() const override { return {}; }
+  std::vector<proto::Topic> publications() const override { return {}; }
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
+            proto::FrameSamples&) override {
+    if (ctx.frame == fail_at) throw std::runtime_error("boom");
+  }
+};
+
+// Records the frames of the states it consumed, in steps and at the end.
+struct Keeper : proto::Agent {
+  std::string id;
+  std::vector<std::int64_t> stepped_frames;  // stamps of the states seen in steps
+  std::vector<std::int64_t> final_frames;    // stamps of the final inputs
+  std::optional<proto::RunControlMsg> end;
+  explicit Keeper(std::string name) : id(std::move(name)) {}
+  const std::string& member_id() const override { return id; }
+  proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
+  std::vector<proto::Subscription> subscriptions() const override {
+    return {{proto::Topic::vehicle_state, ""}};
+  }
+  std::vector<proto::Topic> publications() const override { return {}; }
+  void step(const proto::FrameContext&, const proto::FrameSamples& in,
+            proto::FrameSamples&) override {
+    for (const auto& s : in.vehicle_states) stepped_frames.push_back(s.frame);
+  }
+  void finish(const proto::RunEnd& e, const proto::FrameSamples& in) override {
+    end = e.control;
+    for (const auto& s : in.vehicle_states) final_frames.push_back(s.frame);
+  }
+};
+
+}  // namespace
+
+// An agent that throws in frame k: the last complete frame is k-1, and every agent ends up
+// having seen its samples exactly once (in a step of frame k or in finish()), as in the
+// distributed run. Before, finish() got no inputs and a recorder after the failing agent lost
+// frame k-1.
+TEST(LocalRunner, AFailureKeepsTheLastCompleteFrame) {
+  std::vector<proto::AgentPtr> agents;
+  auto before = std::make_unique<Keeper>("before");
+  auto after = std::make_unique<Keeper>("recorder");
+  Keeper* b = before.get();
+  Keeper* a = after.get();
+  agents.push_back(std::make_unique<Writer>());
+  agents.push_back(std::move(before));
+  agents.push_back(std::make_unique<Failer>());
+  agents.push_back(std::move(after));
+  proto::LocalRunner runner(std::move(agents), {10, 0.01, false});
+  EXPECT_THROW(runner.run(), std::runtime_error);
+  for (Keeper* k : {a, b}) {
+    ASSERT_TRUE(k->end.has_value()) << k->id;
+    EXPECT_EQ(k->end->status, proto::RunStatus::aborted);
+    EXPECT_EQ(k->end->final_frame, 2) << k->id;
+    EXPECT_NE(k->end->reason.find("controller/x failed in frame 3: boom"), std::string::npos);
+    std::vector<std::int64_t> seen = k->stepped_frames;
+    seen.insert(seen.end(), k->final_frames.begin(), k->final_frames.end());
+    EXPECT_EQ(seen, (std::vector<std::int64_t>{0, 1, 2})) << k->id;
+  }
+  EXPECT_EQ(a->final_frames, std::vector<std::int64_t>{2});
+  EXPECT_TRUE(b->final_frames.empty());
 }
