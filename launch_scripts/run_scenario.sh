@@ -182,7 +182,15 @@ summary="$OUTPUT/summary.txt"
 if [ $interrupted = 0 ] && [ "$coordinator_code" = 0 ] && [ "$recorder_code" = 0 ]; then
   [ -f "$summary" ] && cat "$summary"
   for n in "${notes[@]}"; do
-    echo "run_scenario: note: $n; the run went on without it (on_member_loss: continue)" >&2
+    # A member that failed once the run had completed took nothing from the results; the
+    # coordinator names it as such (docs/protocol.md, "Failure handling").
+    after=$(grep -h "coordinator: ${n%% *} failed after the run completed" \
+            "$OUTPUT/logs/coordinator.log" 2>/dev/null | tail -n1 | sed 's/.*coordinator: //')
+    if [ -n "$after" ]; then
+      echo "run_scenario: note: $after (the results are complete)" >&2
+    else
+      echo "run_scenario: note: $n; the run went on without it (on_member_loss: continue)" >&2
+    fi
   done
   echo "output: $OUTPUT"
   exit 0
