@@ -8,7 +8,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
-#include "scm/worker_pool.hpp"
+#include "core/thread_pool.hpp"
 
 namespace syndds::scm {
 namespace {
@@ -246,7 +246,7 @@ ScmTerrain::ScmTerrain(const ScmParams& params, std::shared_ptr<const terrain::T
   j_min_ = static_cast<std::int32_t>(std::ceil(params_.grid.y_min_m / delta_ - 1e-9));
   j_max_ = static_cast<std::int32_t>(std::floor(params_.grid.y_max_m / delta_ + 1e-9));
   level_bound_ = base_ ? kInf : params_.grid.base_height_m;
-  if (params_.threads > 1) pool_ = std::make_unique<WorkerPool>(params_.threads);
+  if (params_.threads > 1) pool_ = std::make_unique<ThreadPool>(params_.threads);
 }
 
 ScmTerrain::~ScmTerrain() = default;
@@ -460,8 +460,8 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   // Below a few thousand items per thread, waking the workers costs more than it saves, so the
   // work then runs on the calling thread. Results never depend on the number of parts.
   const auto grain = static_cast<std::size_t>(params_.thread_min_vertices);
-  const bool parallel_cast = pool_ && total >= grain * static_cast<std::size_t>(pool_->parts());
-  const int parts = parallel_cast ? pool_->parts() : 1;
+  const bool parallel_cast = pool_ && total >= grain * static_cast<std::size_t>(pool_->size());
+  const int parts = parallel_cast ? pool_->size() : 1;
   const double margin = params_.patch_test_height_m;
   if (total > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw std::invalid_argument("ScmTerrain::compute_body_loads: body footprints too large");
@@ -505,7 +505,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
     }
   };
   if (parallel_cast) {
-    pool_->run(cast);
+    pool_->run(parts, cast);
   } else {
     cast(0);
   }
@@ -633,8 +633,8 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
   const SoilParams& soil = params_.soil;
   const double ke = soil.elastic_stiffness_pa_per_m;
   const double shear_damping_s = params_.shear_damping_time_s;
-  const bool parallel_law = pool_ && 4 * nc >= grain * static_cast<std::size_t>(pool_->parts());
-  const int law_parts = parallel_law ? pool_->parts() : 1;
+  const bool parallel_law = pool_ && 4 * nc >= grain * static_cast<std::size_t>(pool_->size());
+  const int law_parts = parallel_law ? pool_->size() : 1;
   auto law = [&](int part) {
     const auto [c0, c1] = part_range(nc, law_parts, part);
     for (std::size_t c = c0; c < c1; ++c) {
@@ -719,7 +719,7 @@ void ScmTerrain::compute_body_loads(std::span<const ContactBody> bodies, double 
     }
   };
   if (parallel_law) {
-    pool_->run(law);
+    pool_->run(law_parts, law);
   } else {
     law(0);
   }

@@ -28,9 +28,11 @@
 #include "scm/vertex_map.hpp"
 #include "terrain/terrain.hpp"
 
-namespace syndds::scm {
+namespace syndds {
+class ThreadPool;
+}
 
-class WorkerPool;
+namespace syndds::scm {
 
 /// Solid cylinder centred on the body origin, axis along the body's local y (a wheel).
 struct CylinderShape {
@@ -208,7 +210,7 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
 
   std::vector<std::uint32_t> claim_source_;  // indexed by claims_ values
   std::unique_ptr<Scratch> scratch_;
-  std::unique_ptr<WorkerPool> pool_;
+  std::unique_ptr<ThreadPool> pool_;
 };
 
 }  // namespace syndds::scm
