@@ -17,8 +17,8 @@
 // See docs/scm.md for the equations, the sync rule and the limits.
 //
 // ScmTerrain is a facade over the pieces: VertexGrid (storage), SoilLaw (the per-vertex law,
-// constant parameters), contact_patch.hpp (geometry and patches of a step), Bulldozer and
-// Replication (sync and snapshots). compute_body_loads runs the steps in order.
+// constant parameters), contact_patch.hpp (geometry and patches of a step), Bulldozer
+// (bulldozing.hpp) and Replication (sync and snapshots); compute_body_loads runs the steps.
 #include <array>
 #include <cstdint>
 #include <memory>

@@ -1,12 +1,14 @@
 // The split pieces of the SCM on their own: the per-vertex soil law on one vertex against the
 // closed forms (Bekker-Wong pressure-sinkage, Janosi-Hanamoto shear, elastic unloading), the
-// vertex storage and the replication order. The whole-terrain oracles are in
-// test_scm_oracles.cpp.
+// vertex storage, bulldozing of one patch and the replication order. The whole-terrain oracles are
+// in test_scm_oracles.cpp.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 
+#include "scm/bulldozing.hpp"
+#include "scm/contact_patch.hpp"
 #include "scm/replication.hpp"
 #include "scm/soil_law.hpp"
 #include "scm/vertex_grid.hpp"
@@ -212,6 +214,68 @@ TEST(ScmVertexGrid, StoresOnlyTouchedVerticesAndTracksChanges) {
   EXPECT_EQ(grid.size(), 0u);
   EXPECT_EQ(grid.find(3, 4), -1);
   EXPECT_EQ(grid.level_bound(), 0.25);
+}
+
+// One loaded contact vertex at (0, 0) that pressed `flow` down plastically this step.
+ContactPatches one_vertex_patch(VertexGrid& grid, double flow) {
+  ContactPatches s;
+  StepVertex v;
+  v.i = 0;
+  v.j = 0;
+  v.body = 0;
+  v.contact = 0;
+  v.patch = 0;
+  v.z_hit = -flow;
+  v.record = grid.get_or_insert(0, 0);
+  grid.record(v.record).step_plastic_flow = flow;
+  grid.record(v.record).sinkage_plastic = flow;
+  s.vertices = {v};
+  s.contacts = {0};
+  s.contact_patch = {0};
+  s.patch_start = {0, 1};
+  s.patch_members = {0};
+  s.patch_oob = {1.0};
+  VertexLoad l;
+  l.loaded = true;
+  s.loads = {l};
+  return s;
+}
+
+TEST(ScmBulldozer, SpreadsTheFlowOverTheRimAndConservesItWhileEroding) {
+  GridParams g;
+  g.spacing_m = 0.05;
+  const double flow = 0.02;
+  BulldozingParams p;
+  p.enabled = true;
+  p.flow_factor = 1.0;
+  p.iterations = 0;  // rim only: each of the 4 neighbours gets a quarter
+  {
+    VertexGrid grid(g, nullptr);
+    const ContactPatches s = one_vertex_patch(grid, flow);
+    EXPECT_EQ(Bulldozer(p).run(grid, s), 4u);
+    for (int n = 0; n < 4; ++n) {
+      EXPECT_DOUBLE_EQ(grid.level_of(kNeighbourDi[n], kNeighbourDj[n]), flow / 4) << n;
+    }
+    EXPECT_EQ(grid.level_of(1, 1), 0.0);
+  }
+  // With erosion the 5 mm steps exceed delta tan(2 deg) = 1.7 mm: material moves outwards and
+  // the total stays.
+  p.iterations = 50;
+  p.propagations = 3;
+  p.erosion_angle_deg = 2.0;
+  VertexGrid grid(g, nullptr);
+  const ContactPatches s = one_vertex_patch(grid, flow);
+  const std::size_t domain = Bulldozer(p).run(grid, s);
+  EXPECT_EQ(domain, 4u + 8u + 12u + 16u);  // the rim and three rings
+  double raised = 0.0;
+  for (const VertexRecord& r : grid.records()) {
+    if (r.i == 0 && r.j == 0) continue;
+    raised += r.level_initial;
+    EXPECT_EQ(r.level, r.level_initial);  // moved material shifts both together
+  }
+  EXPECT_NEAR(raised, flow, 1e-15);
+  EXPECT_LT(grid.level_of(1, 0), flow / 4);  // the rim gave some away
+  EXPECT_GT(grid.level_of(2, 0), 0.0);       // to the first ring
 }
 
 TEST(ScmReplication, MergeOrderIsTotalAndArrivalIndependent) {
