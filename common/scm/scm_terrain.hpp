@@ -15,6 +15,10 @@
 //      summed with torque about the body centre;
 //   4. optionally bulldozes the plastically displaced volume to the rim of each patch.
 // See docs/scm.md for the equations, the sync rule and the limits.
+//
+// ScmTerrain is a facade over the pieces: VertexGrid (storage), SoilLaw (the per-vertex law,
+// constant parameters), contact_patch.hpp (geometry and patches of a step), Bulldozer
+// (bulldozing.hpp) and Replication (sync and snapshots); compute_body_loads runs the steps.
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -24,13 +28,17 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "scm/replication.hpp"
 #include "scm/scm_params.hpp"
-#include "scm/vertex_map.hpp"
+#include "scm/soil_law.hpp"
+#include "scm/vertex_grid.hpp"
 #include "terrain/terrain.hpp"
 
-namespace syndds::scm {
+namespace syndds {
+class ThreadPool;
+}
 
-class WorkerPool;
+namespace syndds::scm {
 
 /// Solid cylinder centred on the body origin, axis along the body's local y (a wheel).
 struct CylinderShape {
@@ -49,25 +57,6 @@ struct ContactBody {
   Vec3 linear_velocity = Vec3::Zero();
   Vec3 angular_velocity = Vec3::Zero();
   BodyShape shape;
-};
-
-/// One vertex's shared (synchronised) state: everything a receiver needs for a faithful copy.
-/// 40 bytes on the wire: two 32-bit indices and four doubles.
-struct VertexChange {
-  std::int32_t i = 0;
-  std::int32_t j = 0;
-  double level_m = 0.0;            // current surface height (m)
-  double level_initial_m = 0.0;    // undeformed height incl. bulldozed material (m)
-  double sinkage_plastic_m = 0.0;  // plastic (permanent) sinkage below level_initial (m)
-  double sigma_yield_pa = 0.0;     // highest Bekker stress reached, the reloading limit (Pa)
-
-  friend bool operator==(const VertexChange&, const VertexChange&) = default;
-};
-
-/// Whole-grid state for a late joiner: every stored vertex, sorted by (i, j).
-struct ScmSnapshot {
-  double spacing_m = 0.0;
-  std::vector<VertexChange> vertices;
 };
 
 /// Counters of the last compute_body_loads call (diagnostics and benchmarks).
@@ -107,8 +96,8 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
 
   // ---- Deformation sync (see docs/scm.md, "Sync rule") ----
   /// Id of this process's changes in conflicts (tie-break only). Default 0.
-  void set_source_id(std::uint32_t id) { source_id_ = id; }
-  std::uint32_t source_id() const { return source_id_; }
+  void set_source_id(std::uint32_t id) { replication_.set_source_id(id); }
+  std::uint32_t source_id() const { return replication_.source_id(); }
   /// Ends the local part of a frame: returns every vertex whose shared state this process
   /// changed since the last call (sorted by (i, j)) and opens the frame's merge window.
   /// Call exactly once per frame, also when no local body exists, before applying remote lists.
@@ -125,22 +114,20 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
 
   // ---- Queries ----
   const ScmParams& params() const { return params_; }
-  double spacing() const { return delta_; }
+  double spacing() const { return grid_.spacing(); }
   /// True if vertex (i, j) is inside the deformable area.
-  bool in_area(std::int32_t i, std::int32_t j) const {
-    return i >= i_min_ && i <= i_max_ && j >= j_min_ && j <= j_max_;
-  }
-  std::int32_t i_min() const { return i_min_; }
-  std::int32_t i_max() const { return i_max_; }
-  std::int32_t j_min() const { return j_min_; }
-  std::int32_t j_max() const { return j_max_; }
+  bool in_area(std::int32_t i, std::int32_t j) const { return grid_.in_area(i, j); }
+  std::int32_t i_min() const { return grid_.i_min(); }
+  std::int32_t i_max() const { return grid_.i_max(); }
+  std::int32_t j_min() const { return grid_.j_min(); }
+  std::int32_t j_max() const { return grid_.j_max(); }
   /// Undeformed height of vertex (i, j) (base surface or flat base height).
-  double base_height(std::int32_t i, std::int32_t j) const;
+  double base_height(std::int32_t i, std::int32_t j) const { return grid_.base_height(i, j); }
   /// Current height of vertex (i, j).
-  double vertex_height(std::int32_t i, std::int32_t j) const;
+  double vertex_height(std::int32_t i, std::int32_t j) const { return grid_.level_of(i, j); }
   /// Stored shared state of vertex (i, j), if it ever deformed.
   std::optional<VertexChange> vertex(std::int32_t i, std::int32_t j) const;
-  std::size_t stored_vertices() const { return records_.size(); }
+  std::size_t stored_vertices() const { return grid_.size(); }
   /// Normal stress at vertex (i, j) in the last step (0 if not in contact then).
   double vertex_pressure(std::int32_t i, std::int32_t j) const;
   /// Sum over stored vertices of (level_initial - sinkage_plastic - base) * cell area (m^3):
@@ -149,66 +136,28 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   const ScmStepStats& last_step_stats() const { return stats_; }
 
  private:
-  struct Record {
-    // Shared state (synchronised, hashed).
-    double level = 0.0;
-    double level_initial = 0.0;
-    double sinkage_plastic = 0.0;
-    double sigma_yield = 0.0;
-    // Local contact state (never synchronised): belongs to this process's own bodies.
-    double shear_x = 0.0;            // shear mobilisation m = tau / tau_max (vector, |m| <= 1)
-    double shear_y = 0.0;            //   along the body's slip over this vertex (see the law)
-    double sigma = 0.0;              // normal stress of the last step in contact (Pa)
-    double step_plastic_flow = 0.0;  // plastic sinkage added in the last step (m)
-    std::int64_t contact_step = -2;  // index of the last step in contact
-    std::int32_t i = 0;
-    std::int32_t j = 0;
-    bool dirty = false;  // in dirty_ (changed since take_local_changes)
-  };
+  struct StepData;  // per-step work arrays and the bulldozer (scm_terrain.cpp)
 
-  struct Scratch;  // per-step work arrays, kept between calls to avoid allocations
-
-  std::int32_t find_record(std::int32_t i, std::int32_t j) const {
-    return index_.find(vertex_key(i, j));
-  }
-  std::int32_t get_or_insert_record(std::int32_t i, std::int32_t j);
-  void mark_dirty(std::int32_t index);
-  double level_of(std::int32_t i, std::int32_t j) const;
-  /// The grid cell under (x, y): corner levels and fractions; nullopt far outside any grid.
+  /// The cell under (x, y): corner levels and fractions; nullopt far outside any grid.
   struct Cell {
     double tu, tv, h00, h10, h01, h11;
   };
   std::optional<Cell> cell_at(double x, double y) const;
-  /// Height of the unloaded soil, level_initial - sinkage_plastic: a body below it is in contact.
-  double surface_of(std::int32_t i, std::int32_t j) const;
-  void note_level(double level);
-  /// Footprint entry of vertex (i, j) in this step (the first body box holding it), or -1.
-  std::int32_t find_step_vertex(std::int32_t i, std::int32_t j) const;
-  void bulldoze();
-  void bulldoze_window(std::size_t p_begin, std::size_t p_end,
-                       const std::array<std::int64_t, 4>& window);
-  static VertexChange to_change(const Record& r);
-  void assign(Record& r, const VertexChange& c);
+  // The steps of compute_body_loads, in order.
+  std::size_t place_bodies(std::span<const ContactBody> bodies);
+  void cast_rays(std::size_t total);
+  void collect_contacts(std::size_t total);
+  void apply_soil_law(double dt);
+  void integrate_loads(std::span<terrain::WheelLoad> loads);
 
   ScmParams params_;
-  std::shared_ptr<const terrain::TerrainSurface> base_;
-  double delta_ = 0.05;
-  double cell_area_ = 0.0025;
-  double tan_phi_ = 0.0;
-  std::int32_t i_min_ = 0, i_max_ = 0, j_min_ = 0, j_max_ = 0;
-  std::uint32_t source_id_ = 0;
-
-  KeyIndexMap index_;            // vertex key -> records_ index
-  std::vector<Record> records_;  // stored vertices (insertion order)
-  std::vector<std::int32_t> dirty_;
-  KeyIndexMap claims_;        // vertex key -> claim_source_ index (this frame's winners)
-  double level_bound_ = 0.0;  // no level or unloaded surface is above this (flat base only)
+  VertexGrid grid_;
+  SoilLaw law_;
+  Replication replication_;
   std::int64_t step_ = 0;
   ScmStepStats stats_;
-
-  std::vector<std::uint32_t> claim_source_;  // indexed by claims_ values
-  std::unique_ptr<Scratch> scratch_;
-  std::unique_ptr<WorkerPool> pool_;
+  std::unique_ptr<StepData> step_data_;
+  std::unique_ptr<ThreadPool> pool_;
 };
 
 }  // namespace syndds::scm

@@ -20,9 +20,9 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "core/thread_pool.hpp"
 #include "sensors/interoceptive.hpp"
 #include "sensors/scene.hpp"
-#include "sensors/thread_pool.hpp"
 #include "sensors/timing.hpp"
 
 namespace syndds::sensors {

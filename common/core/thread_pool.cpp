@@ -1,8 +1,8 @@
-#include "sensors/thread_pool.hpp"
+#include "core/thread_pool.hpp"
 
 #include <stdexcept>
 
-namespace syndds::sensors {
+namespace syndds {
 
 ThreadPool::ThreadPool(int threads) {
   if (threads < 1) throw std::invalid_argument("thread count must be >= 1");
@@ -59,4 +59,4 @@ void ThreadPool::worker_loop() {
   }
 }
 
-}  // namespace syndds::sensors
+}  // namespace syndds
