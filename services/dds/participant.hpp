@@ -54,32 +54,20 @@ inline constexpr const char* kDataReader = "data_reader";
 inline constexpr const char* kSensorWriter = "sensor_writer";
 }  // namespace profiles
 
+/// The PubSubType and registered name of every generated type in the topic tables.
 template <typename T>
 struct TypeTraits;
-#define SYNDDS_DDS_TYPE(T)                 \
-  template <>                              \
-  struct TypeTraits<msg::T> {              \
-    using PubSub = msg::T##PubSubType;     \
-    static constexpr const char* name = "syndds::msg::" #T; \
+#define SYNDDS_DDS_TYPE_(MSG, IDL)                            \
+  template <>                                                 \
+  struct TypeTraits<msg::IDL> {                               \
+    using PubSub = msg::IDL##PubSubType;                      \
+    static constexpr const char* name = "syndds::msg::" #IDL; \
   };
-SYNDDS_DDS_TYPE(MemberAnnounce)
-SYNDDS_DDS_TYPE(FrameGrant)
-SYNDDS_DDS_TYPE(FrameDone)
-SYNDDS_DDS_TYPE(RunControl)
-SYNDDS_DDS_TYPE(VehicleState)
-SYNDDS_DDS_TYPE(DriverCommand)
-SYNDDS_DDS_TYPE(TerrainDeformation)
-SYNDDS_DDS_TYPE(TerrainSnapshot)
-SYNDDS_DDS_TYPE(CollisionEvent)
-SYNDDS_DDS_TYPE(GpsFix)
-SYNDDS_DDS_TYPE(Imu)
-SYNDDS_DDS_TYPE(Magnetometer)
-SYNDDS_DDS_TYPE(WheelSpeeds)
-SYNDDS_DDS_TYPE(Image)
-SYNDDS_DDS_TYPE(PointCloud)
-SYNDDS_DDS_TYPE(V2VMessage)
-SYNDDS_DDS_TYPE(VehicleEvent)
-#undef SYNDDS_DDS_TYPE
+#define SYNDDS_DDS_TYPE_TOPIC_(TOPIC, MSG, IDL, LIST, PER_FRAME) SYNDDS_DDS_TYPE_(MSG, IDL)
+SYNDDS_PROTOCOL_MESSAGES(SYNDDS_DDS_TYPE_)
+SYNDDS_DATA_TOPICS(SYNDDS_DDS_TYPE_TOPIC_)
+#undef SYNDDS_DDS_TYPE_TOPIC_
+#undef SYNDDS_DDS_TYPE_
 
 /// The generated PubSubType computes instance keys in member buffers (m_keyBuffer, m_md5), but
 /// Fast DDS calls getKey from every thread that uses the type: the thread writing a sample and
