@@ -11,6 +11,9 @@
 // topic names, the DDS types and QoS of each topic) comes from these lists. Adding a field: the
 // member, its name in the field list and the member in idl/syndds.idl. Adding a data topic: the
 // struct and its field list, a row in SYNDDS_DATA_TOPICS and the IDL type (docs/protocol.md).
+// Every sample repeats its header (vehicle_id, source, frame) rather than inheriting it: agents
+// build samples by aggregate initialisation ({vehicle, source, frame, ...}), which a base struct
+// would break, and the IDL spells the header out in each type too.
 #include <cstdint>
 #include <string>
 #include <iterator>
