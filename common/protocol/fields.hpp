@@ -12,8 +12,8 @@
 //   f(name, member, wire)
 // with the plain name, a pointer to the member and a generic accessor: wire(x) is x.idl_name(),
 // the accessor of that member in any type that has one (the fastddsgen types do: a reference for
-// a non-const object, a value for a const one). The accessor is only instantiated by code that
-// uses it, so this header and the message headers stay free of DDS.
+// a non-const object, a value or const reference for a const one). The accessor is only
+// instantiated by code that uses it, so this header and the message headers stay free of DDS.
 #include <cstddef>
 #include <type_traits>
 #include <utility>
