@@ -21,37 +21,20 @@ struct Subscription {
 };
 
 /// Samples stamped one frame, sorted by (key, source) so their order never depends on arrival.
+/// One list per data topic, named in SYNDDS_DATA_TOPICS (vehicle_states, driver_commands, ...).
 struct FrameSamples {
-  std::vector<VehicleStateMsg> vehicle_states;
-  std::vector<DriverCommandMsg> driver_commands;
-  std::vector<TerrainDeformationMsg> terrain_deformations;
-  std::vector<TerrainSnapshotMsg> terrain_snapshots;
-  std::vector<CollisionEventMsg> collision_events;
-  std::vector<GpsFixMsg> gps_fixes;
-  std::vector<ImuMsg> imus;
-  std::vector<MagnetometerMsg> magnetometers;
-  std::vector<WheelSpeedsMsg> wheel_speeds;
-  std::vector<ImageMsg> images;
-  std::vector<PointCloudMsg> point_clouds;
-  std::vector<V2VMessageMsg> v2v_messages;
-  std::vector<VehicleEventMsg> vehicle_events;
+#define SYNDDS_FRAME_SAMPLES_LIST_(TOPIC, MSG, IDL, LIST, PER_FRAME) std::vector<MSG> LIST;
+  SYNDDS_DATA_TOPICS(SYNDDS_FRAME_SAMPLES_LIST_)
+#undef SYNDDS_FRAME_SAMPLES_LIST_
 
   /// The list of one topic, for code that handles every topic alike.
   template <Topic T>
   std::vector<typename TopicTraits<T>::Msg>& list() {
-    if constexpr (T == Topic::vehicle_state) return vehicle_states;
-    else if constexpr (T == Topic::driver_command) return driver_commands;
-    else if constexpr (T == Topic::terrain_deformation) return terrain_deformations;
-    else if constexpr (T == Topic::terrain_snapshot) return terrain_snapshots;
-    else if constexpr (T == Topic::collision_event) return collision_events;
-    else if constexpr (T == Topic::gps_fix) return gps_fixes;
-    else if constexpr (T == Topic::imu) return imus;
-    else if constexpr (T == Topic::magnetometer) return magnetometers;
-    else if constexpr (T == Topic::wheel_speeds) return wheel_speeds;
-    else if constexpr (T == Topic::image) return images;
-    else if constexpr (T == Topic::point_cloud) return point_clouds;
-    else if constexpr (T == Topic::v2v_message) return v2v_messages;
-    else return vehicle_events;
+#define SYNDDS_FRAME_SAMPLES_LIST_(TOPIC, MSG, IDL, LIST, PER_FRAME) \
+  if constexpr (T == Topic::TOPIC) return LIST; else
+    SYNDDS_DATA_TOPICS(SYNDDS_FRAME_SAMPLES_LIST_)
+#undef SYNDDS_FRAME_SAMPLES_LIST_
+    static_assert(T != T, "a data topic without a list");
   }
   template <Topic T>
   const std::vector<typename TopicTraits<T>::Msg>& list() const {

@@ -2,9 +2,18 @@
 // Plain C++ mirrors of the IDL types in idl/syndds.idl. common/ code speaks these; the DDS
 // layer (services/dds) converts them to and from the generated types at the edge.
 //
-// Frame convention (see docs/time-protocol.md): frame k ends at sim time t_k = k * heartbeat_s.
+// Frame convention (see docs/protocol.md): frame k ends at sim time t_k = k * heartbeat_s.
 // Frame 0 is the initial frame (vehicles publish their initial state, nothing steps); in frame
 // k >= 1 vehicles advance from t_{k-1} to t_k. A sample "stamped k" was produced in frame k.
+//
+// Each message is defined once: its struct, its field list (SYNDDS_FIELDS, right after it) and
+// its IDL type. Everything else (the conversions to and from the IDL types, FrameSamples, the
+// topic names, the DDS types and QoS of each topic) comes from these lists. Adding a field: the
+// member, its name in the field list and the member in idl/syndds.idl. Adding a data topic: the
+// struct and its field list, a row in SYNDDS_DATA_TOPICS and the IDL type (docs/protocol.md).
+// Every sample repeats its header (vehicle_id, source, frame) rather than inheriting it: agents
+// build samples by aggregate initialisation ({vehicle, source, frame, ...}), which a base struct
+// would break, and the IDL spells the header out in each type too.
 #include <cstdint>
 #include <string>
 #include <iterator>
@@ -14,6 +23,7 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "protocol/fields.hpp"
 
 namespace syndds::proto {
 
@@ -22,29 +32,41 @@ inline constexpr std::int32_t kProtocolVersion = 1;
 enum class MemberKind : std::uint8_t { vehicle, controller, recorder, sensor, external, coordinator };
 std::string_view to_string(MemberKind kind);
 
-/// Data topics that take part in the frame manifest. Adding one: a message struct below, a
-/// TopicTraits specialisation, a list in FrameSamples (agent.hpp), an IDL type and its
-/// conversions (services/dds/convert.*) and DdsType (services/dds/topics.hpp).
-enum class Topic : std::uint8_t {
-  vehicle_state,
-  driver_command,
-  terrain_deformation,
-  terrain_snapshot,
-  collision_event,
-  gps_fix,
-  imu,
-  magnetometer,
-  wheel_speeds,
-  image,
-  point_cloud,
-  v2v_message,
-  vehicle_event,
-};
-inline constexpr Topic kAllDataTopics[] = {
-    Topic::vehicle_state, Topic::driver_command, Topic::terrain_deformation,
-    Topic::terrain_snapshot, Topic::collision_event, Topic::gps_fix, Topic::imu, Topic::magnetometer,
-    Topic::wheel_speeds, Topic::image, Topic::point_cloud, Topic::v2v_message,
-    Topic::vehicle_event};
+/// The data topics (those that take part in the frame manifest), one row each:
+///   X(topic, message struct, IDL type, FrameSamples list, samples per key and frame)
+/// `topic` is the stable short name used in manifests, logs and DDS topic names; the last column
+/// is how many samples one writer may write of one key in one frame: the DDS writer keeps twice
+/// that (two frames are in flight at most), so no sample a barrier member still needs is ever
+/// replaced. Sensors: the scenario checks their rates against it when it loads. Collisions: one
+/// per obstacle and contact episode, and a vehicle may touch many obstacles in one frame.
+#define SYNDDS_DATA_TOPICS(X)                                                               \
+  X(vehicle_state, VehicleStateMsg, VehicleState, vehicle_states, 4)                        \
+  X(driver_command, DriverCommandMsg, DriverCommand, driver_commands, 4)                    \
+  X(terrain_deformation, TerrainDeformationMsg, TerrainDeformation, terrain_deformations, 4) \
+  X(terrain_snapshot, TerrainSnapshotMsg, TerrainSnapshot, terrain_snapshots, 4)            \
+  X(collision_event, CollisionEventMsg, CollisionEvent, collision_events, 256)              \
+  X(gps_fix, GpsFixMsg, GpsFix, gps_fixes, 32)                                              \
+  X(imu, ImuMsg, Imu, imus, 32)                                                             \
+  X(magnetometer, MagnetometerMsg, Magnetometer, magnetometers, 32)                         \
+  X(wheel_speeds, WheelSpeedsMsg, WheelSpeeds, wheel_speeds, 32)                            \
+  X(image, ImageMsg, Image, images, 4)                                                      \
+  X(point_cloud, PointCloudMsg, PointCloud, point_clouds, 4)                                \
+  X(v2v_message, V2VMessageMsg, V2VMessage, v2v_messages, 32)                               \
+  X(vehicle_event, VehicleEventMsg, VehicleEvent, vehicle_events, 256)
+
+/// The protocol messages (not data topics), one row each: X(message struct, IDL type).
+#define SYNDDS_PROTOCOL_MESSAGES(X)          \
+  X(MemberAnnounceMsg, MemberAnnounce)       \
+  X(FrameGrantMsg, FrameGrant)               \
+  X(FrameDoneMsg, FrameDone)                 \
+  X(RunControlMsg, RunControl)
+
+#define SYNDDS_TOPIC_ENUM_(TOPIC, MSG, IDL, LIST, PER_FRAME) TOPIC,
+enum class Topic : std::uint8_t { SYNDDS_DATA_TOPICS(SYNDDS_TOPIC_ENUM_) };
+#undef SYNDDS_TOPIC_ENUM_
+#define SYNDDS_TOPIC_ENUM_(TOPIC, MSG, IDL, LIST, PER_FRAME) Topic::TOPIC,
+inline constexpr Topic kAllDataTopics[] = {SYNDDS_DATA_TOPICS(SYNDDS_TOPIC_ENUM_)};
+#undef SYNDDS_TOPIC_ENUM_
 /// Stable short name used in manifests, logs and DDS topic names ("vehicle_state").
 std::string_view to_string(Topic topic);
 /// Inverse of to_string; returns false for unknown names.
@@ -56,6 +78,7 @@ struct WheelStateMsg {
   double steer_angle_rad = 0.0;   // steering angle of this wheel
   double vertical_load_n = 0.0;   // normal force from the ground (0 when airborne)
 };
+SYNDDS_FIELDS(WheelStateMsg, pose, spin_rad_s, steer_angle_rad, vertical_load_n)
 
 struct VehicleStateMsg {
   std::string vehicle_id;
@@ -74,6 +97,9 @@ struct VehicleStateMsg {
   std::int32_t gear = 0;
   double engine_speed_rpm = 0.0;
 };
+SYNDDS_FIELDS(VehicleStateMsg, vehicle_id, source, frame, sim_time_s, pose, linear_velocity,
+              angular_velocity, linear_acceleration, angular_acceleration, wheels, steering,
+              throttle, braking, gear, engine_speed_rpm)
 
 struct DriverCommandMsg {
   std::string vehicle_id;
@@ -83,6 +109,7 @@ struct DriverCommandMsg {
   double throttle = 0.0;  // [0, 1]
   double braking = 0.0;   // [0, 1]
 };
+SYNDDS_FIELDS(DriverCommandMsg, vehicle_id, source, frame, steering, throttle, braking)
 
 struct TerrainVertexMsg {
   std::int32_t i = 0;
@@ -92,6 +119,7 @@ struct TerrainVertexMsg {
   double sinkage_plastic = 0.0;  // permanent sinkage below level_initial
   double sigma_yield = 0.0;      // highest Bekker stress reached
 };
+SYNDDS_FIELDS(TerrainVertexMsg, i, j, height, level_initial, sinkage_plastic, sigma_yield)
 
 struct TerrainDeformationMsg {
   std::string vehicle_id;
@@ -101,6 +129,7 @@ struct TerrainDeformationMsg {
   double spacing_m = 0.0;
   std::vector<TerrainVertexMsg> vertices;
 };
+SYNDDS_FIELDS(TerrainDeformationMsg, vehicle_id, source, frame, source_index, spacing_m, vertices)
 
 /// Every stored vertex of one vehicle's terrain copy at the end of `frame` (late joiners).
 struct TerrainSnapshotMsg {
@@ -110,6 +139,7 @@ struct TerrainSnapshotMsg {
   double spacing_m = 0.0;
   std::vector<TerrainVertexMsg> vertices;
 };
+SYNDDS_FIELDS(TerrainSnapshotMsg, vehicle_id, source, frame, spacing_m, vertices)
 
 struct CollisionEventMsg {
   std::string vehicle_id;
@@ -120,6 +150,8 @@ struct CollisionEventMsg {
   double impulse_ns = 0.0;
   Vec3 position = Vec3::Zero();
 };
+SYNDDS_FIELDS(CollisionEventMsg, vehicle_id, source, frame, sim_time_s, obstacle_id, impulse_ns,
+              position)
 
 /// Stamp of a synthetic sensor sample: which sensor, its sample number, when it was measured
 /// and when it became available (measurement time + modelled lag).
@@ -129,6 +161,7 @@ struct SensorStampMsg {
   double time_s = 0.0;
   double available_s = 0.0;
 };
+SYNDDS_FIELDS(SensorStampMsg, sensor_id, (sequence, number), time_s, available_s)
 
 struct GpsFixMsg {
   std::string vehicle_id;
@@ -140,6 +173,8 @@ struct GpsFixMsg {
   double altitude_m = 0.0;
   Vec3 enu_m = Vec3::Zero();  // the same fix in the scenario's local frame
 };
+SYNDDS_FIELDS(GpsFixMsg, vehicle_id, source, frame, stamp, latitude_deg, longitude_deg, altitude_m,
+              enu_m)
 
 struct ImuMsg {
   std::string vehicle_id;
@@ -149,6 +184,7 @@ struct ImuMsg {
   Vec3 accel_mps2 = Vec3::Zero();  // specific force in the sensor frame (at rest: +g up)
   Vec3 gyro_rad_s = Vec3::Zero();
 };
+SYNDDS_FIELDS(ImuMsg, vehicle_id, source, frame, stamp, accel_mps2, gyro_rad_s)
 
 struct MagnetometerMsg {
   std::string vehicle_id;
@@ -158,6 +194,7 @@ struct MagnetometerMsg {
   double heading_rad = 0.0;  // compass heading, clockwise from true north, [0, 2 pi)
   Vec3 field_ut = Vec3::Zero();
 };
+SYNDDS_FIELDS(MagnetometerMsg, vehicle_id, source, frame, stamp, heading_rad, field_ut)
 
 struct WheelSpeedsMsg {
   std::string vehicle_id;
@@ -166,6 +203,7 @@ struct WheelSpeedsMsg {
   SensorStampMsg stamp;
   std::vector<double> wheel_spin_rad_s;  // FL, FR, RL, RR
 };
+SYNDDS_FIELDS(WheelSpeedsMsg, vehicle_id, source, frame, stamp, wheel_spin_rad_s)
 
 struct ImageMsg {
   std::string vehicle_id;
@@ -178,6 +216,7 @@ struct ImageMsg {
   std::string encoding = "rgb8";
   std::vector<std::uint8_t> data;  // row-major, top row first
 };
+SYNDDS_FIELDS(ImageMsg, vehicle_id, source, frame, stamp, pose, width, height, encoding, data)
 
 struct PointMsg {
   float x = 0, y = 0, z = 0;  // sensor frame, metres
@@ -186,6 +225,7 @@ struct PointMsg {
   std::uint16_t channel = 0;
   std::uint16_t sample = 0;
 };
+SYNDDS_FIELDS(PointMsg, x, y, z, intensity, range, channel, sample)
 
 struct PointCloudMsg {
   std::string vehicle_id;
@@ -197,6 +237,7 @@ struct PointCloudMsg {
   std::int32_t samples = 0;
   std::vector<PointMsg> points;
 };
+SYNDDS_FIELDS(PointCloudMsg, vehicle_id, source, frame, stamp, pose, channels, samples, points)
 
 /// Vehicle-to-vehicle broadcast: what a vehicle tells the others about itself, from its own
 /// sensors (GPS, compass, tachometer: noise and lag included, never ground truth).
@@ -212,6 +253,8 @@ struct V2VMessageMsg {
   double speed_mps = 0.0;         // from the wheel tachometer
   double heading_rad = 0.0;       // compass: clockwise from true north, [0, 2 pi)
 };
+SYNDDS_FIELDS(V2VMessageMsg, vehicle_id, source, frame, (sequence, number), sensor_time_s,
+              latitude_deg, longitude_deg, altitude_m, speed_mps, heading_rad)
 
 /// Something that happened to a vehicle and is worth a row in events.csv: a follower that lost
 /// (or found again) its leader, a command the vehicle rejected. `kind` is a short word.
@@ -223,40 +266,31 @@ struct VehicleEventMsg {
   std::string kind;
   std::string detail;
 };
+SYNDDS_FIELDS(VehicleEventMsg, vehicle_id, source, frame, sim_time_s, kind, detail)
 
 /// Checks a driver command: empty if valid, else which field is wrong and why (NaN, out of
 /// range). Vehicles apply only valid commands; the recorder marks the others rejected.
 std::string validate_command(const DriverCommandMsg& cmd);
 
-/// Message type and stable name of each data topic, and the topic of each message type.
+/// Message type, stable name and samples per key and frame of each data topic, and the topic
+/// of each message type.
 template <Topic T>
 struct TopicTraits;
 template <typename Msg>
 struct TopicOf;
-#define SYNDDS_TOPIC(TOPIC, MSG)                                     \
+#define SYNDDS_TOPIC_TRAITS_(TOPIC, MSG, IDL, LIST, PER_FRAME)         \
   template <>                                                        \
   struct TopicTraits<Topic::TOPIC> {                                 \
     using Msg = MSG;                                                 \
     static constexpr const char* name = #TOPIC;                      \
+    static constexpr std::uint32_t max_per_frame = PER_FRAME;        \
   };                                                                 \
   template <>                                                        \
   struct TopicOf<MSG> {                                              \
     static constexpr Topic value = Topic::TOPIC;                     \
   };
-SYNDDS_TOPIC(vehicle_state, VehicleStateMsg)
-SYNDDS_TOPIC(driver_command, DriverCommandMsg)
-SYNDDS_TOPIC(terrain_deformation, TerrainDeformationMsg)
-SYNDDS_TOPIC(terrain_snapshot, TerrainSnapshotMsg)
-SYNDDS_TOPIC(collision_event, CollisionEventMsg)
-SYNDDS_TOPIC(gps_fix, GpsFixMsg)
-SYNDDS_TOPIC(imu, ImuMsg)
-SYNDDS_TOPIC(magnetometer, MagnetometerMsg)
-SYNDDS_TOPIC(wheel_speeds, WheelSpeedsMsg)
-SYNDDS_TOPIC(image, ImageMsg)
-SYNDDS_TOPIC(point_cloud, PointCloudMsg)
-SYNDDS_TOPIC(v2v_message, V2VMessageMsg)
-SYNDDS_TOPIC(vehicle_event, VehicleEventMsg)
-#undef SYNDDS_TOPIC
+SYNDDS_DATA_TOPICS(SYNDDS_TOPIC_TRAITS_)
+#undef SYNDDS_TOPIC_TRAITS_
 
 /// Calls f(std::integral_constant<Topic, T>{}) for every data topic, in enum order.
 template <typename F>
@@ -274,6 +308,7 @@ struct TopicCount {
   std::uint32_t count = 0;
   bool operator==(const TopicCount&) const = default;
 };
+SYNDDS_FIELDS(TopicCount, topic, key, writer, count)
 using Manifest = std::vector<TopicCount>;
 
 struct MemberAnnounceMsg {
@@ -287,6 +322,8 @@ struct MemberAnnounceMsg {
   std::uint64_t config_fingerprint = 0;
   std::vector<std::string> expected_members;  // filled by the coordinator only
 };
+SYNDDS_FIELDS(MemberAnnounceMsg, member_id, kind, run_id, participant_guid, host, pid,
+              protocol_version, config_fingerprint, expected_members)
 
 struct FrameGrantMsg {
   std::int64_t frame = 0;
@@ -295,6 +332,7 @@ struct FrameGrantMsg {
   std::vector<std::string> joiners;  // late joiners taking part from frame + 1 on
   std::vector<std::string> departed;  // members lost under on_member_loss: continue since the previous grant
 };
+SYNDDS_FIELDS(FrameGrantMsg, frame, sim_time_s, manifest, joiners, departed)
 
 struct FrameDoneMsg {
   std::string member_id;
@@ -304,6 +342,7 @@ struct FrameDoneMsg {
   bool finished = false;    // true: reply to RunControl stop, the member is shutting down
   std::string error;        // non-empty: the member failed (and exits); the run aborts with it
 };
+SYNDDS_FIELDS(FrameDoneMsg, member_id, frame, published, compute_s, finished, error)
 
 struct MemberStatsMsg {
   std::string member_id;
@@ -313,6 +352,8 @@ struct MemberStatsMsg {
   std::uint64_t slowest_count = 0;  // frames in which this member answered last
   bool lost = false;
 };
+SYNDDS_FIELDS(MemberStatsMsg, member_id, mean_response_s, max_response_s, mean_compute_s,
+              slowest_count, lost)
 
 enum class RunStatus : std::uint8_t { completed, aborted };
 std::string_view to_string(RunStatus status);
@@ -325,6 +366,7 @@ struct RunStatsMsg {
   double real_time_factor = 0.0;  // wall / sim; lower is faster
   std::vector<MemberStatsMsg> members;
 };
+SYNDDS_FIELDS(RunStatsMsg, frames, final_frame, sim_time_s, wall_time_s, real_time_factor, members)
 
 struct RunControlMsg {
   RunStatus status = RunStatus::completed;  // completed = stop after final frame
@@ -333,5 +375,6 @@ struct RunControlMsg {
   Manifest final_manifest;  // what was published in final_frame
   RunStatsMsg stats;
 };
+SYNDDS_FIELDS(RunControlMsg, status, reason, final_frame, final_manifest, stats)
 
 }  // namespace syndds::proto

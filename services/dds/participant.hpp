@@ -15,13 +15,18 @@
 #include <syndds.h>
 #include <synddsPubSubTypes.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <type_traits>
+#include <utility>
 
+#include "core/error.hpp"
+#include "dds/convert.hpp"
 #include "protocol/messages.hpp"
 
 namespace syndds::dds {
@@ -54,32 +59,20 @@ inline constexpr const char* kDataReader = "data_reader";
 inline constexpr const char* kSensorWriter = "sensor_writer";
 }  // namespace profiles
 
+/// The PubSubType and registered name of every generated type in the topic tables.
 template <typename T>
 struct TypeTraits;
-#define SYNDDS_DDS_TYPE(T)                 \
-  template <>                              \
-  struct TypeTraits<msg::T> {              \
-    using PubSub = msg::T##PubSubType;     \
-    static constexpr const char* name = "syndds::msg::" #T; \
+#define SYNDDS_DDS_TYPE_(MSG, IDL)                            \
+  template <>                                                 \
+  struct TypeTraits<msg::IDL> {                               \
+    using PubSub = msg::IDL##PubSubType;                      \
+    static constexpr const char* name = "syndds::msg::" #IDL; \
   };
-SYNDDS_DDS_TYPE(MemberAnnounce)
-SYNDDS_DDS_TYPE(FrameGrant)
-SYNDDS_DDS_TYPE(FrameDone)
-SYNDDS_DDS_TYPE(RunControl)
-SYNDDS_DDS_TYPE(VehicleState)
-SYNDDS_DDS_TYPE(DriverCommand)
-SYNDDS_DDS_TYPE(TerrainDeformation)
-SYNDDS_DDS_TYPE(TerrainSnapshot)
-SYNDDS_DDS_TYPE(CollisionEvent)
-SYNDDS_DDS_TYPE(GpsFix)
-SYNDDS_DDS_TYPE(Imu)
-SYNDDS_DDS_TYPE(Magnetometer)
-SYNDDS_DDS_TYPE(WheelSpeeds)
-SYNDDS_DDS_TYPE(Image)
-SYNDDS_DDS_TYPE(PointCloud)
-SYNDDS_DDS_TYPE(V2VMessage)
-SYNDDS_DDS_TYPE(VehicleEvent)
-#undef SYNDDS_DDS_TYPE
+#define SYNDDS_DDS_TYPE_TOPIC_(TOPIC, MSG, IDL, LIST, PER_FRAME) SYNDDS_DDS_TYPE_(MSG, IDL)
+SYNDDS_PROTOCOL_MESSAGES(SYNDDS_DDS_TYPE_)
+SYNDDS_DATA_TOPICS(SYNDDS_DDS_TYPE_TOPIC_)
+#undef SYNDDS_DDS_TYPE_TOPIC_
+#undef SYNDDS_DDS_TYPE_
 
 /// The generated PubSubType computes instance keys in member buffers (m_keyBuffer, m_md5), but
 /// Fast DDS calls getKey from every thread that uses the type: the thread writing a sample and
@@ -102,6 +95,27 @@ class ThreadSafeKeyType : public PubSub {
   std::mutex key_mutex_;
 };
 
+/// How many samples of one key a writer of generated type T may write in one frame: the last
+/// column of SYNDDS_DATA_TOPICS for a data topic, 0 (no limit) for the protocol types.
+template <typename T>
+constexpr std::uint32_t max_per_frame() {
+  if constexpr (DdsTopicOf<T>::value.has_value()) {
+    return proto::TopicTraits<*DdsTopicOf<T>::value>::max_per_frame;
+  } else {
+    return 0;
+  }
+}
+
+/// The history depth per key of a data topic's writers and readers: two frames of samples (at
+/// most two frames are in flight, docs/protocol.md), never less than the QoS profile asks for.
+/// A KEEP_LAST history one sample too short silently replaces a sample a reader still needs.
+template <typename T>
+void deepen_history(fdds::HistoryQosPolicy& history) {
+  if (history.kind == fdds::KEEP_LAST_HISTORY_QOS && max_per_frame<T>() > 0) {
+    history.depth = std::max(history.depth, static_cast<std::int32_t>(2 * max_per_frame<T>()));
+  }
+}
+
 class Participant;
 
 template <typename T>
@@ -112,15 +126,36 @@ class Writer {
   ~Writer() { publisher_->delete_datawriter(writer_); }
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
-  /// Returns false if DDS refused the sample (the caller decides how bad that is).
-  bool write(const T& sample) { return writer_->write(const_cast<T*>(&sample)); }
+  /// Returns false if DDS refused the sample (the caller decides how bad that is). Throws
+  /// ProtocolError for a sample of a data topic beyond max_per_frame of its key and frame: the
+  /// history could not keep it and the samples before it for the readers.
+  bool write(const T& sample) {
+    if constexpr (max_per_frame<T>() > 0) count_in_frame(sample);
+    return writer_->write(const_cast<T*>(&sample));
+  }
   fdds::DataWriter* raw() { return writer_; }
   /// Blocks until every matched reader acknowledged everything written (bounded).
   bool wait_for_acknowledgments(double timeout_s);
 
  private:
+  void count_in_frame(const T& sample) {
+    auto& [frame, count] = per_key_[sample.vehicle_id()];
+    if (count == 0 || frame != sample.frame()) {
+      frame = sample.frame();
+      count = 0;
+    }
+    if (++count > max_per_frame<T>()) {
+      throw ProtocolError(std::string(proto::TopicTraits<*DdsTopicOf<T>::value>::name) +
+                          ": sample " + std::to_string(count) + " of vehicle '" +
+                          sample.vehicle_id() + "' in frame " + std::to_string(frame) +
+                          "; a writer may write at most " + std::to_string(max_per_frame<T>()) +
+                          " per vehicle and frame (SYNDDS_DATA_TOPICS in protocol/messages.hpp)");
+    }
+  }
+
   fdds::Publisher* publisher_;
   fdds::DataWriter* writer_;
+  std::map<std::string, std::pair<std::int64_t, std::uint32_t>> per_key_;  // frame, count
 };
 
 using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
@@ -191,7 +226,12 @@ class Participant : private fdds::DomainParticipantListener {
                                          const std::string& vehicle_id = "") {
     fdds::Topic* t = topic<T>(topic_name);
     fdds::Publisher* publisher = vehicle_id.empty() ? publisher_ : data_publisher(vehicle_id);
-    fdds::DataWriter* w = publisher->create_datawriter_with_profile(t, profile);
+    fdds::DataWriterQos qos;
+    if (publisher->get_datawriter_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
+      fail(std::string("no data writer QoS profile ") + profile);
+    }
+    deepen_history<T>(qos.history());
+    fdds::DataWriter* w = publisher->create_datawriter(t, qos);
     if (!w) fail("cannot create writer for " + topic_name + " with profile " + profile);
     return std::make_unique<Writer<T>>(publisher, w);
   }
@@ -230,8 +270,13 @@ class Participant : private fdds::DomainParticipantListener {
                                    : scope == Scope::all_vehicles ? data_subscriber("")
                                                                   : data_subscriber(vehicle_id);
     auto reader = std::make_unique<Reader<T>>(std::move(on_sample));
-    fdds::DataReader* r = subscriber->create_datareader_with_profile(
-        t, profile, reader.get(), fdds::StatusMask::data_available());
+    fdds::DataReaderQos qos;
+    if (subscriber->get_datareader_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
+      fail(std::string("no data reader QoS profile ") + profile);
+    }
+    deepen_history<T>(qos.history());
+    fdds::DataReader* r =
+        subscriber->create_datareader(t, qos, reader.get(), fdds::StatusMask::data_available());
     if (!r) fail("cannot create reader for " + topic_name + " with profile " + profile);
     reader->attach(subscriber, r);
     return reader;

@@ -1,5 +1,6 @@
 // In-process DDS tests: the coordinator and members as objects in one process, each with its
-// own DDS participant, talking over the real Fast DDS stack; plus the type conversions.
+// own DDS participant, talking over the real Fast DDS stack (the type conversions are tested in
+// test_convert.cpp).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -8,8 +9,6 @@
 #include <thread>
 
 #include "agents/agent_factory.hpp"
-#include "core/error.hpp"
-#include "dds/convert.hpp"
 #include "dds/coordinator_service.hpp"
 #include "dds/member_runtime.hpp"
 #include "protocol/local_runner.hpp"
@@ -38,74 +37,6 @@ sdds::DdsOptions dds_options(int domain, const std::string& run_id) {
 }
 
 }  // namespace
-
-TEST(Convert, VehicleStateRoundTripsExactly) {
-  proto::VehicleStateMsg s;
-  s.vehicle_id = "v1";
-  s.source = "vehicle/v1";
-  s.frame = 42;
-  s.sim_time_s = 0.42;
-  s.pose.position = Vec3(1.0 / 3.0, -2.5, 0.467);
-  s.pose.orientation = Quat(Eigen::AngleAxisd(0.3, Vec3(0.1, 0.2, 1.0).normalized()));
-  s.linear_velocity = Vec3(1, 2, 3);
-  s.angular_acceleration = Vec3(-1e-300, 4, 5);
-  s.wheels.push_back({s.pose, 12.5, 0.1, 6000.0});
-  s.steering = -0.25;
-  s.throttle = 0.75;
-  s.gear = 2;
-  s.engine_speed_rpm = 1650.5;
-  const auto back = sdds::from_dds(sdds::to_dds(s));
-  EXPECT_EQ(back.vehicle_id, s.vehicle_id);
-  EXPECT_EQ(back.frame, s.frame);
-  EXPECT_EQ(back.pose.position, s.pose.position);
-  EXPECT_EQ(back.pose.orientation.coeffs(), s.pose.orientation.coeffs());
-  EXPECT_EQ(back.angular_acceleration, s.angular_acceleration);
-  ASSERT_EQ(back.wheels.size(), 1u);
-  EXPECT_EQ(back.wheels[0].spin_rad_s, 12.5);
-  EXPECT_EQ(back.engine_speed_rpm, s.engine_speed_rpm);
-  EXPECT_EQ(back.gear, 2);
-}
-
-TEST(Convert, ControlMessagesRoundTrip) {
-  proto::RunControlMsg c;
-  c.status = proto::RunStatus::aborted;
-  c.reason = "member vehicle/a lost";
-  c.final_frame = 7;
-  c.final_manifest = {{proto::Topic::collision_event, "a", "vehicle/a", 2}};
-  c.stats.frames = 8;
-  c.stats.members = {{"vehicle/a", 0.001, 0.002, 0.0005, 3, true}};
-  const auto back = sdds::from_dds(sdds::to_dds(c));
-  EXPECT_EQ(back.status, proto::RunStatus::aborted);
-  EXPECT_EQ(back.reason, c.reason);
-  EXPECT_EQ(back.final_manifest, c.final_manifest);
-  ASSERT_EQ(back.stats.members.size(), 1u);
-  EXPECT_TRUE(back.stats.members[0].lost);
-  EXPECT_EQ(back.stats.members[0].slowest_count, 3u);
-}
-
-TEST(Convert, MalformedSamplesAreRejectedWithTheField) {
-  msg::FrameGrant g;
-  msg::TopicCount c;
-  c.topic("vehicle_speed");
-  c.writer("vehicle/x");
-  g.manifest().push_back(c);
-  try {
-    sdds::from_dds(g);
-    FAIL() << "accepted an unknown topic";
-  } catch (const ProtocolError& e) {
-    EXPECT_NE(std::string(e.what()).find("unknown topic 'vehicle_speed' (writer vehicle/x)"),
-              std::string::npos)
-        << e.what();
-  }
-  msg::TerrainDeformation t;
-  t.source("vehicle/y");
-  msg::TerrainVertex v;
-  v.i(3);
-  v.j(4);
-  v.height(std::nan(""));
-  t.vertices().push_back(v);
-  EXPECT_THROW(sdds::from_dds(t), ProtocolError);
-}
 
 // A whole run with every agent on its own participant in this process, compared byte for byte
 // with the same agents in the LocalRunner.

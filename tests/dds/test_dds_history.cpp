@@ -16,6 +16,7 @@
 #include <set>
 #include <thread>
 
+#include "core/error.hpp"
 #include "dds/convert.hpp"
 #include "dds/participant.hpp"
 
@@ -26,7 +27,7 @@ namespace fdds = eprosima::fastdds::dds;
 namespace {
 
 const std::string kConfig = SYNDDS_TEST_CONFIG_DIR;
-constexpr int kDataWriterDepth = 8;  // config/dds/profiles.xml, data_writer
+constexpr int kDataWriterDepth = 8;  // config/dds/profiles.xml, data_writer (terrain topics)
 constexpr int kDomain = 61;
 
 sdds::DdsOptions options(const std::string& run_id) {
@@ -171,4 +172,91 @@ TEST(DdsHistory, SamplesOfOneKeyCarryOneInstanceHandle) {
   reader_a->raw()->set_listener(nullptr);
   EXPECT_GT(counter.count("b"), 0);
   EXPECT_EQ(counter.handles("b"), 1u) << "samples of key b were given several instance handles";
+}
+
+// A vehicle that touches many obstacles in one frame writes one collision event per obstacle,
+// all of one key and one frame. A reader that matches only after they were written (discovery
+// is one-sided at the start of a run) is replayed the writer's history: every one of them must
+// still be there, not the last eight.
+TEST(DdsHistory, EveryCollisionEventOfOneFrameReachesALateReader) {
+  constexpr int kEvents = 40;
+  static_assert(kEvents > kDataWriterDepth);
+  static_assert(kEvents <= proto::TopicTraits<proto::Topic::collision_event>::max_per_frame);
+  const std::string topic = sdds::topics::data(proto::Topic::collision_event);
+  sdds::Participant a(options("history-collisions"));
+  auto writer = a.make_writer<msg::CollisionEvent>(topic, sdds::profiles::kDataWriter, "a");
+  for (int k = 0; k < kEvents; ++k) {
+    proto::CollisionEventMsg e;
+    e.vehicle_id = "a";
+    e.source = "vehicle/a";
+    e.frame = 12;
+    e.sim_time_s = 0.12;
+    e.obstacle_id = "rock" + std::to_string(k);
+    e.impulse_ns = 10.0 + k;
+    ASSERT_TRUE(writer->write(sdds::to_dds(e)));
+  }
+
+  sdds::Participant b(options("history-collisions"));
+  std::mutex mutex;
+  std::set<std::string> obstacles;
+  int received = 0;
+  auto reader = b.make_reader<msg::CollisionEvent>(
+      topic, sdds::profiles::kDataReader,
+      [&](msg::CollisionEvent&& e) {
+        const auto m = sdds::from_dds(e);
+        std::lock_guard lock(mutex);
+        ++received;
+        obstacles.insert(m.obstacle_id);
+      },
+      sdds::Participant::Scope::one_vehicle, "a");
+  auto count = [&] {
+    std::lock_guard lock(mutex);
+    return received;
+  };
+  fdds::PublicationMatchedStatus matched;
+  ASSERT_TRUE(wait_until([&] {
+    writer->raw()->get_publication_matched_status(matched);
+    return matched.current_count == 1;
+  }, 10.0));
+  ASSERT_TRUE(writer->wait_for_acknowledgments(10.0));
+  // Acknowledged means received; the listener may still be taking the last ones.
+  wait_until([&] { return count() >= kEvents; }, 10.0);
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(received, kEvents);
+  EXPECT_EQ(obstacles.size(), static_cast<std::size_t>(kEvents));
+}
+
+// The history of every data writer holds two frames of the most samples it may write per key
+// and frame, on top of its QoS profile; one more sample in a frame is refused, not written over
+// a sample a reader may still need.
+TEST(DdsHistory, WritersKeepTwoFramesAndRefuseMoreSamplesPerFrame) {
+  sdds::Participant p(options("history-limit"));
+  auto events = p.make_writer<msg::CollisionEvent>(
+      sdds::topics::data(proto::Topic::collision_event), sdds::profiles::kDataWriter, "a");
+  const auto qos = events->raw()->get_qos();
+  EXPECT_EQ(qos.history().depth,
+            2 * static_cast<int>(proto::TopicTraits<proto::Topic::collision_event>::max_per_frame));
+  EXPECT_EQ(qos.durability().kind, fdds::TRANSIENT_LOCAL_DURABILITY_QOS);  // the profile's
+  EXPECT_EQ(qos.reliability().kind, fdds::RELIABLE_RELIABILITY_QOS);
+
+  constexpr auto kLimit = proto::TopicTraits<proto::Topic::vehicle_state>::max_per_frame;
+  auto states = p.make_writer<msg::VehicleState>(
+      sdds::topics::data(proto::Topic::vehicle_state), sdds::profiles::kDataWriter, "a");
+  EXPECT_EQ(states->raw()->get_qos().history().depth, kDataWriterDepth);
+  proto::VehicleStateMsg s;
+  s.vehicle_id = "a";
+  s.source = "vehicle/a";
+  s.frame = 3;
+  for (std::uint32_t k = 0; k < kLimit; ++k) EXPECT_TRUE(states->write(sdds::to_dds(s)));
+  try {
+    states->write(sdds::to_dds(s));
+    FAIL() << "a writer accepted more samples of one frame than its history keeps";
+  } catch (const ProtocolError& e) {
+    EXPECT_NE(std::string(e.what()).find("vehicle_state: sample " + std::to_string(kLimit + 1) +
+                                         " of vehicle 'a' in frame 3"),
+              std::string::npos)
+        << e.what();
+  }
+  s.frame = 4;
+  EXPECT_TRUE(states->write(sdds::to_dds(s)));
 }
