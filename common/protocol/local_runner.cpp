@@ -16,7 +16,14 @@ double seconds_since(Clock::time_point t0) {
 
 template <typename T>
 void check_list(const std::vector<T>& v, std::string_view topic, std::int64_t frame,
-                const std::string& source, const std::string& key) {
+                const std::string& source, const std::string& key, std::uint32_t max_per_frame) {
+  // The same limit as the DDS writer's history (TopicTraits::max_per_frame): a step that writes
+  // more fails in one process exactly as it would distributed.
+  if (v.size() > max_per_frame) {
+    throw ProtocolError(source + " wrote " + std::to_string(v.size()) + " " + std::string(topic) +
+                        " samples in frame " + std::to_string(frame) + "; at most " +
+                        std::to_string(max_per_frame) + " per vehicle and frame");
+  }
   for (const auto& s : v) {
     if (s.frame != frame || s.source != source) {
       throw ProtocolError(source + " wrote a " + std::string(topic) + " sample stamped frame " +
@@ -36,7 +43,8 @@ void check_outputs(const FrameSamples& out, std::int64_t frame, const std::strin
                    const std::string& vehicle_key) {
   for_each_topic([&](auto t) {
     constexpr Topic T = decltype(t)::value;
-    check_list(out.list<T>(), TopicTraits<T>::name, frame, source, vehicle_key);
+    check_list(out.list<T>(), TopicTraits<T>::name, frame, source, vehicle_key,
+               TopicTraits<T>::max_per_frame);
   });
 }
 

@@ -108,6 +108,37 @@ TEST(LocalRunner, RejectsOutputsWithTheWrongStamp) {
   EXPECT_THROW(runner.run(), ProtocolError);
 }
 
+// The DDS writers keep max_per_frame samples per vehicle and frame; one process refuses more
+// in the same way, so a run cannot pass in one process and lose samples distributed.
+TEST(LocalRunner, RejectsMoreSamplesPerFrameThanTheTopicCarries) {
+  struct Chatty : proto::Agent {
+    std::string id = "chatty";
+    const std::string& member_id() const override { return id; }
+    proto::MemberKind kind() const override { return proto::MemberKind::controller; }
+    std::vector<proto::Subscription> subscriptions() const override { return {}; }
+    std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
+    std::string vehicle_key() const override { return "x"; }
+    void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
+              proto::FrameSamples& out) override {
+      for (std::uint32_t i = 0;
+           i <= proto::TopicTraits<proto::Topic::driver_command>::max_per_frame; ++i) {
+        out.driver_commands.push_back({"x", id, ctx.frame, 0.0, 0.0, 0.0});
+      }
+    }
+  };
+  std::vector<proto::AgentPtr> agents;
+  agents.push_back(std::make_unique<Chatty>());
+  proto::LocalRunner runner(std::move(agents), {3, 0.01, false});
+  try {
+    runner.run();
+    FAIL() << "no error";
+  } catch (const ProtocolError& e) {
+    EXPECT_NE(std::string(e.what()).find("driver_command samples in frame 0; at most"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(VehicleAgent, RejectsNaNAndOutOfRangeCommands) {
   proto::DriverCommandMsg c;
   c.steering = std::nan("");
