@@ -1,4 +1,4 @@
-#include "record/recorder_agent.hpp"
+#include "agents/recorder_agent.hpp"
 
 #include <fmt/format.h>
 
