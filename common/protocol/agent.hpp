@@ -78,6 +78,7 @@ struct FrameContext {
   double sim_time_s = 0.0;    // t_k = frame * heartbeat_s, the time at the end of this frame
   double heartbeat_s = 0.0;
   std::vector<std::string> joiners;  // members joining from frame + 1 on (need a snapshot)
+  std::vector<std::string> departed;  // members lost (on_member_loss: continue) since the last frame
 };
 
 /// How a run ended, as told to every agent.
