@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -103,8 +104,10 @@ TerrainImageInfo write_terrain_images(const ScmTerrain& terrain, const std::stri
   write_png(info.height_png, height_img);
   write_png(info.rut_png, rut_img);
   nlohmann::json j;
-  j["height_png"] = info.height_png;
-  j["rut_png"] = info.rut_png;
+  // The images sit beside this file: names, not paths, so that the run directory can move and
+  // the file is the same wherever the run was written.
+  j["height_png"] = std::filesystem::path(info.height_png).filename().string();
+  j["rut_png"] = std::filesystem::path(info.rut_png).filename().string();
   j["width_px"] = info.width_px;
   j["height_px"] = info.height_px;
   j["spacing_m"] = terrain.spacing();
