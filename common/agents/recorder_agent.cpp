@@ -176,30 +176,34 @@ void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
 
 void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
   finished_ = true;
-  try {
-    guarded([&] {
-      if (!final_inputs.empty()) {
-        record(final_inputs);
-        commit();
-      }
-      if (!followers_.empty()) write_convoy_report();
-      if (end.control.status == proto::RunStatus::aborted) {
-        note_event(last_frame_, "run_aborted", "", end.control.reason);
-      } else {
-        note_event(last_frame_, "run_completed", "", "");
-      }
-      if (soil_) {
-        try {
-          scm::write_terrain_images(*soil_, (fs::path(options_.output_dir) / "terrain").string());
-        } catch (const WriteError&) {
-          throw;
-        } catch (const std::exception& e) {
-          note_event(last_frame_, "error", "", std::string("terrain images: ") + e.what());
+  // After a write error (it ended the run) the files stay as they were: only whole frames.
+  if (failure_.empty()) {
+    try {
+      guarded([&] {
+        if (!final_inputs.empty()) {
+          record(final_inputs);
+          commit();
         }
-      }
-    });
-  } catch (const WriteError& e) {
-    spdlog::error("recorder: {}", e.what());
+        if (!followers_.empty()) write_convoy_report();
+        if (end.control.status == proto::RunStatus::aborted) {
+          note_event(last_frame_, "run_aborted", "", end.control.reason);
+        } else {
+          note_event(last_frame_, "run_completed", "", "");
+        }
+        if (soil_) {
+          try {
+            scm::write_terrain_images(*soil_,
+                                      (fs::path(options_.output_dir) / "terrain").string());
+          } catch (const WriteError&) {
+            throw;
+          } catch (const std::exception& e) {
+            note_event(last_frame_, "error", "", std::string("terrain images: ") + e.what());
+          }
+        }
+      });
+    } catch (const WriteError& e) {
+      spdlog::error("recorder: {}", e.what());
+    }
   }
   // The summary says how the run ended even when the files above could not be completed (the
   // failure is in it); if it cannot be written either, the last one written stays.
