@@ -18,6 +18,10 @@ using Clock = std::chrono::steady_clock;
 
 // How often summary.json is brought up to date while the run goes on (wall time).
 constexpr double kSummaryPeriodS = 1.0;
+// Held back until the end, so that the summary saying why the run ended fits on a full disk
+// (summary.json and summary.txt of a large scenario take a few tens of kB).
+constexpr const char* kReserveFile = ".summary_reserve";
+constexpr std::uint64_t kReserveBytes = 256 * 1024;
 
 const std::vector<std::string> kVehicleColumns = {
     "frame", "time_s", "vehicle", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz",
@@ -109,6 +113,7 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw ConfigError(dir.string() + ": cannot create output directory: " + ec.message());
+  reserve_ = std::make_unique<SpaceReserve>(dir / kReserveFile, kReserveBytes);
   vehicles_ = std::make_unique<CsvFile>(dir / "vehicles.csv", kVehicleColumns);
   commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns);
   events_ = std::make_unique<CsvFile>(dir / "events.csv", kEventColumns);
@@ -207,6 +212,7 @@ void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& 
   }
   // The summary says how the run ended even when the files above could not be completed (the
   // failure is in it); if it cannot be written either, the last one written stays.
+  reserve_.reset();
   try {
     write_summary(&end.control);
   } catch (const WriteError& e) {

@@ -113,6 +113,7 @@ class RecorderAgent final : public proto::Agent {
   std::int64_t pending_frame_ = -1;  // gathered, not yet committed
   std::vector<MemberLoss> losses_;
   std::string failure_;  // the write error that stopped the recorder
+  std::unique_ptr<SpaceReserve> reserve_;  // room for the final summary on a full disk
   std::chrono::steady_clock::time_point started_;
   std::chrono::steady_clock::time_point summary_written_;
   bool finished_ = false;

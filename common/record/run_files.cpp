@@ -132,6 +132,25 @@ void commit_rows(std::initializer_list<CsvFile*> files) {
   }
 }
 
+SpaceReserve::SpaceReserve(fs::path path, std::uint64_t bytes) : path_(std::move(path)) {
+  const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw WriteError(path_.string() + ": cannot create: " + reason(errno));
+  const int error = ::posix_fallocate(fd, 0, static_cast<off_t>(bytes));  // not via errno
+  ::close(fd);
+  if (error != 0) {
+    ::unlink(path_.c_str());
+    throw WriteError(path_.string() + ": cannot reserve " + std::to_string(bytes) +
+                     " bytes: " + reason(error));
+  }
+  held_ = true;
+}
+
+void SpaceReserve::release() {
+  if (!held_) return;
+  held_ = false;
+  ::unlink(path_.c_str());
+}
+
 void write_file_atomically(const fs::path& path, std::string_view bytes) {
   const fs::path tmp = path.string() + ".tmp";
   try {

@@ -11,7 +11,8 @@
 //    files, and when any write fails every file is cut back to the end of the previous frame, so
 //    the files never hold part of a frame.
 //  - Summaries are replaced atomically (temporary file in the same directory, fsync, rename):
-//    a reader, or a run killed at any moment, sees the old or the new file, never a partial one.
+//    a reader, or a run killed at any moment, sees the old or the new file, never a partial one;
+//    a SpaceReserve keeps room for the last one on a disk that fills up.
 //
 // No DDS and nothing heavy here: every layer above (agents, scm, services) may use it.
 #include <fmt/format.h>
@@ -146,6 +147,23 @@ class CsvFile {
 /// fails, every file is cut back to where it was before, the buffers are dropped and the
 /// WriteError is rethrown. Files never end inside a row or hold half a frame.
 void commit_rows(std::initializer_list<CsvFile*> files);
+
+/// Disk space held back: a file of `bytes` allocated now and deleted by release(), so that what
+/// must be written last (the summary saying why the run ended) still fits on a disk that filled
+/// up. Released when destroyed.
+class SpaceReserve {
+ public:
+  /// Throws WriteError if the space cannot be allocated.
+  SpaceReserve(std::filesystem::path path, std::uint64_t bytes);
+  ~SpaceReserve() { release(); }
+  SpaceReserve(const SpaceReserve&) = delete;
+  SpaceReserve& operator=(const SpaceReserve&) = delete;
+  void release();
+
+ private:
+  std::filesystem::path path_;
+  bool held_ = false;
+};
 
 /// Replaces `path` by a file holding `bytes`: written to a temporary file in the same
 /// directory, synced, renamed over `path`. Throws WriteError (and leaves `path` as it was).

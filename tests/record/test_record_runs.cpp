@@ -1,6 +1,6 @@
 // The run directory when things go wrong, with the real programs: a recorder that cannot write
-// (a file size limit stands in for a full disk: the write fails with EFBIG instead of ENOSPC),
-// a recorder or a coordinator killed with SIGKILL.
+// (a full tmpfs, or a file size limit: the write fails with EFBIG instead of ENOSPC), a recorder
+// or a coordinator killed with SIGKILL.
 #include <nlohmann/json.hpp>
 
 #include "harness.hpp"
@@ -12,6 +12,8 @@ namespace {
 
 const std::string kTwo = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
 const std::string kLong = kSource + "/tests/multiprocess/scenarios/long_run.yaml";
+// 300 kB: room for the recorder's 256 kB space reserve, not for 20 s of two vehicles (550 kB).
+constexpr int kLimitBlocks = 600;
 
 // `command` with files limited to `blocks` * 512 bytes (SIGXFSZ ignored, so writes fail instead).
 std::string with_file_limit(const std::string& command, int blocks) {
@@ -50,9 +52,9 @@ std::size_t member_index(const std::vector<Planned>& processes, const std::strin
 TEST(RecorderFailure, AFullDiskFailsTheSingleProcessRun) {
   TestRun run;
   const fs::path out = run.dir / "out";
-  Process sim(with_file_limit(kBin + "/syndds_sim " + kTwo + " --quiet --output " + out.string() +
-                                  run.common_args(),
-                              64),
+  Process sim(with_file_limit(kBin + "/syndds_sim " + kTwo + " --duration 20 --quiet --output " +
+                                  out.string() + run.common_args(),
+                              kLimitBlocks),
               run.dir / "sim.log");
   const auto code = sim.wait(60);
   ASSERT_TRUE(code.has_value()) << sim.log();
@@ -66,7 +68,7 @@ TEST(RecorderFailure, AFullDiskFailsTheSingleProcessRun) {
     EXPECT_EQ(frame, expected++);
     EXPECT_EQ(n, 2) << "frame " << frame;
   }
-  EXPECT_LT(rows.rbegin()->first, 200);  // it did stop early
+  EXPECT_LT(rows.rbegin()->first, 2000);  // it did stop early
   const auto summary = summary_of(out);
   ASSERT_FALSE(summary.is_null()) << "summary.json is empty or cut short";
   EXPECT_EQ(summary["status"], "aborted");
@@ -74,13 +76,43 @@ TEST(RecorderFailure, AFullDiskFailsTheSingleProcessRun) {
   EXPECT_EQ(summary["recorded_up_to_frame"].get<long>(), rows.rbegin()->first);
 }
 
+// A real full disk: a 1 MB tmpfs as the run directory (mounted in a private mount namespace,
+// the run directory copied out before the namespace goes). Before: exit 0 and "completed" with
+// vehicles.csv cut mid-row; then, without room for it, a summary still saying "running", -1.
+TEST(RecorderFailure, ARealFullDiskEndsTheRunWithTheReasonInTheSummary) {
+  TestRun run;
+  const fs::path disk = run.dir / "disk";
+  const fs::path copy = run.dir / "copy";
+  fs::create_directories(disk);
+  const std::string script =
+      "mount -t tmpfs -o size=1m tmpfs " + disk.string() + " && { " + kBin + "/syndds_sim " +
+      kConfig + "/scenarios/default.yaml --duration 30 --quiet --output " +
+      (disk / "run").string() + run.common_args() + "; code=$?; cp -r " +
+      (disk / "run").string() + " " + copy.string() + "; exit $code; }";
+  Process sim("unshare -rm /bin/sh -c '" + script + "'", run.dir / "sim.log");
+  const auto code = sim.wait(120);
+  ASSERT_TRUE(code.has_value()) << sim.log();
+  EXPECT_NE(*code, 0) << sim.log();
+  EXPECT_NE(sim.log().find("No space left on device"), std::string::npos) << sim.log();
+  const auto rows = rows_per_frame(copy);
+  ASSERT_FALSE(rows.empty());
+  for (const auto& [frame, n] : rows) EXPECT_EQ(n, 3) << "frame " << frame;
+  const auto summary = summary_of(copy);
+  ASSERT_FALSE(summary.is_null()) << "summary.json is empty or cut short";
+  EXPECT_EQ(summary["status"], "aborted") << summary.dump(2);
+  EXPECT_NE(summary["reason"].get<std::string>().find("No space left on device"),
+            std::string::npos);
+  EXPECT_EQ(summary["recorded_up_to_frame"].get<long>(), rows.rbegin()->first);
+  EXPECT_FALSE(fs::exists(copy / ".summary_reserve"));
+}
+
 // The recorder process cannot write: it fails, the coordinator aborts the run with its reason.
 TEST(RecorderFailure, AFullDiskAtTheRecorderAbortsTheDistributedRun) {
   TestRun run;
   const fs::path out = run.dir / "out";
-  const auto processes = plan(run, kTwo, out.string(), "");
+  const auto processes = plan(run, kTwo, out.string(), "--duration 20");
   auto procs = start_all(run, processes, [](const Planned& p) {
-    return p.member == "recorder" ? with_file_limit(p.command, 64) : p.command;
+    return p.member == "recorder" ? with_file_limit(p.command, kLimitBlocks) : p.command;
   });
   const auto codes = wait_all(procs, 90.0);
   const std::size_t recorder = member_index(processes, "recorder");

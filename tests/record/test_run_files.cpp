@@ -120,3 +120,26 @@ TEST(RunFiles, AtomicReplacementLeavesTheOldFileWhenTheNewOneCannotBeWritten) {
   EXPECT_EQ(read_file(dir / "s.json"), "new\n");
   EXPECT_THROW(write_file_atomically(dir / "missing" / "s.json", "x"), WriteError);
 }
+
+TEST(RunFiles, ASpaceReserveHoldsItsBytesUntilReleased) {
+  const fs::path dir = fresh_dir("reserve");
+  {
+    SpaceReserve reserve(dir / ".reserve", 64 * 1024);
+    ASSERT_TRUE(fs::exists(dir / ".reserve"));
+    EXPECT_EQ(fs::file_size(dir / ".reserve"), 64u * 1024u);
+    reserve.release();
+    EXPECT_FALSE(fs::exists(dir / ".reserve"));
+    reserve.release();  // twice is fine
+  }
+  { SpaceReserve reserve(dir / ".reserve", 1024); }
+  EXPECT_FALSE(fs::exists(dir / ".reserve"));  // released when destroyed
+  try {
+    FileSizeLimit limit(1000);
+    SpaceReserve too_big(dir / ".reserve", 4096);
+    FAIL() << "a reserve past the file size limit was allocated";
+  } catch (const WriteError& e) {
+    EXPECT_NE(std::string(e.what()).find(".reserve: cannot reserve 4096 bytes"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / ".reserve"));
+}
