@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "protocol/agent.hpp"
-#include "record/recorder_agent.hpp"
+#include "agents/recorder_agent.hpp"
 #include "scenario/scenario.hpp"
 
 namespace syndds::agents {

@@ -96,9 +96,10 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
     std::error_code ec;
     fs::create_directories(dir, ec);
     if (ec) throw ConfigError(dir.string() + ": cannot create sensor output directory");
-    index_.reset(std::fopen((dir / "frames.csv").c_str(), "w"));
-    if (!index_) throw ConfigError((dir / "frames.csv").string() + ": cannot create");
-    std::fputs("sensor,sequence,time_s,available_s,x,y,z,qw,qx,qy,qz,file\n", index_.get());
+    index_ = std::make_unique<record::CsvFile>(
+        dir / "frames.csv",
+        std::vector<std::string>{"sensor", "sequence", "time_s", "available_s", "x", "y", "z",
+                                 "qw", "qx", "qy", "qz", "file"});
   }
 }
 
@@ -151,8 +152,24 @@ void SensorAgent::render_vertex(std::int32_t i, std::int32_t j,
   if (v) out.push_back({i / render_stride_, j / render_stride_, v->level_m});
 }
 
+void SensorAgent::remove_departed(const std::vector<std::string>& departed) {
+  const std::string prefix = scenario::vehicle_member("");
+  bool removed = false;
+  for (const auto& member : departed) {
+    if (member.rfind(prefix, 0) != 0) continue;
+    const std::string id = member.substr(prefix.size());
+    // Our own vehicle is never drawn for our own sensors, and they still ride where it stopped.
+    if (id == vehicle_id_ || !scene_->has_vehicle(id)) continue;
+    scene_->remove_vehicle(id);
+    removed = true;
+    spdlog::info("{}: vehicle '{}' was lost; removed from the scene", member_id_, id);
+  }
+  if (removed) scene_->commit();
+}
+
 void SensorAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                        proto::FrameSamples& outputs) {
+  remove_departed(ctx.departed);
   if (ctx.frame == 0) {
     if (soil_) soil_->take_local_changes();  // the merge window of frame 0's lists
     return;  // nothing stamped -1: the world is rendered from frame 1 on
@@ -189,11 +206,10 @@ void SensorAgent::save(const sensors::RenderedBatch& batch) {
     }
     const auto& p = f.pose.position;
     const auto& q = f.pose.orientation;
-    fmt::print(index_.get(), "{},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n",
-               f.sensor_id, f.stamp.sequence, f.stamp.time_s, f.stamp.available_s, p.x(), p.y(),
-               p.z(), q.w(), q.x(), q.y(), q.z(), file);
+    index_->row(f.sensor_id, f.stamp.sequence, f.stamp.time_s, f.stamp.available_s, p.x(), p.y(),
+                p.z(), q.w(), q.x(), q.y(), q.z(), file);
   }
-  std::fflush(index_.get());
+  index_->commit();
 }
 
 void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {

@@ -3,10 +3,11 @@
 // (terrain with every vehicle's ruts, obstacles, every vehicle at its synced pose) and renders
 // the vehicle's cameras and lidars. In frame k it sees the states and deformations stamped
 // k-1 (the world at t_{k-1}), renders it, and publishes what became available, stamped k.
-#include <cstdio>
+// A vehicle lost under on_member_loss: continue leaves the scene in the frame it is reported.
 #include <memory>
 
 #include "protocol/agent.hpp"
+#include "record/run_files.hpp"
 #include "scenario/scenario.hpp"
 #include "scm/scm_terrain.hpp"
 #include "sensors/image_io.hpp"
@@ -38,6 +39,7 @@ class SensorAgent final : public proto::Agent {
 
  private:
   void update_world(const proto::FrameSamples& inputs);
+  void remove_departed(const std::vector<std::string>& departed);
   void render_vertex(std::int32_t i, std::int32_t j, std::vector<sensors::HeightUpdate>& out) const;
   void save(const sensors::RenderedBatch& batch);
 
@@ -51,7 +53,7 @@ class SensorAgent final : public proto::Agent {
   std::unique_ptr<sensors::Scene> scene_;
   std::unique_ptr<sensors::VehicleSensors> sensors_;
   std::map<std::string, std::unique_ptr<sensors::VideoWriter>> videos_;
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> index_{nullptr, &std::fclose};
+  std::unique_ptr<record::CsvFile> index_;  // frames.csv, when frames are saved
   std::uint64_t frames_rendered_ = 0;
 };
 

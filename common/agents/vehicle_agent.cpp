@@ -1,5 +1,6 @@
 #include "agents/vehicle_agent.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -47,6 +48,8 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
     snapshot_provider_ = vehicle.id == scenario.vehicles.front().id;
   }
   model_ = make_vehicle_model(scenario, vehicle, soil_);
+  if (vehicle.controller.is_builtin()) controller_ = scenario::controller_member(vehicle.id);
+  if (vehicle.controller.type == "external") controller_ = scenario::external_member(vehicle.id);
   if (vehicle.has_interoceptive_sensors()) {
     sensors_ = std::make_unique<sensors::VehicleSensors>(vehicle.sensors->rig, vehicle.id,
                                                          scenario.seed, step_s_,
@@ -79,8 +82,27 @@ std::vector<proto::Topic> VehicleAgent::publications() const {
 }
 
 void VehicleAgent::log_terrain_hashes(const std::string& file) {
-  hash_log_.reset(std::fopen(file.c_str(), "w"));
-  if (!hash_log_) throw ConfigError(file + ": cannot create terrain hash log");
+  try {
+    hash_log_ = std::make_unique<record::OutputFile>(file);
+  } catch (const record::WriteError& e) {
+    throw ConfigError(std::string(e.what()) + " (terrain hash log)");
+  }
+}
+
+void VehicleAgent::note_departed(const proto::FrameContext& ctx, proto::FrameSamples& outputs) {
+  if (controller_lost_ || controller_.empty()) return;
+  if (std::find(ctx.departed.begin(), ctx.departed.end(), controller_) == ctx.departed.end()) {
+    return;
+  }
+  // Nobody drives any more: brake to a stop, wheels as they are, rather than drive on blind.
+  controller_lost_ = true;
+  const vehicle::DriverInputs last = model_->snapshot().inputs;
+  model_->set_inputs({last.steering, 0.0, 1.0});
+  spdlog::warn("{}: {} was lost in frame {}; braking to a stop", member_id_, controller_,
+               ctx.frame);
+  outputs.vehicle_events.push_back({vehicle_id_, member_id_, ctx.frame, ctx.sim_time_s,
+                                    "controller_lost",
+                                    controller_ + " was lost; braking to a stop, steering held"});
 }
 
 void VehicleAgent::note_rejected(const std::vector<proto::RejectedSample>& rejected) {
@@ -108,9 +130,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
       soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
     }
     if (hash_log_ && ctx.frame > 0) {
-      std::fprintf(hash_log_.get(), "%lld %016llx\n", static_cast<long long>(ctx.frame - 1),
-                   static_cast<unsigned long long>(soil_->grid_hash()));
-      std::fflush(hash_log_.get());
+      hash_log_->write(fmt::format("{} {:016x}\n", ctx.frame - 1, soil_->grid_hash()));
     }
   }
   // The newest valid command stamped k-1 (several writers: the last in canonical order wins).
@@ -128,6 +148,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     }
     model_->set_inputs({cmd.steering, cmd.throttle, cmd.braking});
   }
+  note_departed(ctx, outputs);
   if (ctx.frame > 0) {
     for (std::int64_t i = 0; i < steps_per_frame_; ++i) {
       model_->advance(step_s_);

@@ -1,12 +1,14 @@
 #pragma once
 // The vehicle member: owns one dynamics model, applies the DriverCommand stamped k-1, steps
-// steps_per_frame dynamics steps in frame k and publishes its VehicleState stamped k.
-#include <cstdio>
+// steps_per_frame dynamics steps in frame k and publishes its VehicleState stamped k. When its
+// controller is lost (on_member_loss: continue) it brakes to a stop instead of driving on with
+// the last command.
 #include <memory>
 
 #include "agents/scm_messages.hpp"
 #include "convoy/v2v.hpp"
 #include "protocol/agent.hpp"
+#include "record/run_files.hpp"
 #include "scm/scm_terrain.hpp"
 #include "sensors/rig.hpp"
 #include "scenario/scenario.hpp"
@@ -47,9 +49,12 @@ class VehicleAgent final : public proto::Agent {
   /// Test aid: append "frame hash" of the soil grid at every frame boundary (after the other
   /// vehicles' changes of that frame were merged) to `file`.
   void log_terrain_hashes(const std::string& file);
+  /// True once the member that drives this vehicle was lost (it is braking to a stop).
+  bool controller_lost() const { return controller_lost_; }
 
  private:
   proto::VehicleStateMsg state_message(std::int64_t frame, double sim_time_s) const;
+  void note_departed(const proto::FrameContext& ctx, proto::FrameSamples& outputs);
 
   std::string vehicle_id_;
   std::string member_id_;
@@ -64,7 +69,9 @@ class VehicleAgent final : public proto::Agent {
   std::unique_ptr<vehicle::VehicleModel> model_;
   std::uint64_t rejected_ = 0;
   std::vector<proto::RejectedSample> intrusions_;  // refused by the transport, not yet reported
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> hash_log_{nullptr, &std::fclose};
+  std::string controller_;  // the member that writes our driver commands (empty: none)
+  bool controller_lost_ = false;
+  std::unique_ptr<record::OutputFile> hash_log_;
 };
 
 }  // namespace syndds::agents

@@ -2,13 +2,29 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
+#include "record/run_files.hpp"
+
 namespace syndds::scm {
+namespace {
+
+// Encoded in memory and written by the run-directory writer: every write checked, and a
+// reader never sees half an image.
+void write_png(const std::string& path, const cv::Mat& image) {
+  std::vector<std::uint8_t> bytes;
+  if (!cv::imencode(".png", image, bytes)) {
+    throw std::runtime_error("write_terrain_images: cannot encode " + path);
+  }
+  record::write_file_atomically(
+      path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+}  // namespace
 
 std::optional<ImageRegion> deformed_region(const ScmTerrain& terrain, std::int32_t margin) {
   const ScmSnapshot snap = terrain.snapshot();
@@ -85,13 +101,13 @@ TerrainImageInfo write_terrain_images(const ScmTerrain& terrain, const std::stri
   info.height_png = prefix + "_height.png";
   info.rut_png = prefix + "_rut.png";
   info.json = prefix + "_images.json";
-  if (!cv::imwrite(info.height_png, height_img) || !cv::imwrite(info.rut_png, rut_img)) {
-    throw std::runtime_error("write_terrain_images: cannot write " + info.height_png + " / " +
-                             info.rut_png);
-  }
+  write_png(info.height_png, height_img);
+  write_png(info.rut_png, rut_img);
   nlohmann::json j;
-  j["height_png"] = info.height_png;
-  j["rut_png"] = info.rut_png;
+  // The images sit beside this file: names, not paths, so that the run directory can move and
+  // the file is the same wherever the run was written.
+  j["height_png"] = std::filesystem::path(info.height_png).filename().string();
+  j["rut_png"] = std::filesystem::path(info.rut_png).filename().string();
   j["width_px"] = info.width_px;
   j["height_px"] = info.height_px;
   j["spacing_m"] = terrain.spacing();
@@ -107,9 +123,7 @@ TerrainImageInfo write_terrain_images(const ScmTerrain& terrain, const std::stri
   j["mapping"] =
       "height_m = height_min_m + value * height_m_per_count; rut_depth_m = value * "
       "rut_depth_m_per_count; rut depth = max(0, undeformed height - height)";
-  std::ofstream out(info.json);
-  out << j.dump(2) << "\n";
-  if (!out) throw std::runtime_error("write_terrain_images: cannot write " + info.json);
+  record::write_file_atomically(info.json, j.dump(2) + "\n");
   return info;
 }
 

@@ -35,8 +35,8 @@ struct TerrainImageInfo {
 /// (nullopt if nothing is stored).
 std::optional<ImageRegion> deformed_region(const ScmTerrain& terrain, std::int32_t margin = 10);
 
-/// Writes <prefix>_height.png, <prefix>_rut.png and <prefix>_images.json (throws
-/// std::runtime_error if a file cannot be written). Without `region`, deformed_region() is used,
+/// Writes <prefix>_height.png, <prefix>_rut.png and <prefix>_images.json, each replaced
+/// atomically (throws record::WriteError naming the file if one cannot be written). Without `region`, deformed_region() is used,
 /// or a single vertex at the area's centre when nothing deformed.
 TerrainImageInfo write_terrain_images(const ScmTerrain& terrain, const std::string& prefix,
                                       std::optional<ImageRegion> region = std::nullopt);

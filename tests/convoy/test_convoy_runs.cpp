@@ -9,7 +9,7 @@
 #include "agents/agent_factory.hpp"
 #include "core/yaml.hpp"
 #include "protocol/local_runner.hpp"
-#include "record/recorder_agent.hpp"
+#include "agents/recorder_agent.hpp"
 
 using namespace syndds;
 namespace fs = std::filesystem;

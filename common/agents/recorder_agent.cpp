@@ -1,9 +1,9 @@
-#include "record/recorder_agent.hpp"
+#include "agents/recorder_agent.hpp"
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "agents/scm_messages.hpp"
@@ -14,29 +14,40 @@ namespace syndds::record {
 namespace fs = std::filesystem;
 namespace {
 
-std::FILE* open_csv(const fs::path& file, const char* header) {
-  std::FILE* f = std::fopen(file.c_str(), "w");
-  if (!f) throw ConfigError(file.string() + ": cannot create file");
-  std::fputs(header, f);
-  std::fputc('\n', f);
-  return f;
+using Clock = std::chrono::steady_clock;
+
+// How often summary.json is brought up to date while the run goes on (wall time).
+constexpr double kSummaryPeriodS = 1.0;
+// Held back until the end, so that the summary saying why the run ended fits on a full disk
+// (summary.json and summary.txt of a large scenario take a few tens of kB).
+constexpr const char* kReserveFile = ".summary_reserve";
+constexpr std::uint64_t kReserveBytes = 256 * 1024;
+
+const std::vector<std::string> kVehicleColumns = {
+    "frame", "time_s", "vehicle", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz",
+    "speed_mps", "steering", "throttle", "braking", "gear", "engine_speed_rpm"};
+const std::vector<std::string> kCommandColumns = {"frame",    "time_s",  "vehicle", "source",
+                                                  "steering", "throttle", "braking", "rejected"};
+const std::vector<std::string> kEventColumns = {"frame", "time_s", "kind", "vehicle", "detail"};
+const std::vector<std::string> kV2VColumns = {
+    "frame",         "vehicle",    "sequence",  "sensor_time_s", "latitude_deg",
+    "longitude_deg", "altitude_m", "speed_mps", "heading_rad"};
+
+// Interoceptive sensor files: the stamp columns, then the sensor's own.
+std::vector<std::string> stamped(std::initializer_list<const char*> values) {
+  std::vector<std::string> c = {"frame", "vehicle", "sensor", "sequence", "time_s", "available_s"};
+  c.insert(c.end(), values.begin(), values.end());
+  return c;
 }
 
-void write_text_atomically(const fs::path& file, const std::string& text) {
-  const fs::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << text;
-  }
-  fs::rename(tmp, file);
+template <typename Msg, typename... Values>
+void stamped_row(CsvFile& f, const Msg& m, const Values&... values) {
+  f.row(m.frame, m.vehicle_id, m.stamp.sensor_id, m.stamp.sequence, m.stamp.time_s,
+        m.stamp.available_s, values...);
 }
 
-// CSV fields must not carry separators or line breaks.
-std::string csv_safe(std::string s) {
-  for (char& c : s) {
-    if (c == ',' || c == '\n' || c == '\r') c = ';';
-  }
-  return s;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
 nlohmann::json stat_json(const convoy::Stat& s) {
@@ -81,13 +92,18 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
       scenario_name_(scenario.name),
       scenario_file_(scenario.file),
       heartbeat_s_(scenario.time.heartbeat_s),
-      members_(scenario.member_ids()) {
+      members_(scenario.member_ids()),
+      started_(Clock::now()) {
   bool v2v = false;
   for (const auto& v : scenario.vehicles) {
     vehicle_ids_.push_back(v.id);
     totals_[v.id];
     v2v = v2v || v.v2v.has_value();
     if (v.controller.type == "follower") followers_.emplace_back(v.id, v.controller.convoy.leader);
+    for (const auto& m : {scenario::vehicle_member(v.id), scenario::controller_member(v.id),
+                          scenario::external_member(v.id), scenario::sensor_member(v.id)}) {
+      vehicle_of_member_[m] = v.id;
+    }
   }
   if (scenario.terrain.deformable()) {
     soil_ = std::make_unique<scm::ScmTerrain>(scenario.terrain.scm);
@@ -97,37 +113,26 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw ConfigError(dir.string() + ": cannot create output directory: " + ec.message());
-  vehicles_ = open_csv(dir / "vehicles.csv",
-                       "frame,time_s,vehicle,x,y,z,qw,qx,qy,qz,vx,vy,vz,speed_mps,steering,"
-                       "throttle,braking,gear,engine_speed_rpm");
-  commands_ = open_csv(dir / "commands.csv",
-                       "frame,time_s,vehicle,source,steering,throttle,braking,rejected");
-  events_ = open_csv(dir / "events.csv", "frame,time_s,kind,vehicle,detail");
+  reserve_ = std::make_unique<SpaceReserve>(dir / kReserveFile, kReserveBytes);
+  vehicles_ = std::make_unique<CsvFile>(dir / "vehicles.csv", kVehicleColumns);
+  commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns);
+  events_ = std::make_unique<CsvFile>(dir / "events.csv", kEventColumns);
   bool interoceptive = false;
   for (const auto& v : scenario.vehicles) interoceptive = interoceptive || v.has_interoceptive_sensors();
   if (interoceptive) {
-    const char* stamp = "frame,vehicle,sensor,sequence,time_s,available_s,";
-    gps_ = open_csv(dir / "gps.csv",
-                    (std::string(stamp) + "latitude_deg,longitude_deg,altitude_m,e_m,n_m,u_m").c_str());
-    imu_ = open_csv(dir / "imu.csv",
-                    (std::string(stamp) + "ax_mps2,ay_mps2,az_mps2,gx_rad_s,gy_rad_s,gz_rad_s").c_str());
-    compass_ = open_csv(dir / "compass.csv",
-                        (std::string(stamp) + "heading_rad,fx_ut,fy_ut,fz_ut").c_str());
-    wheel_speeds_ = open_csv(dir / "wheel_speeds.csv",
-                             (std::string(stamp) + "fl_rad_s,fr_rad_s,rl_rad_s,rr_rad_s").c_str());
+    gps_ = std::make_unique<CsvFile>(
+        dir / "gps.csv",
+        stamped({"latitude_deg", "longitude_deg", "altitude_m", "e_m", "n_m", "u_m"}));
+    imu_ = std::make_unique<CsvFile>(
+        dir / "imu.csv",
+        stamped({"ax_mps2", "ay_mps2", "az_mps2", "gx_rad_s", "gy_rad_s", "gz_rad_s"}));
+    compass_ = std::make_unique<CsvFile>(dir / "compass.csv",
+                                         stamped({"heading_rad", "fx_ut", "fy_ut", "fz_ut"}));
+    wheel_speeds_ = std::make_unique<CsvFile>(
+        dir / "wheel_speeds.csv", stamped({"fl_rad_s", "fr_rad_s", "rl_rad_s", "rr_rad_s"}));
   }
-  if (v2v) {
-    v2v_ = open_csv(dir / "v2v.csv", "frame,vehicle,sequence,sensor_time_s,latitude_deg,"
-                                     "longitude_deg,altitude_m,speed_mps,heading_rad");
-  }
-  flush();
+  if (v2v) v2v_ = std::make_unique<CsvFile>(dir / "v2v.csv", kV2VColumns);
   write_summary(nullptr);
-}
-
-RecorderAgent::~RecorderAgent() {
-  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_, v2v_}) {
-    if (f) std::fclose(f);
-  }
 }
 
 std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
@@ -146,43 +151,87 @@ std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
   return subs;
 }
 
+template <typename F>
+void RecorderAgent::guarded(F&& write) {
+  if (!failure_.empty()) throw WriteError("the recorder failed earlier: " + failure_);
+  try {
+    write();
+  } catch (const WriteError& e) {
+    failure_ = e.what();
+    throw;
+  }
+}
+
 void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                          proto::FrameSamples& outputs) {
-  if (ctx.frame > 0) record(inputs);  // inputs are stamped ctx.frame - 1
+  guarded([&] {
+    if (ctx.frame > 0) record(inputs);  // inputs are stamped ctx.frame - 1
+    // Members lost since the last frame (on_member_loss: continue): gone from this frame on.
+    for (const auto& member : ctx.departed) {
+      losses_.push_back({member, ctx.frame, ctx.sim_time_s});
+      const auto v = vehicle_of_member_.find(member);
+      events_->row(ctx.frame, ctx.sim_time_s, "member_lost",
+                   v == vehicle_of_member_.end() ? std::string() : v->second, member);
+    }
+    commit();
+    if (seconds_since(summary_written_) >= kSummaryPeriodS) write_summary(nullptr);
+  });
   if (soil_) soil_->take_local_changes();  // opens the merge window of this frame's lists
 }
 
 void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
-  if (!final_inputs.empty()) record(final_inputs);
-  if (!followers_.empty()) write_convoy_report();
-  if (end.control.status == proto::RunStatus::aborted) {
-    note_event(last_frame_, "run_aborted", "", end.control.reason);
-  } else {
-    note_event(last_frame_, "run_completed", "", "");
-  }
-  flush();
-  if (soil_) {
+  finished_ = true;
+  // After a write error (it ended the run) the files stay as they were: only whole frames.
+  if (failure_.empty()) {
     try {
-      scm::write_terrain_images(*soil_, (fs::path(options_.output_dir) / "terrain").string());
-    } catch (const std::exception& e) {
-      note_event(last_frame_, "error", "", std::string("terrain images: ") + e.what());
+      guarded([&] {
+        if (!final_inputs.empty()) {
+          record(final_inputs);
+          commit();
+        }
+        if (!followers_.empty()) write_convoy_report();
+        if (end.control.status == proto::RunStatus::aborted) {
+          note_event(last_frame_, "run_aborted", "", end.control.reason);
+        } else {
+          note_event(last_frame_, "run_completed", "", "");
+        }
+        if (soil_) {
+          try {
+            scm::write_terrain_images(*soil_,
+                                      (fs::path(options_.output_dir) / "terrain").string());
+          } catch (const WriteError&) {
+            throw;
+          } catch (const std::exception& e) {
+            note_event(last_frame_, "error", "", std::string("terrain images: ") + e.what());
+          }
+        }
+      });
+    } catch (const WriteError& e) {
+      spdlog::error("recorder: {}", e.what());
     }
   }
-  write_summary(&end.control);
-  finished_ = true;
+  // The summary says how the run ended even when the files above could not be completed (the
+  // failure is in it); if it cannot be written either, the last one written stays.
+  reserve_.reset();
+  try {
+    write_summary(&end.control);
+  } catch (const WriteError& e) {
+    spdlog::error("recorder: {}", e.what());
+    if (failure_.empty()) failure_ = e.what();
+  }
+  // A run that otherwise completed must not look complete when its record is not.
+  if (end.control.status == proto::RunStatus::completed && !failure_.empty()) {
+    throw WriteError(failure_);
+  }
 }
 
 void RecorderAgent::record(const proto::FrameSamples& samples) {
-  fmt::memory_buffer out;
   for (const auto& s : samples.vehicle_states) {
     const double speed = s.linear_velocity.norm();
     const auto& p = s.pose.position;
     const auto& q = s.pose.orientation;
     const auto& v = s.linear_velocity;
-    fmt::format_to(std::back_inserter(out),
-                   "{},{:.9g},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},"
-                   "{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{},{:.9g}\n",
-                   s.frame, s.sim_time_s, s.vehicle_id, p.x(), p.y(), p.z(), q.w(), q.x(), q.y(),
+    vehicles_->row(s.frame, s.sim_time_s, s.vehicle_id, p.x(), p.y(), p.z(), q.w(), q.x(), q.y(),
                    q.z(), v.x(), v.y(), v.z(), speed, s.steering, s.throttle, s.braking, s.gear,
                    s.engine_speed_rpm);
     VehicleTotals& t = totals_[s.vehicle_id];
@@ -191,44 +240,34 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     t.speed_sum_mps += speed;
     t.max_speed_mps = std::max(t.max_speed_mps, speed);
     ++t.samples;
-    last_frame_ = std::max(last_frame_, s.frame);
+    pending_frame_ = std::max(pending_frame_, s.frame);
     if (!followers_.empty()) {
       tracks_[s.vehicle_id].push_back({s.sim_time_s, Vec2(p.x(), p.y()), speed});
     }
   }
-  std::fwrite(out.data(), 1, out.size(), vehicles_);
-  out.clear();
   for (const auto& c : samples.driver_commands) {
     // `rejected`: the vehicle refuses it (NaN, out of range; the reason is in events.csv).
-    fmt::format_to(std::back_inserter(out), "{},{:.9g},{},{},{:.9g},{:.9g},{:.9g},{}\n", c.frame,
-                   static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id, c.source, c.steering,
-                   c.throttle, c.braking, proto::validate_command(c).empty() ? 0 : 1);
-    last_frame_ = std::max(last_frame_, c.frame);
+    commands_->row(c.frame, static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id, c.source,
+                   c.steering, c.throttle, c.braking, proto::validate_command(c).empty() ? 0 : 1);
+    pending_frame_ = std::max(pending_frame_, c.frame);
   }
-  std::fwrite(out.data(), 1, out.size(), commands_);
-  out.clear();
   for (const auto& e : samples.collision_events) {
-    fmt::format_to(std::back_inserter(out), "{},{:.9g},collision,{},obstacle={} impulse_ns={:.6g}\n",
-                   e.frame, e.sim_time_s, e.vehicle_id, csv_safe(e.obstacle_id), e.impulse_ns);
+    events_->row(e.frame, e.sim_time_s, "collision", e.vehicle_id,
+                 fmt::format("obstacle={} impulse_ns={:.6g}", e.obstacle_id, e.impulse_ns));
     ++totals_[e.vehicle_id].collisions;
   }
   for (const auto& e : samples.vehicle_events) {
-    fmt::format_to(std::back_inserter(out), "{},{:.9g},{},{},{}\n", e.frame, e.sim_time_s,
-                   csv_safe(e.kind), e.vehicle_id, csv_safe(e.source + ": " + e.detail));
+    events_->row(e.frame, e.sim_time_s, e.kind, e.vehicle_id, e.source + ": " + e.detail);
     ++totals_[e.vehicle_id].events[e.kind];
   }
-  std::fwrite(out.data(), 1, out.size(), events_);
   if (v2v_) {
-    out.clear();
     for (const auto& m : samples.v2v_messages) {
-      fmt::format_to(std::back_inserter(out), "{},{},{},{:.9g},{:.10f},{:.10f},{:.4f},{:.6g},{:.6g}\n",
-                     m.frame, m.vehicle_id, m.sequence, m.sensor_time_s, m.latitude_deg,
-                     m.longitude_deg, m.altitude_m, m.speed_mps, m.heading_rad);
+      v2v_->row(m.frame, m.vehicle_id, m.sequence, m.sensor_time_s, Fixed{m.latitude_deg, 10},
+                Fixed{m.longitude_deg, 10}, Fixed{m.altitude_m, 4}, Sig{m.speed_mps, 6},
+                Sig{m.heading_rad, 6});
     }
-    std::fwrite(out.data(), 1, out.size(), v2v_);
   }
   if (gps_) record_sensors(samples);
-  flush();
   if (soil_) {
     std::uint64_t frame_bytes = 0;
     for (const auto& d : samples.terrain_deformations) {
@@ -241,55 +280,39 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
 }
 
 void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
-  fmt::memory_buffer out;
-  auto stamp = [&](const auto& m) {
-    fmt::format_to(std::back_inserter(out), "{},{},{},{},{:.9g},{:.9g},", m.frame, m.vehicle_id,
-                   m.stamp.sensor_id, m.stamp.sequence, m.stamp.time_s, m.stamp.available_s);
-  };
   for (const auto& m : samples.gps_fixes) {
-    stamp(m);
-    fmt::format_to(std::back_inserter(out), "{:.10f},{:.10f},{:.4f},{:.4f},{:.4f},{:.4f}\n",
-                   m.latitude_deg, m.longitude_deg, m.altitude_m, m.enu_m.x(), m.enu_m.y(),
-                   m.enu_m.z());
+    stamped_row(*gps_, m, Fixed{m.latitude_deg, 10}, Fixed{m.longitude_deg, 10},
+                Fixed{m.altitude_m, 4}, Fixed{m.enu_m.x(), 4}, Fixed{m.enu_m.y(), 4},
+                Fixed{m.enu_m.z(), 4});
   }
-  std::fwrite(out.data(), 1, out.size(), gps_);
-  out.clear();
   for (const auto& m : samples.imus) {
-    stamp(m);
-    fmt::format_to(std::back_inserter(out), "{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}\n",
-                   m.accel_mps2.x(), m.accel_mps2.y(), m.accel_mps2.z(), m.gyro_rad_s.x(),
-                   m.gyro_rad_s.y(), m.gyro_rad_s.z());
+    stamped_row(*imu_, m, Sig{m.accel_mps2.x(), 6}, Sig{m.accel_mps2.y(), 6},
+                Sig{m.accel_mps2.z(), 6}, Sig{m.gyro_rad_s.x(), 6}, Sig{m.gyro_rad_s.y(), 6},
+                Sig{m.gyro_rad_s.z(), 6});
   }
-  std::fwrite(out.data(), 1, out.size(), imu_);
-  out.clear();
   for (const auto& m : samples.magnetometers) {
-    stamp(m);
-    fmt::format_to(std::back_inserter(out), "{:.6g},{:.6g},{:.6g},{:.6g}\n", m.heading_rad,
-                   m.field_ut.x(), m.field_ut.y(), m.field_ut.z());
+    stamped_row(*compass_, m, Sig{m.heading_rad, 6}, Sig{m.field_ut.x(), 6},
+                Sig{m.field_ut.y(), 6}, Sig{m.field_ut.z(), 6});
   }
-  std::fwrite(out.data(), 1, out.size(), compass_);
-  out.clear();
   for (const auto& m : samples.wheel_speeds) {
-    stamp(m);
-    for (std::size_t i = 0; i < 4; ++i) {
-      fmt::format_to(std::back_inserter(out), "{:.6g}{}",
-                     i < m.wheel_spin_rad_s.size() ? m.wheel_spin_rad_s[i] : 0.0, i < 3 ? "," : "\n");
-    }
+    const auto spin = [&](std::size_t i) {
+      return Sig{i < m.wheel_spin_rad_s.size() ? m.wheel_spin_rad_s[i] : 0.0, 6};
+    };
+    stamped_row(*wheel_speeds_, m, spin(0), spin(1), spin(2), spin(3));
   }
-  std::fwrite(out.data(), 1, out.size(), wheel_speeds_);
+}
+
+void RecorderAgent::commit() {
+  commit_rows({vehicles_.get(), commands_.get(), events_.get(), gps_.get(), imu_.get(),
+               compass_.get(), wheel_speeds_.get(), v2v_.get()});
+  last_frame_ = pending_frame_;
 }
 
 void RecorderAgent::note_event(std::int64_t frame, const std::string& kind,
                                const std::string& vehicle, const std::string& detail) {
   const double t = frame >= 0 ? static_cast<double>(frame) * heartbeat_s_ : 0.0;
-  fmt::print(events_, "{},{:.9g},{},{},{}\n", frame, t, kind, csv_safe(vehicle), csv_safe(detail));
-  std::fflush(events_);
-}
-
-void RecorderAgent::flush() {
-  for (std::FILE* f : {vehicles_, commands_, events_, gps_, imu_, compass_, wheel_speeds_, v2v_}) {
-    if (f) std::fflush(f);
-  }
+  events_->row(frame, t, kind, vehicle, detail);
+  events_->commit();
 }
 
 void RecorderAgent::write_convoy_report() {
@@ -301,7 +324,7 @@ void RecorderAgent::write_convoy_report() {
                                               t.collisions,
                                               lost == t.events.end() ? 0 : lost->second));
   }
-  write_text_atomically(fs::path(options_.output_dir) / "convoy.json",
+  write_file_atomically(fs::path(options_.output_dir) / "convoy.json",
                         convoy_json(convoy_).dump(2) + "\n");
 }
 
@@ -314,10 +337,22 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
   j["mode"] = options_.mode;
   j["heartbeat_s"] = heartbeat_s_;
   j["recorded_up_to_frame"] = last_frame_;
+  // Without the coordinator's statistics (it was lost, or the run failed before it could send
+  // them) the summary holds what the recorder knows itself, and says so.
+  proto::RunStatsMsg st;
+  const bool stats_missing = end && end->stats.members.empty();
+  if (end && !stats_missing) {
+    st = end->stats;
+  } else if (end) {
+    st.frames = static_cast<std::uint64_t>(last_frame_ + 1);
+    st.final_frame = last_frame_;
+    st.sim_time_s = last_frame_ > 0 ? static_cast<double>(last_frame_) * heartbeat_s_ : 0.0;
+    st.wall_time_s = seconds_since(started_);
+    st.real_time_factor = st.sim_time_s > 0 ? st.wall_time_s / st.sim_time_s : 0.0;
+  }
   if (!end) {
     j["status"] = "running";
   } else {
-    const auto& st = end->stats;
     j["status"] = std::string(proto::to_string(end->status));
     j["reason"] = end->reason;
     j["frames"] = st.frames;
@@ -325,6 +360,12 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
     j["sim_time_s"] = st.sim_time_s;
     j["wall_time_s"] = st.wall_time_s;
     j["real_time_factor"] = st.real_time_factor;
+    if (stats_missing) {
+      j["stats_missing"] = true;
+      j["stats_note"] =
+          "the coordinator's run statistics did not arrive: frames, final_frame and sim_time_s "
+          "are what the recorder recorded, wall_time_s is the recorder's own";
+    }
     json members = json::array();
     for (const auto& m : st.members) {
       members.push_back({{"member", m.member_id},
@@ -339,6 +380,12 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
   if (!end) {
     j["members"] = members_;
   }
+  json losses = json::array();
+  for (const auto& l : losses_) {
+    losses.push_back({{"member", l.member}, {"frame", l.frame}, {"time_s", l.time_s}});
+  }
+  j["losses"] = losses;
+  if (!failure_.empty()) j["recorder_error"] = failure_;
   json vehicles = json::array();
   for (const auto& id : vehicle_ids_) {
     const VehicleTotals& t = totals_.at(id);
@@ -361,18 +408,25 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
   }
   if (!convoy_.empty()) j["convoy"] = convoy_json(convoy_);
   const fs::path dir(options_.output_dir);
-  write_text_atomically(dir / "summary.json", j.dump(2) + "\n");
+  write_file_atomically(dir / "summary.json", j.dump(2) + "\n");
 
   // The same, for a person.
   std::string text;
   if (!end) {
     text = fmt::format("run '{}' is running (output {})\n", scenario_name_, options_.output_dir);
   } else {
-    const auto& st = end->stats;
     text += fmt::format("run '{}' {}{}\n", scenario_name_, proto::to_string(end->status),
                         end->reason.empty() ? "" : ": " + end->reason);
     text += fmt::format("  {} frames, {:.2f} s simulated in {:.2f} s wall, real-time factor {:.3f}\n",
                         st.frames, st.sim_time_s, st.wall_time_s, st.real_time_factor);
+    if (stats_missing) {
+      text += "  coordinator statistics missing: frames and times are what the recorder recorded\n";
+    }
+    if (!failure_.empty()) text += "  recorder error: " + failure_ + "\n";
+    for (const auto& l : losses_) {
+      text += fmt::format("  lost: {} in frame {} (t = {:.2f} s); the run went on without it\n",
+                          l.member, l.frame, l.time_s);
+    }
     text += fmt::format("  {:<12} {:>12} {:>15} {:>14} {:>11}\n", "vehicle", "distance_m",
                         "mean_speed_mps", "max_speed_mps", "collisions");
     for (const auto& id : vehicle_ids_) {
@@ -391,7 +445,8 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
     }
     if (!convoy_.empty()) text += convoy_table(convoy_);
   }
-  write_text_atomically(dir / "summary.txt", text);
+  write_file_atomically(dir / "summary.txt", text);
+  summary_written_ = Clock::now();
 }
 
 }  // namespace syndds::record

@@ -1,14 +1,20 @@
 #pragma once
-// The recorder member: writes the run directory as the run goes. Every frame is appended and
-// flushed as soon as it is complete, so a failure anywhere else loses nothing that was
-// complete. Files (docs/outputs.md): vehicles.csv, commands.csv, events.csv, summary.json,
-// summary.txt, and on deformable terrain terrain_height.png, terrain_rut.png, terrain_images.json.
-#include <cstdio>
+// The recorder member: writes the run directory as the run goes, through the run-directory
+// writer (record/run_files.hpp). Every frame is written to all files as one unit as soon as it
+// is complete, so a failure anywhere else loses nothing that was complete, and a failure of the
+// recorder itself (a full disk) fails the frame, which ends the run with the reason. summary.json
+// is rewritten (atomically) about once a second while the run goes on, so a recorder that is
+// killed still says how far it got. Files (docs/outputs.md): vehicles.csv, commands.csv,
+// events.csv, summary.json, summary.txt, and on deformable terrain terrain_height.png,
+// terrain_rut.png, terrain_images.json.
+#include <chrono>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "convoy/convoy_report.hpp"
 #include "protocol/agent.hpp"
+#include "record/run_files.hpp"
 #include "scenario/scenario.hpp"
 #include "scm/scm_terrain.hpp"
 
@@ -32,10 +38,16 @@ struct VehicleTotals {
   double mean_speed_mps() const { return samples ? speed_sum_mps / samples : 0.0; }
 };
 
+/// A member that left the run under on_member_loss: continue (it took no part from `frame` on).
+struct MemberLoss {
+  std::string member;
+  std::int64_t frame = 0;
+  double time_s = 0.0;
+};
+
 class RecorderAgent final : public proto::Agent {
  public:
   RecorderAgent(const scenario::Scenario& scenario, RecorderOptions options);
-  ~RecorderAgent() override;
   RecorderAgent(const RecorderAgent&) = delete;
   RecorderAgent& operator=(const RecorderAgent&) = delete;
 
@@ -48,6 +60,7 @@ class RecorderAgent final : public proto::Agent {
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
 
   /// Records an event that does not travel as a sample (e.g. a lost member seen locally).
+  /// Throws record::WriteError if events.csv cannot be written.
   void note_event(std::int64_t frame, const std::string& kind, const std::string& vehicle,
                   const std::string& detail);
 
@@ -56,14 +69,20 @@ class RecorderAgent final : public proto::Agent {
   const std::vector<convoy::FollowerReport>& convoy_report() const { return convoy_; }
   /// Every vehicle's recorded track (kept only when the scenario has followers).
   const std::map<std::string, convoy::Track>& tracks() const { return tracks_; }
+  /// The last frame whose samples are completely on disk (-1: none yet).
   std::int64_t last_recorded_frame() const { return last_frame_; }
+  const std::vector<MemberLoss>& losses() const { return losses_; }
 
  private:
   void record(const proto::FrameSamples& samples);
   void record_sensors(const proto::FrameSamples& samples);
+  /// Writes the rows gathered since the last commit, in every file, as one unit.
+  void commit();
   void write_summary(const proto::RunControlMsg* end);
   void write_convoy_report();
-  void flush();
+  /// Runs `write`; a WriteError marks the recorder failed (every later frame fails too).
+  template <typename F>
+  void guarded(F&& write);
 
   std::string member_id_ = scenario::kRecorderMember;
   RecorderOptions options_;
@@ -72,15 +91,16 @@ class RecorderAgent final : public proto::Agent {
   double heartbeat_s_;
   std::vector<std::string> vehicle_ids_;
   std::vector<std::string> members_;
-  std::FILE* vehicles_ = nullptr;
-  std::FILE* commands_ = nullptr;
-  std::FILE* events_ = nullptr;
+  std::map<std::string, std::string> vehicle_of_member_;  // "controller/a" -> "a"
+  std::unique_ptr<CsvFile> vehicles_;
+  std::unique_ptr<CsvFile> commands_;
+  std::unique_ptr<CsvFile> events_;
   // Interoceptive sensor samples (only when some vehicle carries such sensors).
-  std::FILE* gps_ = nullptr;
-  std::FILE* imu_ = nullptr;
-  std::FILE* compass_ = nullptr;
-  std::FILE* wheel_speeds_ = nullptr;
-  std::FILE* v2v_ = nullptr;  // only when some vehicle broadcasts V2V messages
+  std::unique_ptr<CsvFile> gps_;
+  std::unique_ptr<CsvFile> imu_;
+  std::unique_ptr<CsvFile> compass_;
+  std::unique_ptr<CsvFile> wheel_speeds_;
+  std::unique_ptr<CsvFile> v2v_;  // only when some vehicle broadcasts V2V messages
   // Convoys: (follower, vehicle followed) pairs and every vehicle's track, for the report.
   std::vector<std::pair<std::string, std::string>> followers_;
   std::map<std::string, convoy::Track> tracks_;
@@ -89,7 +109,13 @@ class RecorderAgent final : public proto::Agent {
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
   std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)
   std::uint64_t terrain_max_frame_bytes_ = 0;
-  std::int64_t last_frame_ = -1;
+  std::int64_t last_frame_ = -1;     // on disk, complete
+  std::int64_t pending_frame_ = -1;  // gathered, not yet committed
+  std::vector<MemberLoss> losses_;
+  std::string failure_;  // the write error that stopped the recorder
+  std::unique_ptr<SpaceReserve> reserve_;  // room for the final summary on a full disk
+  std::chrono::steady_clock::time_point started_;
+  std::chrono::steady_clock::time_point summary_written_;
   bool finished_ = false;
 };
 

@@ -1,0 +1,172 @@
+#pragma once
+// The run-directory writer: the one way every file of a run directory is written (the recorder's
+// CSV files and summaries, the sensors' frame index, the terrain images, test logs).
+//
+//  - Every write, flush and close is checked; a failure throws WriteError naming the file and
+//    the system's reason (a full disk must end the run, not leave it "completed" and truncated).
+//  - A CSV file has one column list: the header is written from it and a row with a different
+//    number of cells is a programming error (std::logic_error). Text cells are quoted as RFC 4180
+//    asks when they hold a comma, a quote or a line break, so ids can never shift columns.
+//  - Rows are gathered and written per frame: commit_rows() writes one frame's rows of several
+//    files, and when any write fails every file is cut back to the end of the previous frame, so
+//    the files never hold part of a frame.
+//  - Summaries are replaced atomically (temporary file in the same directory, fsync, rename):
+//    a reader, or a run killed at any moment, sees the old or the new file, never a partial one;
+//    a SpaceReserve keeps room for the last one on a disk that fills up.
+//
+// No DDS and nothing heavy here: every layer above (agents, scm, services) may use it.
+#include <fmt/format.h>
+
+#include <concepts>
+#include <cstdint>
+#include <filesystem>
+#include <initializer_list>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace syndds::record {
+
+/// A file of the run directory could not be written (the message names it and says why).
+class WriteError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A number written with `digits` significant digits ("{:.<digits>g}").
+template <std::floating_point T>
+struct Sig {
+  T value;
+  int digits;
+};
+template <std::floating_point T>
+Sig(T, int) -> Sig<T>;
+
+/// A number written with `digits` digits after the point ("{:.<digits>f}").
+template <std::floating_point T>
+struct Fixed {
+  T value;
+  int digits;
+};
+template <std::floating_point T>
+Fixed(T, int) -> Fixed<T>;
+
+/// A text cell as RFC 4180 writes it: quoted (quotes doubled) if it holds ',', '"', CR or LF.
+std::string csv_escape(std::string_view text);
+
+/// A file opened for appending, closed when destroyed. Every write is checked.
+class OutputFile {
+ public:
+  /// Creates (truncates) `path`. Throws WriteError if it cannot.
+  explicit OutputFile(std::filesystem::path path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  /// Bytes in the file (everything written through this object).
+  std::uint64_t size() const { return size_; }
+  /// Appends all of `bytes` (the kernel has them when this returns).
+  void write(std::string_view bytes);
+  /// Cuts the file back to `size` bytes (undoing a write that failed part way).
+  void truncate(std::uint64_t size);
+  /// Forces the written bytes to the disk.
+  void sync();
+  /// Closes the file, reporting an error the destructor would have to swallow.
+  void close();
+
+ private:
+  [[noreturn]] void fail(const char* what, int error) const;
+
+  std::filesystem::path path_;
+  int fd_ = -1;
+  std::uint64_t size_ = 0;
+};
+
+/// A CSV file with a fixed column list. Rows go to a buffer; commit() (or commit_rows() for
+/// the files of one frame together) writes them.
+class CsvFile {
+ public:
+  /// Creates `path` and writes the header: the column names, comma-separated.
+  CsvFile(std::filesystem::path path, std::vector<std::string> columns);
+
+  const std::filesystem::path& path() const { return file_.path(); }
+  const std::vector<std::string>& columns() const { return columns_; }
+
+  /// Adds one row to the buffer. Cells: integers, floating-point numbers (9 significant digits
+  /// unless wrapped in Sig / Fixed), text (escaped). Exactly one cell per column.
+  template <typename... Cells>
+  void row(const Cells&... cells) {
+    if (sizeof...(Cells) != columns_.size()) wrong_arity(sizeof...(Cells));
+    bool first = true;
+    ((append_separator(first), append_cell(cells)), ...);
+    pending_.push_back('\n');
+  }
+
+  bool has_pending() const { return pending_.size() > 0; }
+  /// Writes the buffered rows (all or, after a failure, none of them: see commit_rows()).
+  void commit();
+  void close() { file_.close(); }
+
+ private:
+  friend void commit_rows(std::initializer_list<CsvFile*> files);
+
+  void append_separator(bool& first) {
+    if (!first) pending_.push_back(',');
+    first = false;
+  }
+  template <std::integral T>
+  void append_cell(T value) {
+    static_assert(!std::same_as<T, bool>, "write a flag as 0 / 1");
+    fmt::format_to(std::back_inserter(pending_), "{}", value);
+  }
+  template <std::floating_point T>
+  void append_cell(T value) {
+    fmt::format_to(std::back_inserter(pending_), "{:.9g}", value);
+  }
+  template <typename T>
+  void append_cell(Sig<T> s) {
+    fmt::format_to(std::back_inserter(pending_), "{:.{}g}", s.value, s.digits);
+  }
+  template <typename T>
+  void append_cell(Fixed<T> f) {
+    fmt::format_to(std::back_inserter(pending_), "{:.{}f}", f.value, f.digits);
+  }
+  void append_cell(std::string_view text);
+  void append_cell(const std::string& text) { append_cell(std::string_view(text)); }
+  void append_cell(const char* text) { append_cell(std::string_view(text)); }
+  [[noreturn]] void wrong_arity(std::size_t cells) const;
+
+  OutputFile file_;
+  std::vector<std::string> columns_;
+  fmt::memory_buffer pending_;
+};
+
+/// Writes the buffered rows of every file (null entries are skipped) as one unit: if a write
+/// fails, every file is cut back to where it was before, the buffers are dropped and the
+/// WriteError is rethrown. Files never end inside a row or hold half a frame.
+void commit_rows(std::initializer_list<CsvFile*> files);
+
+/// Disk space held back: a file of `bytes` allocated now and deleted by release(), so that what
+/// must be written last (the summary saying why the run ended) still fits on a disk that filled
+/// up. Released when destroyed.
+class SpaceReserve {
+ public:
+  /// Throws WriteError if the space cannot be allocated.
+  SpaceReserve(std::filesystem::path path, std::uint64_t bytes);
+  ~SpaceReserve() { release(); }
+  SpaceReserve(const SpaceReserve&) = delete;
+  SpaceReserve& operator=(const SpaceReserve&) = delete;
+  void release();
+
+ private:
+  std::filesystem::path path_;
+  bool held_ = false;
+};
+
+/// Replaces `path` by a file holding `bytes`: written to a temporary file in the same
+/// directory, synced, renamed over `path`. Throws WriteError (and leaves `path` as it was).
+void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
+
+}  // namespace syndds::record
