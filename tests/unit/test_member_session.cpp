@@ -13,7 +13,7 @@ constexpr std::uint64_t kFingerprint = 42;
 MemberSessionConfig config(const std::string& member = "recorder") {
   MemberSessionConfig c;
   c.member_id = member;
-  c.run_id = "r";
+  c.run_id = std::string("r");  // not = "r": GCC 12 -Wrestrict false positive (PR 105329)
   c.transport = "DDS domain 7";
   c.config_fingerprint = kFingerprint;
   c.heartbeat_s = 0.01;
@@ -30,7 +30,7 @@ MemberAnnounceMsg coordinator(std::vector<std::string> expected = {"recorder", "
   MemberAnnounceMsg a;
   a.member_id = "coordinator";
   a.kind = MemberKind::coordinator;
-  a.run_id = "r";
+  a.run_id = std::string("r");
   a.participant_guid = "01.02";
   a.host = "h1";
   a.pid = 10;
