@@ -70,14 +70,19 @@ void add_debug_options(CLI::App& app, DebugArgs& d) {
       ->group(group);
 }
 
-scenario::Scenario load_scenario(const CommonArgs& a) {
+scenario::Scenario load_scenario_config(const CommonArgs& a) {
   scenario::Overrides o;
   o.duration_s = a.duration_s;
   if (a.realtime) o.realtime = true;
   o.domain_id = a.domain_id;
-  auto s = scenario::load_scenario(a.scenario_file, o, a.config_dir);
+  auto s = scenario::load_scenario_config(a.scenario_file, o, a.config_dir);
   if (a.transport) s.dds.transport = *a.transport;
   if (a.discovery_server) s.dds.discovery_server = *a.discovery_server;
+  spdlog::info("scenario '{}': fingerprint {:016x} over {} files", s.name, s.fingerprint,
+               s.files.size());
+  for (const auto& f : s.files) {
+    spdlog::debug("config file {}: {:016x} {} bytes {}", f.role, f.hash, f.size, f.path);
+  }
   return s;
 }
 
