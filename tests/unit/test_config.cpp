@@ -248,3 +248,49 @@ TEST(ConfigLayer, BuildsNoTerrainAndLinksNothingHeavy) {
     EXPECT_EQ(mapped.find(lib), std::string::npos) << lib << " is loaded by the config layer";
   }
 }
+
+// Vehicles with controllers and rendered sensors are three processes each: the members of a
+// run are bounded as well as the vehicles.
+TEST(ConfigBounds, NumberOfProcessesIsBounded) {
+  std::string text = "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}\nvehicles:\n";
+  for (int i = 0; i < 22; ++i) {
+    const std::string y = std::to_string(i * 10);
+    text += "  - {id: v" + std::to_string(i) + ", model: hmmwv, sensors: default, controller: " +
+            "{type: path_follower, path: {waypoints: [[0, " + y + "], [50, " + y + "]]}, " +
+            "speed: {target_mps: 3}}}\n";
+  }
+  const auto err = error_of(text);
+  EXPECT_NE(err.find("test.yaml:3:"), std::string::npos) << err;
+  EXPECT_NE(err.find("67 processes"), std::string::npos) << err;
+  EXPECT_NE(err.find("at most 64"), std::string::npos) << err;
+}
+
+// The world box may be declared elsewhere, never larger than its maximum.
+TEST(ConfigBounds, WorldBoxIsDeclaredWithinItsMaximum) {
+  const std::string far = replaced(kMinimal, "[[0, 0], [10, 0]]", "[[5000, 0], [5010, 0]]");
+  EXPECT_NE(error_of(far).find("outside the world [-1000, 1000] x [-1000, 1000]"),
+            std::string::npos)
+      << error_of(far);
+  const auto s = parse(far + "world: {x_min_m: 4500, x_max_m: 6000, y_min_m: -500, y_max_m: 500}\n");
+  EXPECT_EQ(s.world.x_min_m, 4500.0);
+  EXPECT_DOUBLE_EQ(s.vehicles[0].start.position.x(), 5000.0);
+  const auto err =
+      error_of(far + "world: {x_min_m: 3000, x_max_m: 6000, y_min_m: -500, y_max_m: 500}\n");
+  EXPECT_NE(err.find("world: the world's x extent [3000, 6000] must be non-empty and at most 2000"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(error_of(kMinimal + "world: {x_min_m: -2e5}\n").find("world.x_min_m: must be in"),
+            std::string::npos);
+}
+
+// Every process that holds the soil keeps its whole grid: the patch is bounded at load.
+TEST(ConfigBudgets, ScmPatchIsBounded) {
+  const std::string big = replaced(kMinimal, "vehicles:",
+                                   "terrain: {type: scm, preset: mid, spacing_m: 0.05, area: "
+                                   "{x_min_m: -500, x_max_m: 500, y_min_m: -500, y_max_m: 500}}\n"
+                                   "vehicles:");
+  const auto err = error_of(big);
+  EXPECT_NE(err.find("test.yaml:2:"), std::string::npos) << err;
+  EXPECT_NE(err.find("terrain: the soil patch"), std::string::npos) << err;
+  EXPECT_NE(err.find("grid vertices; at most 8.38861e+06"), std::string::npos) << err;
+}
