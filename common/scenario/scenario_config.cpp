@@ -54,8 +54,9 @@ TimeConfig parse_time(const YamlNode& node) {
 CoordinatorConfig parse_coordinator(const YamlNode& node) {
   MapReader m(node);
   CoordinatorConfig c;
-  c.join_timeout_s = m.positive("join_timeout_s", c.join_timeout_s);
-  c.frame_timeout_s = m.positive("frame_timeout_s", c.frame_timeout_s);
+  // Bounded so that deadlines stay representable on the steady clock (1e300 s wrapped).
+  c.join_timeout_s = m.number("join_timeout_s", c.join_timeout_s, 0.001, kMaxTimeoutS);
+  c.frame_timeout_s = m.number("frame_timeout_s", c.frame_timeout_s, 0.001, kMaxTimeoutS);
   const std::string policy = m.choice("on_member_loss", "abort", {"abort", "continue"});
   c.on_member_loss = policy == "abort" ? proto::LossPolicy::abort : proto::LossPolicy::continue_run;
   m.finish();
@@ -74,6 +75,21 @@ DdsConfig parse_dds(const YamlNode& node) {
   }
   m.finish();
   return d;
+}
+
+// Width and height from a PNG's IHDR chunk (bytes 16..23, big endian), if `bytes` is a PNG.
+std::optional<std::pair<std::uint32_t, std::uint32_t>> png_size(const std::string& bytes) {
+  static const char signature[] = "\x89PNG\r\n\x1a\n";
+  if (bytes.size() < 24 || bytes.compare(0, 8, signature, 8) != 0 ||
+      bytes.compare(12, 4, "IHDR") != 0) {
+    return std::nullopt;
+  }
+  auto be32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    for (std::size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+    return v;
+  };
+  return std::pair{be32(16), be32(20)};
 }
 
 WorldConfig parse_world(const YamlNode& node) {
@@ -136,7 +152,16 @@ TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir,
     const auto heightmap = m.required("heightmap");
     t.heightmap = terrain::parse_heightmap_spec(heightmap,
                                                 fs::path(node.file()).parent_path().string());
-    files.read(t.heightmap.image_file, heightmap.path() + ".image");
+    const std::string image = files.read(t.heightmap.image_file, heightmap.path() + ".image");
+    // Every process that builds the terrain decodes the whole image: bound it from the PNG
+    // header (other formats are checked when decoded).
+    const auto png = png_size(image);
+    if (png && static_cast<double>(png->first) * png->second > kMaxHeightmapPixels) {
+      std::ostringstream msg;
+      msg << t.heightmap.image_file << " is " << png->first << " x " << png->second
+          << " pixels; at most " << kMaxHeightmapPixels << " (docs/scenario.md, Budgets)";
+      MapReader(heightmap).required("image").fail(msg.str());
+    }
     t.friction = t.heightmap.friction;
   }
   m.finish();

@@ -38,6 +38,10 @@ inline constexpr double kMaxWorldCoordinateM = 1e5;
 inline constexpr double kMaxWorldSideM = 2000.0;
 /// Vertices of the SCM soil patch (each process holding the soil keeps the whole grid).
 inline constexpr double kMaxScmVertices = 8.0 * 1024 * 1024;
+/// Pixels of a height-map image (decoded whole, 24 bytes a vertex): a 2 km map at 1 m.
+inline constexpr double kMaxHeightmapPixels = 2049.0 * 2049.0;
+/// coordinator.join_timeout_s and frame_timeout_s: one day.
+inline constexpr double kMaxTimeoutS = 86400.0;
 
 /// The area every start, waypoint and obstacle lies in (`world:`; default +-1 km).
 struct WorldConfig {

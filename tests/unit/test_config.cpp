@@ -294,3 +294,33 @@ TEST(ConfigBudgets, ScmPatchIsBounded) {
   EXPECT_NE(err.find("terrain: the soil patch"), std::string::npos) << err;
   EXPECT_NE(err.find("grid vertices; at most 8.38861e+06"), std::string::npos) << err;
 }
+
+// Deadlines are computed on the steady clock: a timeout of 1e300 s wrapped around.
+TEST(ConfigBounds, CoordinatorTimeoutsAreBounded) {
+  const auto err = error_of(kMinimal + "coordinator: {join_timeout_s: 1e300}\n");
+  EXPECT_NE(err.find("test.yaml:9:"), std::string::npos) << err;
+  EXPECT_NE(err.find("coordinator.join_timeout_s: must be in [0.001, 86400]"), std::string::npos)
+      << err;
+  EXPECT_NE(error_of(kMinimal + "coordinator: {frame_timeout_s: 1e9}\n")
+                .find("coordinator.frame_timeout_s"),
+            std::string::npos);
+}
+
+// Every process that builds the terrain decodes the whole height map: its size is read from
+// the PNG header at load.
+TEST(ConfigBudgets, HeightmapImageIsBounded) {
+  const ScratchConfig cfg("heightmap");
+  std::string header("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR\0\x01\x86\xa0\0\x01\x86\xa0\x10\0\0\0\0", 33);
+  std::ofstream(cfg.dir / "heightmaps/hills.png", std::ios::binary | std::ios::trunc) << header;
+  const std::string file = (cfg.dir / "scenarios/s.yaml").string();
+  std::ofstream(file) << kHeightmapScenario;
+  std::string err;
+  try {
+    load_scenario_config(file, {}, cfg.dir.string());
+  } catch (const ConfigError& e) {
+    err = e.what();
+  }
+  EXPECT_NE(err.find("s.yaml:4:"), std::string::npos) << err;
+  EXPECT_NE(err.find("terrain.heightmap.image"), std::string::npos) << err;
+  EXPECT_NE(err.find("is 100000 x 100000 pixels; at most"), std::string::npos) << err;
+}
