@@ -310,7 +310,8 @@ std::string resolve_model_file(const YamlNode& node, const std::string& model,
 
 // `sensors: default` (a rig name or file) or `sensors: {rig: default, save_images: true, video: false}`.
 VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::string& config_dir,
-                                           double heartbeat_s, ConfigFiles& files) {
+                                           const TimeConfig& time, ConfigFiles& files) {
+  const double heartbeat_s = time.heartbeat_s;
   VehicleSensorsConfig c;
   std::optional<YamlNode> rig_node;
   if (node.is_scalar()) {
@@ -345,11 +346,30 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
                      " samples per frame; at most 32 fit (lower rate_hz or heartbeat_s)");
     }
   }
+  // A sensor measures on the grid it is fed at: the dynamics step for the interoceptive ones,
+  // the frame for cameras and lidars. Checked here so that a rig too fast for the scenario is
+  // refused before any process starts (VehicleSensors checks again with the exact tick rule;
+  // the margin here only ever accepts more).
+  auto check_rate = [&](const std::string& id, double rate_hz, double tick_s, const char* fed) {
+    if (rate_hz * tick_s > 1.0 + 1e-6) {
+      std::ostringstream msg;
+      msg << "rig " << file << ": sensor '" << id << "' measures at " << rate_hz
+          << " Hz, faster than the " << 1.0 / tick_s << " Hz it is fed at (" << fed << ")";
+      rig_node->fail(msg.str());
+    }
+  };
+  for (const auto& s : c.rig.gps) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.imus) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.magnetometers) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.tachometers) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.cameras) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
+  for (const auto& s : c.rig.lidars) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
   return c;
 }
 
 VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
-                            double heartbeat_s, const WorldConfig& world, ConfigFiles& files) {
+                            const TimeConfig& time, const WorldConfig& world, ConfigFiles& files) {
+  const double heartbeat_s = time.heartbeat_s;
   MapReader m(node);
   VehicleConfig v;
   auto id_node = m.required("id");
@@ -365,7 +385,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   v.dynamics = m.choice("dynamics", "reduced", {"reduced", "full"});
   auto start = m.optional("start");
   if (auto n = m.optional("sensors")) {
-    v.sensors = parse_vehicle_sensors(*n, config_dir, heartbeat_s, files);
+    v.sensors = parse_vehicle_sensors(*n, config_dir, time, files);
   }
   std::optional<YamlNode> controller_node = m.optional("controller");
   if (controller_node) {
@@ -495,7 +515,7 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
   }
   std::set<std::string> ids;
   for (const auto& v : vehicles.elements()) {
-    s.vehicles.push_back(parse_vehicle(v, config_dir, s.time.heartbeat_s, s.world, files));
+    s.vehicles.push_back(parse_vehicle(v, config_dir, s.time, s.world, files));
     if (!ids.insert(s.vehicles.back().id).second) {
       v.fail("duplicate vehicle id '" + s.vehicles.back().id + "'");
     }

@@ -324,3 +324,18 @@ TEST(ConfigBudgets, HeightmapImageIsBounded) {
   EXPECT_NE(err.find("terrain.heightmap.image"), std::string::npos) << err;
   EXPECT_NE(err.find("is 100000 x 100000 pixels; at most"), std::string::npos) << err;
 }
+
+// A sensor faster than the grid it is fed at (the frame for cameras) used to pass the load
+// and fail only when its process built it, after the others had started.
+TEST(ConfigBudgets, SensorRatesFitTheTimeGrid) {
+  auto err = rig_error("  - {id: cam, type: camera, rate_hz: 200}\n");
+  EXPECT_NE(err.find("vehicles[0].sensors"), std::string::npos) << err;
+  EXPECT_NE(err.find("sensor 'cam' measures at 200 Hz, faster than the 100 Hz it is fed at "
+                     "(time.heartbeat_s)"),
+            std::string::npos)
+      << err;
+  err = rig_error("  - {id: imu, type: imu, rate_hz: 1000}\n");
+  EXPECT_NE(err.find("faster than the 500 Hz it is fed at (time.step_s)"), std::string::npos)
+      << err;
+  EXPECT_EQ(rig_error("  - {id: cam, type: camera, rate_hz: 100}\n  - {id: imu, type: imu, rate_hz: 500}\n"), "");
+}
