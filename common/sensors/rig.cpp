@@ -20,24 +20,32 @@ std::uint64_t sensor_seed(std::uint64_t scenario_seed, const std::string& vehicl
 }
 
 VehicleSensors::VehicleSensors(const SensorRig& rig, std::string vehicle_id,
-                               std::uint64_t scenario_seed, double step_s, double heartbeat_s)
+                               std::uint64_t scenario_seed, double step_s, double heartbeat_s,
+                               SensorSet set)
     : vehicle_id_(std::move(vehicle_id)) {
+  const bool interoceptive = set != SensorSet::rendered;
+  const bool rendered = set != SensorSet::interoceptive;
   std::string current;
   try {
     auto seed = [&](const std::string& id) {
       current = id;
       return sensor_seed(scenario_seed, vehicle_id_, id);
     };
-    for (const auto& c : rig.gps) gps_.emplace_back(c, rig.geodetic_origin, seed(c.id), step_s);
-    for (const auto& c : rig.imus) imus_.emplace_back(c, seed(c.id), step_s);
-    for (const auto& c : rig.magnetometers) magnetometers_.emplace_back(c, seed(c.id), step_s);
-    for (const auto& c : rig.tachometers) tachometers_.emplace_back(c, seed(c.id), step_s);
-    for (const auto& c : rig.cameras) {
-      cameras_.push_back(std::make_unique<CameraSensor>(
-          c, c.mode == CameraMode::fixed ? std::string() : vehicle_id_, seed(c.id), heartbeat_s));
+    if (interoceptive) {
+      for (const auto& c : rig.gps) gps_.emplace_back(c, rig.geodetic_origin, seed(c.id), step_s);
+      for (const auto& c : rig.imus) imus_.emplace_back(c, seed(c.id), step_s);
+      for (const auto& c : rig.magnetometers) magnetometers_.emplace_back(c, seed(c.id), step_s);
+      for (const auto& c : rig.tachometers) tachometers_.emplace_back(c, seed(c.id), step_s);
     }
-    for (const auto& c : rig.lidars) {
-      lidars_.push_back(std::make_unique<LidarSensor>(c, vehicle_id_, seed(c.id), heartbeat_s));
+    if (rendered) {
+      for (const auto& c : rig.cameras) {
+        cameras_.push_back(std::make_unique<CameraSensor>(
+            c, c.mode == CameraMode::fixed ? std::string() : vehicle_id_, seed(c.id),
+            heartbeat_s));
+      }
+      for (const auto& c : rig.lidars) {
+        lidars_.push_back(std::make_unique<LidarSensor>(c, vehicle_id_, seed(c.id), heartbeat_s));
+      }
     }
   } catch (const std::invalid_argument& e) {
     throw ConfigError(rig.file + ": sensor '" + current + "' on vehicle '" + vehicle_id_ + "': " +

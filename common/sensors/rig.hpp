@@ -39,7 +39,12 @@ struct RenderedBatch {
   bool empty() const { return camera.empty() && lidar.empty(); }
 };
 
-/// Every sensor of a rig on one vehicle.
+/// Which sensors of a rig a process builds: the vehicle process simulates the interoceptive
+/// ones, the sensor process renders the cameras and lidars (a renderer starts its threads and
+/// allocates per pixel or ray, so no other process builds one).
+enum class SensorSet { all, interoceptive, rendered };
+
+/// Every sensor of a rig on one vehicle (or those of one SensorSet).
 ///  - interoceptive sensors: update_dynamics(snapshot) after every dynamics step (step_s);
 ///  - cameras and lidars: update_rendered(scene, t) once per frame (heartbeat_s) after the
 ///    scene holds every vehicle's pose and terrain change for time t and was committed;
@@ -49,7 +54,7 @@ class VehicleSensors {
   /// Throws ConfigError (naming the rig file and sensor) when a sensor does not fit the time
   /// grid (rate above the feed rate, exposure longer than period or lag).
   VehicleSensors(const SensorRig& rig, std::string vehicle_id, std::uint64_t scenario_seed,
-                 double step_s, double heartbeat_s);
+                 double step_s, double heartbeat_s, SensorSet set = SensorSet::all);
   const std::string& vehicle_id() const { return vehicle_id_; }
 
   void update_dynamics(const vehicle::VehicleSnapshot& snapshot);
