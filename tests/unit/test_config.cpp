@@ -339,3 +339,27 @@ TEST(ConfigBudgets, SensorRatesFitTheTimeGrid) {
       << err;
   EXPECT_EQ(rig_error("  - {id: cam, type: camera, rate_hz: 100}\n  - {id: imu, type: imu, rate_hz: 500}\n"), "");
 }
+
+// The height map's extent and heights are positions too: bounded like the world.
+TEST(ConfigBounds, HeightmapExtentIsBounded) {
+  const ScratchConfig cfg("heightmap_extent");
+  const std::string file = (cfg.dir / "scenarios/s.yaml").string();
+  auto error_for = [&](const std::string& text) {
+    std::ofstream(file, std::ios::trunc) << text;
+    try {
+      load_scenario_config(file, {}, cfg.dir.string());
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(error_for(kHeightmapScenario), "");
+  auto err = error_for(replaced(kHeightmapScenario, "size_m: [200, 200]", "size_m: [1e300, 200]"));
+  EXPECT_NE(err.find("terrain.heightmap.size_m: sizes must be in (0, 2e5] m"), std::string::npos)
+      << err;
+  err = error_for(replaced(kHeightmapScenario, "height_range_m: [0, 6]", "height_range_m: [0, 1e30]"));
+  EXPECT_NE(err.find("terrain.heightmap.height_range_m"), std::string::npos) << err;
+  err = error_for(replaced(kHeightmapScenario, "height_range_m: [0, 6]",
+                           "height_range_m: [0, 6], centre_m: [1e12, 0]"));
+  EXPECT_NE(err.find("terrain.heightmap.centre_m"), std::string::npos) << err;
+}
