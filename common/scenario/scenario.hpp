@@ -1,30 +1,192 @@
 #pragma once
-// A scenario with its world resolved: the configuration (scenario_config.hpp) plus what needs
-// the terrain built (obstacles resting on the ground). For the processes that simulate; the
-// coordinator and syndds_plan use load_scenario_config, which builds nothing.
+// Scenario files (config/scenarios/*.yaml): strict schema, documented in docs/scenario.md.
+// Loading validates everything a process needs before any DDS traffic: time contract,
+// world, vehicles and their definition files, sensor rigs, controllers, member list, budgets.
+// Plain structs only: nothing here builds a terrain, a renderer or a vehicle model, so the
+// coordinator and syndds_plan load a scenario in constant memory per sensor and soil patch.
+// The processes that simulate build those from these structs (make_terrain and
+// load_scenario below, in the library syndds_scenario).
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
-// The simulation side of what the config structs name (kept here for the agents that use them).
-#include "convoy/v2v.hpp"
-#include "scenario/scenario_config.hpp"
-#include "sensors/rig.hpp"
-#include "terrain/heightmap_terrain.hpp"
+#include "control/path_follower.hpp"
+#include "convoy/follower.hpp"
+#include "convoy/v2v_config.hpp"
+#include "core/config_files.hpp"
+#include "protocol/barrier.hpp"
+#include "scm/scm_params.hpp"
+#include "sensors/rig_config.hpp"
+#include "terrain/heightmap_spec.hpp"
 #include "terrain/terrain.hpp"
+#include "vehicle/vehicle_params.hpp"
+#include "world/obstacle.hpp"
 
 namespace syndds::scenario {
 
+// Budgets (docs/scenario.md, "Budgets"): what one run may ask for, refused at load.
+/// Simulated seconds (time.end_time_s, --duration): 11.6 days, 1e8 frames at 10 ms.
+inline constexpr double kMaxEndTimeS = 1e6;
+/// Dynamics steps per frame (heartbeat_s / step_s).
+inline constexpr std::int64_t kMaxStepsPerFrame = 10000;
+/// Vehicles of one run, and its barrier members (processes besides the coordinator): every
+/// member joins one coordinator within coordinator.join_timeout_s.
+inline constexpr std::size_t kMaxVehicles = 32;
+inline constexpr std::size_t kMaxMembers = 64;
+/// World box (`world:`): positions beyond float precision of the renderers (1e5 m: 8 mm) or a
+/// side longer than 2 km (a flat ground is rendered over it at 2 m) are refused.
+inline constexpr double kMaxWorldCoordinateM = 1e5;
+inline constexpr double kMaxWorldSideM = 2000.0;
+/// Vertices of the SCM soil patch (each process holding the soil keeps the whole grid).
+inline constexpr double kMaxScmVertices = 8.0 * 1024 * 1024;
+/// Pixels of a height-map image (decoded whole, 24 bytes a vertex): a 2 km map at 1 m.
+inline constexpr double kMaxHeightmapPixels = 2049.0 * 2049.0;
+/// coordinator.join_timeout_s and frame_timeout_s: one day.
+inline constexpr double kMaxTimeoutS = 86400.0;
+
+/// The area every start, waypoint and obstacle lies in (`world:`; default +-1 km).
+struct WorldConfig {
+  double x_min_m = -1000.0;
+  double x_max_m = 1000.0;
+  double y_min_m = -1000.0;
+  double y_max_m = 1000.0;
+  bool contains(double x, double y) const {
+    return x >= x_min_m && x <= x_max_m && y >= y_min_m && y <= y_max_m;
+  }
+};
+
+struct TimeConfig {
+  double step_s = 0.002;        // dynamics step
+  double heartbeat_s = 0.01;    // frame length; an integer multiple of step_s
+  double end_time_s = 10.0;
+  bool realtime = false;
+  std::int64_t steps_per_frame() const;
+  std::int64_t final_frame() const;  // frames run 0..final_frame; t_final = final_frame * hb
+};
+
+struct CoordinatorConfig {
+  double join_timeout_s = 30.0;
+  double frame_timeout_s = 10.0;
+  proto::LossPolicy on_member_loss = proto::LossPolicy::abort;
+};
+
+struct DdsConfig {
+  int domain_id = 0;
+  std::string transport = "default";  // default (shared memory + UDP) | udp
+  std::string discovery_server;       // "ADDR:PORT"; empty: multicast discovery
+};
+
+struct TerrainConfig {
+  std::string type = "rigid";  // rigid (flat plane) | heightmap | scm (deformable soil)
+  double friction = 0.8;
+  double height_m = 0.0;       // rigid: plane height
+  terrain::HeightmapSpec heightmap;  // type heightmap (the image is decoded by make_terrain)
+  scm::ScmParams scm;                // type scm
+  bool deformable() const { return type == "scm"; }
+};
+
+struct ControllerConfig {
+  std::string type = "path_follower";  // path_follower | follower | external | none
+  std::vector<Vec2> waypoints;         // path_follower
+  bool closed = false;
+  control::PathFollowerConfig follower;
+  convoy::FollowerConfig convoy;       // follower: the vehicle followed, gaps, gains
+  /// Runs as the member controller/<id> (path_follower and follower).
+  bool is_builtin() const { return type == "path_follower" || type == "follower"; }
+};
+
+/// The sensors a vehicle carries (`sensors:` of a vehicle entry).
+struct VehicleSensorsConfig {
+  sensors::SensorRig rig;
+  bool save_images = false;  // camera frames as PNG (and frame metadata) in the run directory
+  bool video = false;        // camera frames as an MJPG video in the run directory
+  bool late_join = false;    // the sensor process may join a run already under way
+};
+
+struct VehicleConfig {
+  std::string id;
+  std::string model;                   // as written in the scenario
+  std::string dynamics = "reduced";    // reduced (kinematic bicycle) | full (ODE multibody)
+  vehicle::VehicleParams params;
+  Pose start;
+  ControllerConfig controller;
+  std::optional<VehicleSensorsConfig> sensors;
+  std::optional<convoy::V2VConfig> v2v;  // broadcasts V2V messages (needs GPS, compass, tachometer)
+  /// GPS, IMU, compass or tachometer: simulated in the vehicle process at the dynamics rate.
+  bool has_interoceptive_sensors() const;
+  /// Cameras or lidars: rendered by the vehicle's own sensor process ("sensor/<id>").
+  bool has_rendered_sensors() const { return sensors && sensors->rig.has_rendered_sensors(); }
+};
+
+struct RecorderConfig {
+  bool enabled = true;
+};
+
+struct Scenario {
+  std::string name;
+  std::string file;
+  std::uint64_t seed = 1;
+  TimeConfig time;
+  CoordinatorConfig coordinator;
+  DdsConfig dds;
+  WorldConfig world;
+  TerrainConfig terrain;
+  /// Obstacles given without z rest on the ground: their z is NaN in load_scenario_config
+  /// and set by place_obstacles once the terrain is built.
+  world::Obstacles obstacles;
+  std::vector<VehicleConfig> vehicles;
+  RecorderConfig recorder;
+  /// Every file the scenario was read from (the scenario, vehicle files, rigs, soil presets,
+  /// height-map images), in read order with its role and content hash.
+  std::vector<ConfigFile> files;
+  /// Hash of those files' roles and contents and of the overrides: every member must agree.
+  std::uint64_t fingerprint = 0;
+
+  const VehicleConfig* find_vehicle(const std::string& id) const;
+  /// Every barrier member the scenario declares, in a fixed order.
+  std::vector<std::string> member_ids() const;
+  /// Members the run does not wait for at the start: they may join later (late_join).
+  bool is_late_member(const std::string& member_id) const;
+};
+
+/// Command-line overrides applied on top of the file (they change the fingerprint too).
+struct Overrides {
+  std::optional<double> duration_s;
+  std::optional<bool> realtime;
+  std::optional<int> domain_id;
+};
+
+/// Where vehicle model names are looked up: $SYNDDS_CONFIG_DIR, else the source tree's config/.
+std::string default_config_dir();
+
+/// Reads and checks a scenario and every file it names; ConfigError naming file, line and key.
+/// Obstacles without z keep a NaN z (load_scenario places them on the ground).
+Scenario load_scenario_config(const std::string& file, const Overrides& overrides = {},
+                              const std::string& config_dir = default_config_dir());
+Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
+                               const Overrides& overrides, const std::string& config_dir);
+
+// The world a scenario describes, for the processes that simulate: defined in the library
+// syndds_scenario (scenario_world.cpp), which the coordinator and syndds_plan do not link.
+
 /// The terrain surface a terrain block describes (for scm: a fresh, undeformed ScmTerrain).
 std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& terrain);
-
 /// Sets the z of the obstacles given without one: a sphere on its lowest point, a box or a
 /// cylinder on its base, on the undeformed terrain.
 void place_obstacles(Scenario& s);
-
-/// load_scenario_config, then place_obstacles.
+/// load_scenario_config (parse_scenario_config), then place_obstacles.
 Scenario load_scenario(const std::string& file, const Overrides& overrides = {},
                        const std::string& config_dir = default_config_dir());
 Scenario parse_scenario(const YamlNode& root, const std::string& text, const Overrides& overrides,
                         const std::string& config_dir);
+
+// Member ids: "vehicle/<id>", "controller/<id>", "external/<id>", "sensor/<id>", "recorder".
+std::string vehicle_member(const std::string& vehicle_id);
+std::string controller_member(const std::string& vehicle_id);
+std::string external_member(const std::string& vehicle_id);
+std::string sensor_member(const std::string& vehicle_id);
+inline constexpr const char* kRecorderMember = "recorder";
 
 }  // namespace syndds::scenario

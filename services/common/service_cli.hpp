@@ -10,7 +10,7 @@
 #include <string>
 
 #include "dds/member_runtime.hpp"
-#include "scenario/scenario_config.hpp"
+#include "scenario/scenario.hpp"
 
 namespace syndds::service {
 

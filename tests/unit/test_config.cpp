@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "scenario/scenario_config.hpp"
+#include "scenario/scenario.hpp"
 
 using namespace syndds;
 using namespace syndds::scenario;
