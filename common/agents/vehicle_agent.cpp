@@ -53,7 +53,8 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
   if (vehicle.has_interoceptive_sensors()) {
     sensors_ = std::make_unique<sensors::VehicleSensors>(vehicle.sensors->rig, vehicle.id,
                                                          scenario.seed, step_s_,
-                                                         scenario.time.heartbeat_s);
+                                                         scenario.time.heartbeat_s,
+                                                         sensors::SensorSet::interoceptive);
   }
   if (vehicle.v2v) {
     v2v_ = std::make_unique<convoy::V2VBroadcaster>(*vehicle.v2v, vehicle_id_, member_id_,

@@ -15,17 +15,12 @@
 #include <string>
 #include <vector>
 
+#include "convoy/v2v_config.hpp"
 #include "protocol/messages.hpp"
 #include "sensors/random.hpp"
 #include "sensors/rig.hpp"
 
 namespace syndds::convoy {
-
-struct V2VConfig {
-  double rate_hz = 10.0;
-  double latency_s = 0.0;
-  double drop_probability = 0.0;  // in [0, 1]; 1 cuts the link
-};
 
 class V2VBroadcaster {
  public:

@@ -7,9 +7,9 @@
 #include <regex>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "core/hash.hpp"
-#include "scm/scm_terrain.hpp"
 
 #ifndef SYNDDS_DEFAULT_CONFIG_DIR
 #define SYNDDS_DEFAULT_CONFIG_DIR "config"
@@ -27,6 +27,11 @@ TimeConfig parse_time(const YamlNode& node) {
   auto hb = m.optional("heartbeat_s");
   t.heartbeat_s = m.positive("heartbeat_s", t.heartbeat_s);
   t.end_time_s = m.positive("end_time_s", std::nullopt);
+  if (t.end_time_s > kMaxEndTimeS) {
+    std::ostringstream msg;
+    msg << "must be in (0, " << kMaxEndTimeS << "] seconds, got " << t.end_time_s;
+    m.required("end_time_s").fail(msg.str());
+  }
   t.realtime = m.get_or("realtime", false);
   m.finish();
   const double ratio = t.heartbeat_s / t.step_s;
@@ -37,14 +42,21 @@ TimeConfig parse_time(const YamlNode& node) {
         << t.step_s << ")";
     (hb ? *hb : (step ? *step : node)).fail(msg.str());
   }
+  if (n > static_cast<double>(kMaxStepsPerFrame)) {
+    std::ostringstream msg;
+    msg << "heartbeat_s / step_s is " << n << " dynamics steps per frame; at most "
+        << kMaxStepsPerFrame;
+    (hb ? *hb : (step ? *step : node)).fail(msg.str());
+  }
   return t;
 }
 
 CoordinatorConfig parse_coordinator(const YamlNode& node) {
   MapReader m(node);
   CoordinatorConfig c;
-  c.join_timeout_s = m.positive("join_timeout_s", c.join_timeout_s);
-  c.frame_timeout_s = m.positive("frame_timeout_s", c.frame_timeout_s);
+  // Bounded so that deadlines stay representable on the steady clock (1e300 s wrapped).
+  c.join_timeout_s = m.number("join_timeout_s", c.join_timeout_s, 0.001, kMaxTimeoutS);
+  c.frame_timeout_s = m.number("frame_timeout_s", c.frame_timeout_s, 0.001, kMaxTimeoutS);
   const std::string policy = m.choice("on_member_loss", "abort", {"abort", "continue"});
   c.on_member_loss = policy == "abort" ? proto::LossPolicy::abort : proto::LossPolicy::continue_run;
   m.finish();
@@ -65,13 +77,71 @@ DdsConfig parse_dds(const YamlNode& node) {
   return d;
 }
 
-TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir) {
+// Width and height from a PNG's IHDR chunk (bytes 16..23, big endian), if `bytes` is a PNG.
+std::optional<std::pair<std::uint32_t, std::uint32_t>> png_size(const std::string& bytes) {
+  static const char signature[] = "\x89PNG\r\n\x1a\n";
+  if (bytes.size() < 24 || bytes.compare(0, 8, signature, 8) != 0 ||
+      bytes.compare(12, 4, "IHDR") != 0) {
+    return std::nullopt;
+  }
+  auto be32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    for (std::size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+    return v;
+  };
+  return std::pair{be32(16), be32(20)};
+}
+
+WorldConfig parse_world(const YamlNode& node) {
+  MapReader m(node);
+  WorldConfig w;
+  const double lim = kMaxWorldCoordinateM;
+  w.x_min_m = m.number("x_min_m", w.x_min_m, -lim, lim);
+  w.x_max_m = m.number("x_max_m", w.x_max_m, -lim, lim);
+  w.y_min_m = m.number("y_min_m", w.y_min_m, -lim, lim);
+  w.y_max_m = m.number("y_max_m", w.y_max_m, -lim, lim);
+  m.finish();
+  for (const auto& [lo, hi, axis] : {std::tuple{w.x_min_m, w.x_max_m, "x"},
+                                     std::tuple{w.y_min_m, w.y_max_m, "y"}}) {
+    if (!(hi > lo) || hi - lo > kMaxWorldSideM) {
+      std::ostringstream msg;
+      msg << "the world's " << axis << " extent [" << lo << ", " << hi
+          << "] must be non-empty and at most " << kMaxWorldSideM << " m";
+      node.fail(msg.str());
+    }
+  }
+  return w;
+}
+
+// Every position a scenario gives must lie in its world box (the renderers and the soil
+// allocate in proportion to the area the positions span).
+void check_in_world(const YamlNode& where, const WorldConfig& w, double x, double y) {
+  if (w.contains(x, y)) return;
+  std::ostringstream msg;
+  msg << "(" << x << ", " << y << ") is outside the world [" << w.x_min_m << ", " << w.x_max_m
+      << "] x [" << w.y_min_m << ", " << w.y_max_m << "] (declare a larger `world:` box, "
+      << "at most " << kMaxWorldSideM << " m a side; docs/scenario.md)";
+  where.fail(msg.str());
+}
+
+TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir,
+                            ConfigFiles& files) {
   MapReader m(node);
   TerrainConfig t;
   t.type = m.choice("type", "rigid", {"rigid", "heightmap", "scm"});
   if (t.type == "scm") {
     // The SCM reader owns the whole block (preset, soil, area, spacing, bulldozing...).
-    t.scm = scm::parse_scm_params(node, (fs::path(config_dir) / "terrain").string());
+    t.scm = scm::parse_scm_params(node, (fs::path(config_dir) / "terrain").string(), &files);
+    const auto& g = t.scm.grid;
+    const double vertices =
+        (std::floor(g.x_max_m / g.spacing_m) - std::ceil(g.x_min_m / g.spacing_m) + 1) *
+        (std::floor(g.y_max_m / g.spacing_m) - std::ceil(g.y_min_m / g.spacing_m) + 1);
+    if (vertices > kMaxScmVertices) {
+      std::ostringstream msg;
+      msg << "the soil patch (area / spacing_m) has " << vertices << " grid vertices; at most "
+          << kMaxScmVertices << " (a larger spacing_m or a smaller area)";
+      node.fail(msg.str());
+    }
     t.friction = std::tan(deg_to_rad(t.scm.soil.friction_angle_deg));
     return t;
   }
@@ -79,15 +149,26 @@ TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir)
     t.friction = m.number("friction", 0.8, 0.01, 2.0);
     t.height_m = m.number("height_m", 0.0, -1e4, 1e4);
   } else {
-    t.heightmap = terrain::parse_heightmap_spec(m.required("heightmap"),
+    const auto heightmap = m.required("heightmap");
+    t.heightmap = terrain::parse_heightmap_spec(heightmap,
                                                 fs::path(node.file()).parent_path().string());
+    const std::string image = files.read(t.heightmap.image_file, heightmap.path() + ".image");
+    // Every process that builds the terrain decodes the whole image: bound it from the PNG
+    // header (other formats are checked when decoded).
+    const auto png = png_size(image);
+    if (png && static_cast<double>(png->first) * png->second > kMaxHeightmapPixels) {
+      std::ostringstream msg;
+      msg << t.heightmap.image_file << " is " << png->first << " x " << png->second
+          << " pixels; at most " << kMaxHeightmapPixels << " (docs/scenario.md, Budgets)";
+      MapReader(heightmap).required("image").fail(msg.str());
+    }
     t.friction = t.heightmap.friction;
   }
   m.finish();
   return t;
 }
 
-world::Obstacle parse_obstacle(const YamlNode& node) {
+world::Obstacle parse_obstacle(const YamlNode& node, const WorldConfig& world) {
   MapReader m(node);
   world::Obstacle o;
   auto id = m.required("id");
@@ -100,22 +181,24 @@ world::Obstacle parse_obstacle(const YamlNode& node) {
   auto pos_node = m.required("position");
   const auto pos = pos_node.as_doubles();
   if (pos.size() != 2 && pos.size() != 3) pos_node.fail("expected [x, y] or [x, y, z]");
+  check_in_world(pos_node, world, pos[0], pos[1]);
+  if (pos.size() == 3 && std::abs(pos[2]) > 1e4) pos_node.fail("z must be in [-1e4, 1e4]");
   const double yaw = m.number("yaw_deg", 0.0, -360, 360);
   if (shape == "box") {
     o.shape = world::ShapeKind::box;
     auto size = m.required("size_m").as_doubles(3);
     for (double v : size) {
-      if (!(v > 0)) m.required("size_m").fail("sizes must be positive");
+      if (!(v > 0) || v > 1000) m.required("size_m").fail("sizes must be in (0, 1000] m");
     }
     o.size = Vec3(size[0], size[1], size[2]) / 2.0;
   } else if (shape == "sphere") {
     o.shape = world::ShapeKind::sphere;
-    const double r = m.positive("radius_m", std::nullopt);
+    const double r = m.number("radius_m", std::nullopt, 1e-3, 500);
     o.size = Vec3(r, r, r);
   } else {
     o.shape = world::ShapeKind::cylinder;
-    const double r = m.positive("radius_m", std::nullopt);
-    o.size = Vec3(r, r, m.positive("height_m", std::nullopt) / 2.0);
+    const double r = m.number("radius_m", std::nullopt, 1e-3, 500);
+    o.size = Vec3(r, r, m.number("height_m", std::nullopt, 1e-3, 1000) / 2.0);
   }
   m.finish();
   // Without z the obstacle rests on the terrain (resolved once the terrain is known).
@@ -147,7 +230,7 @@ control::SpeedProfile parse_speed(const YamlNode& node) {
   return s;
 }
 
-ControllerConfig parse_controller(const YamlNode& node) {
+ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world) {
   MapReader m(node);
   ControllerConfig c;
   c.type = m.choice("type", std::nullopt, {"path_follower", "follower", "external", "none"});
@@ -176,8 +259,10 @@ ControllerConfig parse_controller(const YamlNode& node) {
   if (c.type == "path_follower") {
     MapReader p(m.required("path"));
     auto wp = p.required("waypoints");
+    if (wp.size() > 100000) wp.fail("at most 100000 waypoints");
     for (const auto& row : wp.elements()) {
       const auto v = row.as_doubles(2);
+      check_in_world(row, world, v[0], v[1]);
       c.waypoints.emplace_back(v[0], v[1]);
     }
     if (c.waypoints.size() < 2) wp.fail("needs at least two [x, y] waypoints");
@@ -197,11 +282,12 @@ ControllerConfig parse_controller(const YamlNode& node) {
   return c;
 }
 
-Pose parse_start(const YamlNode& node) {
+Pose parse_start(const YamlNode& node, const WorldConfig& world) {
   MapReader m(node);
   Pose p;
-  const double x = m.number("x", std::nullopt, -1e6, 1e6);
-  const double y = m.number("y", std::nullopt, -1e6, 1e6);
+  const double x = m.get<double>("x");
+  const double y = m.get<double>("y");
+  check_in_world(node, world, x, y);
   const double z = m.number("z", 0.0, -1e4, 1e4);
   const double yaw = m.number("yaw_deg", 0.0, -360, 360);
   m.finish();
@@ -224,7 +310,8 @@ std::string resolve_model_file(const YamlNode& node, const std::string& model,
 
 // `sensors: default` (a rig name or file) or `sensors: {rig: default, save_images: true, video: false}`.
 VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::string& config_dir,
-                                           double heartbeat_s) {
+                                           const TimeConfig& time, ConfigFiles& files) {
+  const double heartbeat_s = time.heartbeat_s;
   VehicleSensorsConfig c;
   std::optional<YamlNode> rig_node;
   if (node.is_scalar()) {
@@ -241,7 +328,8 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
   std::string file = sensors::sensor_rig_path(rig, config_dir);
   if (!fs::exists(file)) file = (fs::path(node.file()).parent_path() / rig).string();
   if (!fs::exists(file)) rig_node->fail("sensor rig not found: " + rig);
-  c.rig = sensors::load_sensor_rig(file);
+  c.rig = sensors::parse_sensor_rig(
+      YamlNode::load_string(files.read(file, rig_node->path()), file));
   // The DDS history keeps 32 samples per sensor type, vehicle and frame (two frames in flight).
   auto per_frame = [&](const auto& list) {
     double n = 0;
@@ -258,11 +346,30 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
                      " samples per frame; at most 32 fit (lower rate_hz or heartbeat_s)");
     }
   }
+  // A sensor measures on the grid it is fed at: the dynamics step for the interoceptive ones,
+  // the frame for cameras and lidars. Checked here so that a rig too fast for the scenario is
+  // refused before any process starts (VehicleSensors checks again with the exact tick rule;
+  // the margin here only ever accepts more).
+  auto check_rate = [&](const std::string& id, double rate_hz, double tick_s, const char* fed) {
+    if (rate_hz * tick_s > 1.0 + 1e-6) {
+      std::ostringstream msg;
+      msg << "rig " << file << ": sensor '" << id << "' measures at " << rate_hz
+          << " Hz, faster than the " << 1.0 / tick_s << " Hz it is fed at (" << fed << ")";
+      rig_node->fail(msg.str());
+    }
+  };
+  for (const auto& s : c.rig.gps) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.imus) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.magnetometers) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.tachometers) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
+  for (const auto& s : c.rig.cameras) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
+  for (const auto& s : c.rig.lidars) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
   return c;
 }
 
 VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
-                            double heartbeat_s) {
+                            const TimeConfig& time, const WorldConfig& world, ConfigFiles& files) {
+  const double heartbeat_s = time.heartbeat_s;
   MapReader m(node);
   VehicleConfig v;
   auto id_node = m.required("id");
@@ -272,15 +379,17 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   }
   auto model_node = m.required("model");
   v.model = model_node.as_string();
-  v.params = vehicle::load_vehicle_params(resolve_model_file(model_node, v.model, config_dir));
+  const std::string model_file = resolve_model_file(model_node, v.model, config_dir);
+  v.params = vehicle::parse_vehicle_params(
+      YamlNode::load_string(files.read(model_file, model_node.path()), model_file));
   v.dynamics = m.choice("dynamics", "reduced", {"reduced", "full"});
   auto start = m.optional("start");
   if (auto n = m.optional("sensors")) {
-    v.sensors = parse_vehicle_sensors(*n, config_dir, heartbeat_s);
+    v.sensors = parse_vehicle_sensors(*n, config_dir, time, files);
   }
   std::optional<YamlNode> controller_node = m.optional("controller");
   if (controller_node) {
-    v.controller = parse_controller(*controller_node);
+    v.controller = parse_controller(*controller_node, world);
   } else {
     v.controller.type = "none";
   }
@@ -305,7 +414,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   if (v2v_node) needs_own_sensors(*v2v_node, "v2v");
   if (v.controller.type == "follower") needs_own_sensors(*controller_node, "a follower controller");
   if (start) {
-    v.start = parse_start(*start);
+    v.start = parse_start(*start, world);
   } else if (v.controller.type == "path_follower") {
     const control::Path path(v.controller.waypoints, v.controller.closed);
     const auto p0 = path.at(0.0);
@@ -319,12 +428,6 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
 }
 
 }  // namespace
-
-std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& t) {
-  if (t.type == "scm") return std::make_shared<scm::ScmTerrain>(t.scm);
-  if (t.type == "heightmap") return std::make_shared<terrain::HeightmapTerrain>(t.heightmap);
-  return std::make_shared<terrain::FlatTerrain>(t.height_m, t.friction);
-}
 
 std::int64_t TimeConfig::steps_per_frame() const {
   return static_cast<std::int64_t>(std::llround(heartbeat_s / step_s));
@@ -380,30 +483,39 @@ std::string default_config_dir() {
   return SYNDDS_DEFAULT_CONFIG_DIR;
 }
 
-Scenario parse_scenario(const YamlNode& root, const std::string& text, const Overrides& overrides,
-                        const std::string& config_dir) {
+Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
+                               const Overrides& overrides, const std::string& config_dir) {
   Scenario s;
   s.file = root.file();
+  ConfigFiles files;
+  files.add(s.file, "scenario", text);
   MapReader m(root);
   s.name = m.get_or<std::string>("name", fs::path(s.file).stem().string());
   s.seed = static_cast<std::uint64_t>(m.number("seed", 1, 0, 9.0e15));
   s.time = parse_time(m.required("time"));
   if (auto n = m.optional("coordinator")) s.coordinator = parse_coordinator(*n);
   if (auto n = m.optional("dds")) s.dds = parse_dds(*n);
-  if (auto n = m.optional("terrain")) s.terrain = parse_terrain(*n, config_dir);
+  if (auto n = m.optional("world")) s.world = parse_world(*n);
+  if (auto n = m.optional("terrain")) s.terrain = parse_terrain(*n, config_dir, files);
   if (auto n = m.optional("obstacles")) {
+    if (n->size() > 10000) n->fail("at most 10000 obstacles");
     std::set<std::string> obstacle_ids;
     for (const auto& o : n->elements()) {
-      s.obstacles.push_back(parse_obstacle(o));
+      s.obstacles.push_back(parse_obstacle(o, s.world));
       if (!obstacle_ids.insert(s.obstacles.back().id).second) {
         o.fail("duplicate obstacle id '" + s.obstacles.back().id + "'");
       }
     }
   }
   auto vehicles = m.required("vehicles");
+  // Checked before any vehicle file is read: each vehicle is at least one process to start.
+  if (vehicles.size() > kMaxVehicles) {
+    vehicles.fail(std::to_string(vehicles.size()) + " vehicles; at most " +
+                  std::to_string(kMaxVehicles) + " in one run (docs/scenario.md, Budgets)");
+  }
   std::set<std::string> ids;
   for (const auto& v : vehicles.elements()) {
-    s.vehicles.push_back(parse_vehicle(v, config_dir, s.time.heartbeat_s));
+    s.vehicles.push_back(parse_vehicle(v, config_dir, s.time, s.world, files));
     if (!ids.insert(s.vehicles.back().id).second) {
       v.fail("duplicate vehicle id '" + s.vehicles.back().id + "'");
     }
@@ -426,48 +538,47 @@ Scenario parse_scenario(const YamlNode& root, const std::string& text, const Ove
       }
     }
   }
-  if (!s.obstacles.empty()) {
-    // Obstacles without a z rest on the ground: a sphere on its lowest point, a box or a
-    // cylinder on its base.
-    const auto ground = make_terrain(s.terrain);
-    for (auto& o : s.obstacles) {
-      if (std::isnan(o.pose.position.z())) {
-        o.pose.position.z() = ground->height(o.pose.position.x(), o.pose.position.y()) + o.size.z();
-      }
-    }
-  }
   if (auto n = m.optional("recorder")) {
     MapReader r(*n);
     s.recorder.enabled = r.get_or("enabled", true);
     r.finish();
   }
   m.finish();
+  if (const auto members = s.member_ids().size(); members > kMaxMembers) {
+    vehicles.fail("these vehicles make " + std::to_string(members) +
+                  " processes (vehicles, controllers, sensors, recorder); at most " +
+                  std::to_string(kMaxMembers) + " in one run (docs/scenario.md, Budgets)");
+  }
 
   if (overrides.duration_s) {
-    if (!(*overrides.duration_s > 0.0) || !std::isfinite(*overrides.duration_s)) {
-      throw ConfigError("--duration must be a positive number of seconds");
+    const double d = *overrides.duration_s;
+    if (!(d > 0.0) || !(d <= kMaxEndTimeS)) {
+      std::ostringstream msg;
+      msg << "--duration " << d << ": must be in (0, " << kMaxEndTimeS << "] seconds";
+      throw ConfigError(msg.str());
     }
-    s.time.end_time_s = *overrides.duration_s;
+    s.time.end_time_s = d;
   }
   if (overrides.realtime) s.time.realtime = *overrides.realtime;
   if (overrides.domain_id) s.dds.domain_id = *overrides.domain_id;
 
+  s.files = files.files();
   Fnv1a64 h;
-  h.add(text);
+  h.add(static_cast<std::int64_t>(files.fingerprint()));
   h.add(s.time.end_time_s);
   h.add(static_cast<std::int64_t>(s.time.realtime));
   s.fingerprint = h.value();
   return s;
 }
 
-Scenario load_scenario(const std::string& file, const Overrides& overrides,
-                       const std::string& config_dir) {
-  std::ifstream in(file);
+Scenario load_scenario_config(const std::string& file, const Overrides& overrides,
+                              const std::string& config_dir) {
+  std::ifstream in(file, std::ios::binary);
   if (!in) throw ConfigError(file + ": cannot open scenario file");
   std::stringstream buffer;
   buffer << in.rdbuf();
   const std::string text = buffer.str();
-  return parse_scenario(YamlNode::load_string(text, file), text, overrides, config_dir);
+  return parse_scenario_config(YamlNode::load_string(text, file), text, overrides, config_dir);
 }
 
 }  // namespace syndds::scenario

@@ -1,23 +1,61 @@
 #pragma once
 // Scenario files (config/scenarios/*.yaml): strict schema, documented in docs/scenario.md.
 // Loading validates everything a process needs before any DDS traffic: time contract,
-// vehicles and their definition files, controllers, member list.
+// world, vehicles and their definition files, sensor rigs, controllers, member list, budgets.
+// Plain structs only: nothing here builds a terrain, a renderer or a vehicle model, so the
+// coordinator and syndds_plan load a scenario in constant memory per sensor and soil patch.
+// The processes that simulate build those from these structs (make_terrain and
+// load_scenario below, in the library syndds_scenario).
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "control/path_follower.hpp"
 #include "convoy/follower.hpp"
-#include "convoy/v2v.hpp"
+#include "convoy/v2v_config.hpp"
+#include "core/config_files.hpp"
 #include "protocol/barrier.hpp"
 #include "scm/scm_params.hpp"
-#include "sensors/rig.hpp"
-#include "terrain/heightmap_terrain.hpp"
+#include "sensors/rig_config.hpp"
+#include "terrain/heightmap_spec.hpp"
+#include "terrain/terrain.hpp"
 #include "vehicle/vehicle_params.hpp"
 #include "world/obstacle.hpp"
 
 namespace syndds::scenario {
+
+// Budgets (docs/scenario.md, "Budgets"): what one run may ask for, refused at load.
+/// Simulated seconds (time.end_time_s, --duration): 11.6 days, 1e8 frames at 10 ms.
+inline constexpr double kMaxEndTimeS = 1e6;
+/// Dynamics steps per frame (heartbeat_s / step_s).
+inline constexpr std::int64_t kMaxStepsPerFrame = 10000;
+/// Vehicles of one run, and its barrier members (processes besides the coordinator): every
+/// member joins one coordinator within coordinator.join_timeout_s.
+inline constexpr std::size_t kMaxVehicles = 32;
+inline constexpr std::size_t kMaxMembers = 64;
+/// World box (`world:`): positions beyond float precision of the renderers (1e5 m: 8 mm) or a
+/// side longer than 2 km (a flat ground is rendered over it at 2 m) are refused.
+inline constexpr double kMaxWorldCoordinateM = 1e5;
+inline constexpr double kMaxWorldSideM = 2000.0;
+/// Vertices of the SCM soil patch (each process holding the soil keeps the whole grid).
+inline constexpr double kMaxScmVertices = 8.0 * 1024 * 1024;
+/// Pixels of a height-map image (decoded whole, 24 bytes a vertex): a 2 km map at 1 m.
+inline constexpr double kMaxHeightmapPixels = 2049.0 * 2049.0;
+/// coordinator.join_timeout_s and frame_timeout_s: one day.
+inline constexpr double kMaxTimeoutS = 86400.0;
+
+/// The area every start, waypoint and obstacle lies in (`world:`; default +-1 km).
+struct WorldConfig {
+  double x_min_m = -1000.0;
+  double x_max_m = 1000.0;
+  double y_min_m = -1000.0;
+  double y_max_m = 1000.0;
+  bool contains(double x, double y) const {
+    return x >= x_min_m && x <= x_max_m && y >= y_min_m && y <= y_max_m;
+  }
+};
 
 struct TimeConfig {
   double step_s = 0.002;        // dynamics step
@@ -44,7 +82,7 @@ struct TerrainConfig {
   std::string type = "rigid";  // rigid (flat plane) | heightmap | scm (deformable soil)
   double friction = 0.8;
   double height_m = 0.0;       // rigid: plane height
-  terrain::HeightmapSpec heightmap;  // type heightmap
+  terrain::HeightmapSpec heightmap;  // type heightmap (the image is decoded by make_terrain)
   scm::ScmParams scm;                // type scm
   bool deformable() const { return type == "scm"; }
 };
@@ -93,11 +131,18 @@ struct Scenario {
   TimeConfig time;
   CoordinatorConfig coordinator;
   DdsConfig dds;
+  WorldConfig world;
   TerrainConfig terrain;
+  /// Obstacles given without z rest on the ground: their z is NaN in load_scenario_config
+  /// and set by place_obstacles once the terrain is built.
   world::Obstacles obstacles;
   std::vector<VehicleConfig> vehicles;
   RecorderConfig recorder;
-  std::uint64_t fingerprint = 0;  // hash of the file and the overrides: every member must agree
+  /// Every file the scenario was read from (the scenario, vehicle files, rigs, soil presets,
+  /// height-map images), in read order with its role and content hash.
+  std::vector<ConfigFile> files;
+  /// Hash of those files' roles and contents and of the overrides: every member must agree.
+  std::uint64_t fingerprint = 0;
 
   const VehicleConfig* find_vehicle(const std::string& id) const;
   /// Every barrier member the scenario declares, in a fixed order.
@@ -113,12 +158,25 @@ struct Overrides {
   std::optional<int> domain_id;
 };
 
-/// The terrain surface a terrain block describes (for scm: a fresh, undeformed ScmTerrain).
-std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& terrain);
-
 /// Where vehicle model names are looked up: $SYNDDS_CONFIG_DIR, else the source tree's config/.
 std::string default_config_dir();
 
+/// Reads and checks a scenario and every file it names; ConfigError naming file, line and key.
+/// Obstacles without z keep a NaN z (load_scenario places them on the ground).
+Scenario load_scenario_config(const std::string& file, const Overrides& overrides = {},
+                              const std::string& config_dir = default_config_dir());
+Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
+                               const Overrides& overrides, const std::string& config_dir);
+
+// The world a scenario describes, for the processes that simulate: defined in the library
+// syndds_scenario (scenario_world.cpp), which the coordinator and syndds_plan do not link.
+
+/// The terrain surface a terrain block describes (for scm: a fresh, undeformed ScmTerrain).
+std::shared_ptr<const terrain::TerrainSurface> make_terrain(const TerrainConfig& terrain);
+/// Sets the z of the obstacles given without one: a sphere on its lowest point, a box or a
+/// cylinder on its base, on the undeformed terrain.
+void place_obstacles(Scenario& s);
+/// load_scenario_config (parse_scenario_config), then place_obstacles.
 Scenario load_scenario(const std::string& file, const Overrides& overrides = {},
                        const std::string& config_dir = default_config_dir());
 Scenario parse_scenario(const YamlNode& root, const std::string& text, const Overrides& overrides,

@@ -90,8 +90,10 @@ BulldozingParams parse_bulldozing_params(const YamlNode& node, const BulldozingP
   return b;
 }
 
-SoilPreset load_soil_preset_file(const std::string& file) {
-  const YamlNode root = YamlNode::load_file(file);
+SoilPreset load_soil_preset_file(const std::string& file, ConfigFiles* files,
+                                 const std::string& role) {
+  const YamlNode root = files ? YamlNode::load_string(files->read(file, role), file)
+                              : YamlNode::load_file(file);
   MapReader m(root);
   SoilPreset p;
   p.soil = parse_soil_params(m.required("soil"));
@@ -100,7 +102,8 @@ SoilPreset load_soil_preset_file(const std::string& file) {
   return p;
 }
 
-ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_config_dir) {
+ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_config_dir,
+                           ConfigFiles* files) {
   MapReader m(node);
   ScmParams p;
   if (m.has("type")) m.choice("type", std::nullopt, {"scm"});  // a scenario's terrain block
@@ -109,7 +112,8 @@ ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_conf
   if (has_preset == has_soil) node.fail("give exactly one of 'preset' or 'soil'");
   if (has_preset) {
     const std::string name = m.choice("preset", std::nullopt, {"soft", "mid", "hard"});
-    const SoilPreset preset = load_soil_preset_file(terrain_config_dir + "/scm_" + name + ".yaml");
+    const SoilPreset preset = load_soil_preset_file(
+        terrain_config_dir + "/scm_" + name + ".yaml", files, m.required("preset").path());
     p.soil = preset.soil;
     p.bulldozing = preset.bulldozing;
   } else {

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "core/config_files.hpp"
 #include "core/yaml.hpp"
 
 namespace syndds::scm {
@@ -76,7 +77,9 @@ struct SoilPreset {
   SoilParams soil;
   BulldozingParams bulldozing;
 };
-SoilPreset load_soil_preset_file(const std::string& file);
+/// With `files`, the file is read through it (recorded for the run's fingerprint as `role`).
+SoilPreset load_soil_preset_file(const std::string& file, ConfigFiles* files = nullptr,
+                                 const std::string& role = "soil preset");
 
 /// Reads a scenario terrain block:
 ///   type: scm              # optional (if present it must say scm)
@@ -89,7 +92,9 @@ SoilPreset load_soil_preset_file(const std::string& file);
 ///   patch_test_height_m: 0.1  # optional
 ///   shear_damping_time_s: 0.005  # optional
 ///   bulldozing: {...}      # optional, overrides the preset's
-ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_config_dir);
+/// With `files`, the preset file is read through it (see load_soil_preset_file).
+ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_config_dir,
+                           ConfigFiles* files = nullptr);
 
 /// Throws ConfigError if a parameter is out of range (used by the readers and by ScmTerrain).
 void validate(const ScmParams& params);

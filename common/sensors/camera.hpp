@@ -23,6 +23,7 @@
 #include "core/thread_pool.hpp"
 #include "sensors/interoceptive.hpp"
 #include "sensors/scene.hpp"
+#include "sensors/sensor_config.hpp"
 #include "sensors/timing.hpp"
 
 namespace syndds::sensors {
@@ -35,14 +36,6 @@ struct RgbImage {
   const std::uint8_t* at(int u, int v) const {
     return &pixels[(static_cast<std::size_t>(v) * width + u) * 3];
   }
-};
-
-struct CameraIntrinsics {
-  int width = 80;
-  int height = 45;
-  double hfov_rad = deg_to_rad(90.0);
-  double k1 = 0.0;
-  double k2 = 0.0;
 };
 
 class CameraModel {
@@ -76,40 +69,6 @@ class CameraRenderer {
  private:
   CameraModel model_;
   ThreadPool pool_;
-};
-
-enum class CameraMode { mounted, chase, fixed };
-enum class ExposureMode { instant, midpoint, average };
-enum class PixelNoiseModel { none, gaussian, pixel_dependent };
-
-struct ChaseConfig {
-  double distance_m = 8.0;       // behind the vehicle, horizontally
-  double height_m = 3.0;         // above the chassis reference point
-  double target_height_m = 1.0;  // the camera looks at this point above the reference
-};
-
-struct CameraConfig {
-  std::string id = "camera";
-  double rate_hz = 30.0;
-  double lag_s = 0.05;
-  Mount mount;  // mounted: on the chassis; fixed: world pose
-  CameraIntrinsics intrinsics;
-  CameraMode mode = CameraMode::mounted;
-  ChaseConfig chase;
-  // Exposure (collection window) [t_k, t_k + exposure_s]: instant renders at t_k; midpoint
-  // renders once at the tick nearest t_k + exposure/2; average renders `subframes` times at
-  // the ticks nearest t_k + exposure (i + 0.5) / N and averages the radiance (motion blur).
-  double exposure_s = 0.02;
-  ExposureMode exposure_mode = ExposureMode::midpoint;
-  int subframes = 1;
-  double gamma = 2.2;
-  double gain = 1.0;
-  PixelNoiseModel noise = PixelNoiseModel::gaussian;
-  double noise_std = 0.0004;  // on display values in [0, 1]
-  double noise_slope = 0.0;   // pixel-dependent: sigma^2 = slope v + intercept
-  double noise_intercept = 0.0;
-  bool hide_own_vehicle = true;  // ignored in chase mode (the vehicle is the subject)
-  int threads = 1;
 };
 
 struct CameraFrame {

@@ -15,18 +15,11 @@
 #include "core/math.hpp"
 #include "sensors/geodesy.hpp"
 #include "sensors/random.hpp"
+#include "sensors/sensor_config.hpp"
 #include "sensors/timing.hpp"
 #include "vehicle/vehicle_model.hpp"
 
 namespace syndds::sensors {
-
-/// Gaussian white noise plus a random-walk bias, per axis:
-///   bias_{k+1} = bias_k + N(0, walk * sqrt(dt)),  value = truth + bias + N(0, white_std).
-struct NoiseConfig {
-  Vec3 white_std = Vec3::Zero();
-  Vec3 walk_per_sqrt_s = Vec3::Zero();  // random-walk density (units / sqrt(s))
-  Vec3 initial_bias = Vec3::Zero();
-};
 
 class NoiseModel3 {
  public:
@@ -38,48 +31,6 @@ class NoiseModel3 {
  private:
   NoiseConfig config_;
   Vec3 bias_;
-};
-
-/// Sensor placement on the chassis reference frame (x forward, y left, z up).
-struct Mount {
-  Pose pose;
-};
-
-struct GpsConfig {
-  std::string id = "gps";
-  double rate_hz = 10.0;
-  double lag_s = 0.1;
-  Mount mount;  // antenna position (orientation unused)
-  GeodeticModel model = GeodeticModel::wgs84;
-  NoiseConfig noise;  // on the ENU position, metres
-};
-
-struct ImuConfig {
-  std::string id = "imu";
-  double rate_hz = 100.0;
-  double lag_s = 0.0;
-  Mount mount;
-  NoiseConfig accelerometer;  // m/s2
-  NoiseConfig gyroscope;      // rad/s
-};
-
-struct MagnetometerConfig {
-  std::string id = "compass";
-  double rate_hz = 50.0;
-  double lag_s = 0.0;
-  Mount mount;
-  double heading_noise_std_rad = 0.0;
-  double field_strength_ut = 50.0;  // Earth's field magnitude (microtesla)
-  double declination_deg = 0.0;     // magnetic north east of true north
-  double inclination_deg = 60.0;    // dip below the horizontal
-  double field_noise_std_ut = 0.0;
-};
-
-struct TachometerConfig {
-  std::string id = "tachometer";
-  double rate_hz = 100.0;
-  double lag_s = 0.0;
-  double noise_std_rad_s = 0.0;
 };
 
 struct GpsSample {

@@ -19,33 +19,10 @@
 #include "core/thread_pool.hpp"
 #include "sensors/interoceptive.hpp"
 #include "sensors/scene.hpp"
+#include "sensors/sensor_config.hpp"
 #include "sensors/timing.hpp"
 
 namespace syndds::sensors {
-
-enum class LidarReturnMode { nearest, strongest, mean };
-
-struct LidarConfig {
-  std::string id = "lidar";
-  double rate_hz = 10.0;
-  double lag_s = 0.1;
-  Mount mount;
-  int channels = 16;
-  int samples = 900;
-  double vfov_min_deg = -15.0;
-  double vfov_max_deg = 15.0;
-  double hfov_min_deg = -180.0;
-  double hfov_max_deg = 180.0;
-  double min_range_m = 0.3;
-  double max_range_m = 100.0;
-  double range_noise_std_m = 0.01;
-  double angle_noise_std_rad = 0.001;
-  double divergence_rad = 0.003;
-  int beam_samples = 1;  // 1: one ray per beam (divergence ignored)
-  LidarReturnMode return_mode = LidarReturnMode::nearest;
-  bool hide_own_vehicle = true;
-  int threads = 1;
-};
 
 struct LidarPoint {
   float x = 0, y = 0, z = 0;  // sensor frame, metres

@@ -1,8 +1,6 @@
 #pragma once
-// Sensor rigs (config/sensors/*.yaml): the sensors mounted on one vehicle, read strictly
-// (unknown keys are errors naming file:line:column), and VehicleSensors, which builds every
-// sensor of a rig for one vehicle with seeds derived from the scenario seed. Schema and
-// defaults: docs/sensors.md.
+// VehicleSensors: every sensor of a rig (rig_config.hpp) built for one vehicle, with seeds
+// derived from the scenario seed. Schema and defaults of the rig files: docs/sensors.md.
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -14,32 +12,10 @@
 #include "sensors/geodesy.hpp"
 #include "sensors/interoceptive.hpp"
 #include "sensors/lidar.hpp"
+#include "sensors/rig_config.hpp"
 #include "sensors/scene.hpp"
 
 namespace syndds::sensors {
-
-struct SensorRig {
-  std::string name;
-  std::string file;
-  Geodetic geodetic_origin = kDefaultOrigin;
-  SceneConfig scene;  // lighting and tessellation for the renderers ("scene:" block)
-  std::vector<CameraConfig> cameras;
-  std::vector<LidarConfig> lidars;
-  std::vector<GpsConfig> gps;
-  std::vector<ImuConfig> imus;
-  std::vector<MagnetometerConfig> magnetometers;
-  std::vector<TachometerConfig> tachometers;
-  std::vector<std::string> sensor_ids;  // in file order
-
-  bool has_rendered_sensors() const { return !cameras.empty() || !lidars.empty(); }
-};
-
-/// Reads a rig file; ConfigError (file:line:column: key path: message) on any problem.
-SensorRig load_sensor_rig(const std::string& file);
-SensorRig parse_sensor_rig(const YamlNode& root);
-/// Path of a rig by name ("default" -> <config_dir>/sensors/default.yaml), or the argument
-/// itself when it names an existing file.
-std::string sensor_rig_path(const std::string& name_or_path, const std::string& config_dir);
 
 /// Seed of one sensor's random stream: derive_seed(scenario_seed, "<vehicle>/<sensor>").
 std::uint64_t sensor_seed(std::uint64_t scenario_seed, const std::string& vehicle_id,
@@ -63,7 +39,12 @@ struct RenderedBatch {
   bool empty() const { return camera.empty() && lidar.empty(); }
 };
 
-/// Every sensor of a rig on one vehicle.
+/// Which sensors of a rig a process builds: the vehicle process simulates the interoceptive
+/// ones, the sensor process renders the cameras and lidars (a renderer starts its threads and
+/// allocates per pixel or ray, so no other process builds one).
+enum class SensorSet { all, interoceptive, rendered };
+
+/// Every sensor of a rig on one vehicle (or those of one SensorSet).
 ///  - interoceptive sensors: update_dynamics(snapshot) after every dynamics step (step_s);
 ///  - cameras and lidars: update_rendered(scene, t) once per frame (heartbeat_s) after the
 ///    scene holds every vehicle's pose and terrain change for time t and was committed;
@@ -73,7 +54,7 @@ class VehicleSensors {
   /// Throws ConfigError (naming the rig file and sensor) when a sensor does not fit the time
   /// grid (rate above the feed rate, exposure longer than period or lag).
   VehicleSensors(const SensorRig& rig, std::string vehicle_id, std::uint64_t scenario_seed,
-                 double step_s, double heartbeat_s);
+                 double step_s, double heartbeat_s, SensorSet set = SensorSet::all);
   const std::string& vehicle_id() const { return vehicle_id_; }
 
   void update_dynamics(const vehicle::VehicleSnapshot& snapshot);

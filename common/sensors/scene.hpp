@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "sensors/sensor_config.hpp"
 #include "terrain/terrain.hpp"
 #include "vehicle/vehicle_model.hpp"
 #include "vehicle/vehicle_params.hpp"
@@ -29,11 +30,6 @@
 
 namespace syndds::sensors {
 
-/// Linear RGB in [0, 1] (albedo or radiance).
-struct Rgb {
-  float r = 0.0f, g = 0.0f, b = 0.0f;
-  friend bool operator==(const Rgb&, const Rgb&) = default;
-};
 
 /// Regular height grid: vertex (i, j) at (origin.x + i * spacing, origin.y + j * spacing).
 struct TerrainGrid {
@@ -95,24 +91,6 @@ VehicleShape vehicle_shape(const vehicle::VehicleParams& params, const Rgb& body
 Rgb vehicle_palette(std::size_t index);
 /// Default obstacle colours by label (rock, tree, bush, wall, ...; others orange).
 Rgb obstacle_colour(std::string_view label);
-
-struct SceneConfig {
-  double sun_azimuth_deg = 135.0;  // compass azimuth of the sun (clockwise from north)
-  double sun_elevation_deg = 50.0;
-  float sun_intensity = 0.85f;
-  float ambient_intensity = 0.3f;  // sky light on an upward surface (half on a vertical one)
-  float ground_bounce = 0.3f;      // share of the ambient light reaching downward surfaces
-  Rgb sky_horizon{0.78f, 0.86f, 0.95f};
-  Rgb sky_zenith{0.35f, 0.55f, 0.88f};
-  double shadow_max_distance_m = std::numeric_limits<double>::infinity();
-  float obstacle_reflectance = 0.5f;
-  int terrain_tile_cells = 64;  // tile = 64 x 64 cells (8192 triangles)
-  int cylinder_segments = 32;
-  int embree_threads = 0;  // BVH build threads (0: Embree's default)
-
-  /// Unit vector towards the sun (world ENU).
-  Vec3 sun_direction() const;
-};
 
 /// Per-geometry surface data the renderers shade with.
 enum class SurfaceKind : std::uint8_t { terrain, obstacle, vehicle };

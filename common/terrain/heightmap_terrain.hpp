@@ -13,20 +13,10 @@
 #include <vector>
 
 #include "core/math.hpp"
-#include "core/yaml.hpp"
+#include "terrain/heightmap_spec.hpp"
 #include "terrain/terrain.hpp"
 
 namespace syndds::terrain {
-
-struct HeightmapSpec {
-  std::string image_file;
-  double size_x_m = 0.0;
-  double size_y_m = 0.0;
-  double min_height_m = 0.0;
-  double max_height_m = 0.0;
-  double friction = 0.8;
-  Vec2 centre_m = Vec2::Zero();
-};
 
 class HeightmapTerrain final : public TerrainSurface {
  public:
@@ -65,13 +55,5 @@ class HeightmapTerrain final : public TerrainSurface {
   std::vector<double> h_;
   std::vector<double> gx_, gy_;  // dh/dx, dh/dy at the vertices
 };
-
-/// Reads a height-map block:
-///   image: hills.png        # relative to base_dir unless absolute
-///   size_m: [200, 200]      # x, y
-///   height_range_m: [0, 8]  # grey 0 and grey max
-///   friction: 0.8           # optional
-///   centre_m: [0, 0]        # optional
-HeightmapSpec parse_heightmap_spec(const YamlNode& node, const std::string& base_dir);
 
 }  // namespace syndds::terrain

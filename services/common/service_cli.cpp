@@ -1,5 +1,6 @@
 #include "common/service_cli.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -70,14 +71,22 @@ void add_debug_options(CLI::App& app, DebugArgs& d) {
       ->group(group);
 }
 
-scenario::Scenario load_scenario(const CommonArgs& a) {
+scenario::Scenario load_scenario_config(const CommonArgs& a) {
   scenario::Overrides o;
   o.duration_s = a.duration_s;
   if (a.realtime) o.realtime = true;
   o.domain_id = a.domain_id;
-  auto s = scenario::load_scenario(a.scenario_file, o, a.config_dir);
+  auto s = scenario::load_scenario_config(a.scenario_file, o, a.config_dir);
   if (a.transport) s.dds.transport = *a.transport;
   if (a.discovery_server) s.dds.discovery_server = *a.discovery_server;
+  // One line per process names every file's hash, so that the logs of a run refused for a
+  // fingerprint mismatch already show which file differs; the paths come at debug level.
+  std::string hashes;
+  for (const auto& f : s.files) {
+    hashes += fmt::format(" {}={:08x}", f.role, f.hash >> 32);
+    spdlog::debug("config file {}: {:016x} {} bytes {}", f.role, f.hash, f.size, f.path);
+  }
+  spdlog::info("scenario '{}': fingerprint {:016x}; files:{}", s.name, s.fingerprint, hashes);
   return s;
 }
 

@@ -36,7 +36,13 @@ struct DebugArgs {
 void add_common_options(CLI::App& app, CommonArgs& args);
 void add_debug_options(CLI::App& app, DebugArgs& args);
 
-/// Loads the scenario with the command-line overrides applied.
+/// Loads the scenario's configuration with the command-line overrides applied, and logs its
+/// fingerprint with each file's role and hash (and path at debug level): compare them between
+/// hosts when a member is refused for a different fingerprint. Builds no terrain, sensor or
+/// vehicle.
+scenario::Scenario load_scenario_config(const CommonArgs& args);
+/// The same with the world resolved (obstacles on the ground) for the processes that simulate;
+/// defined in syndds_service_member (services/common/service_member.cpp).
 scenario::Scenario load_scenario(const CommonArgs& args);
 /// The run id used when none is given: the scenario name and its fingerprint, so processes
 /// started by hand from the same scenario agree.

@@ -15,7 +15,7 @@ int main(int argc, char** argv) {
   app.add_flag("--print-members", print_members,
                "Print the member ids the scenario declares and exit");
   return service::run_service("coordinator", app, argc, argv, common, [&] {
-    const auto s = service::load_scenario(common);
+    const auto s = service::load_scenario_config(common);
     if (print_members) {
       for (const auto& m : s.member_ids()) std::printf("%s\n", m.c_str());
       return 0;

@@ -1,5 +1,6 @@
 // syndds_plan: validates a scenario and prints the command line of every process of the run,
 // so the launcher (or any other launcher, on any hosts) can start them.
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 
@@ -32,11 +33,22 @@ int main(int argc, char** argv) {
   std::string format = "shell";
   app.add_option("--output", output, "Run directory (recorder)")->capture_default_str();
   app.add_option("--bin-dir", bin_dir, "Folder holding the syndds_* programs");
-  app.add_option("--format", format, "shell: one command per line; launcher: member<TAB>command")
-      ->check(CLI::IsMember({"shell", "launcher"}))
+  app.add_option("--format", format,
+                 "shell: one command per line; launcher: member<TAB>command; files: every file "
+                 "the scenario loads (role, hash, bytes, path), to compare hosts")
+      ->check(CLI::IsMember({"shell", "launcher", "files"}))
       ->capture_default_str();
   return service::run_service("plan", app, argc, argv, common, [&] {
-    const auto s = service::load_scenario(common);
+    const auto s = service::load_scenario_config(common);
+    if (format == "files") {
+      std::printf("# fingerprint %016llx\n", static_cast<unsigned long long>(s.fingerprint));
+      for (const auto& f : s.files) {
+        std::printf("%s\t%016llx\t%llu\t%s\n", f.role.c_str(),
+                    static_cast<unsigned long long>(f.hash),
+                    static_cast<unsigned long long>(f.size), f.path.c_str());
+      }
+      return 0;
+    }
     const std::string run_id = service::dds_options(common, s).run_id;  // validated
     const std::string bin = bin_dir.empty() ? fs::path(argv[0]).parent_path().string() : bin_dir;
     const auto program = [&](const char* name) {

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "agents/agent_factory.hpp"
 #include "scenario/scenario.hpp"
 
 using namespace syndds;
@@ -243,4 +244,29 @@ vehicles:
                 .find("unknown key"),
             std::string::npos)
       << error_of(leader + replaced(follower, "gap: {", "gap: {spacing_m: 3, "));
+}
+
+// The vehicle process simulates the rig's interoceptive sensors only: it builds no camera or
+// lidar renderer (each starts its threads and allocates per pixel or ray), the sensor process
+// does. Counted by the threads a 16-thread camera would start.
+TEST(Scenario, VehicleProcessBuildsNoRenderer) {
+  const std::string dir = testing::TempDir();
+  std::ofstream(dir + "/render_rig.yaml")
+      << "name: render_rig\nsensors:\n"
+         "  - {id: gps, type: gps}\n"
+         "  - {id: cam, type: camera, width_px: 1920, height_px: 1080, threads: 16}\n";
+  std::string text = kMinimal;
+  text.replace(text.find("model: hmmwv"), 12,
+               "model: hmmwv\n    sensors: " + dir + "/render_rig.yaml");
+  const auto s = parse(text);
+  auto threads = [] {
+    std::size_t n = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+    return n;
+  };
+  const std::size_t before = threads();
+  const auto vehicle = agents::make_agent(s, vehicle_member("a"), {});
+  EXPECT_EQ(threads(), before);
+  const auto sensor = agents::make_agent(s, sensor_member("a"), {});
+  EXPECT_GE(threads(), before + 15);  // the sensor process renders
 }

@@ -1,0 +1,174 @@
+#pragma once
+// Plain configuration of the sensors of a rig (docs/sensors.md): what a rig file says, with
+// no renderer, scene or noise stream behind it. Readers and budget checks live in
+// rig_config.hpp; the sensors themselves (camera.hpp, lidar.hpp, interoceptive.hpp) are built
+// from these structs only by the processes that simulate them.
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+
+#include "core/math.hpp"
+#include "sensors/geodesy.hpp"
+
+namespace syndds::sensors {
+
+/// Linear RGB in [0, 1] (albedo or radiance).
+struct Rgb {
+  float r = 0.0f, g = 0.0f, b = 0.0f;
+  friend bool operator==(const Rgb&, const Rgb&) = default;
+};
+
+struct SceneConfig {
+  double sun_azimuth_deg = 135.0;  // compass azimuth of the sun (clockwise from north)
+  double sun_elevation_deg = 50.0;
+  float sun_intensity = 0.85f;
+  float ambient_intensity = 0.3f;  // sky light on an upward surface (half on a vertical one)
+  float ground_bounce = 0.3f;      // share of the ambient light reaching downward surfaces
+  Rgb sky_horizon{0.78f, 0.86f, 0.95f};
+  Rgb sky_zenith{0.35f, 0.55f, 0.88f};
+  double shadow_max_distance_m = std::numeric_limits<double>::infinity();
+  float obstacle_reflectance = 0.5f;
+  int terrain_tile_cells = 64;  // tile = 64 x 64 cells (8192 triangles)
+  int cylinder_segments = 32;
+  int embree_threads = 0;  // BVH build threads (0: Embree's default)
+
+  /// Unit vector towards the sun (world ENU).
+  Vec3 sun_direction() const;
+};
+
+
+/// Gaussian white noise plus a random-walk bias, per axis:
+///   bias_{k+1} = bias_k + N(0, walk * sqrt(dt)),  value = truth + bias + N(0, white_std).
+struct NoiseConfig {
+  Vec3 white_std = Vec3::Zero();
+  Vec3 walk_per_sqrt_s = Vec3::Zero();  // random-walk density (units / sqrt(s))
+  Vec3 initial_bias = Vec3::Zero();
+};
+
+/// Sensor placement on the chassis reference frame (x forward, y left, z up).
+struct Mount {
+  Pose pose;
+};
+
+struct GpsConfig {
+  std::string id = "gps";
+  double rate_hz = 10.0;
+  double lag_s = 0.1;
+  Mount mount;  // antenna position (orientation unused)
+  GeodeticModel model = GeodeticModel::wgs84;
+  NoiseConfig noise;  // on the ENU position, metres
+};
+
+struct ImuConfig {
+  std::string id = "imu";
+  double rate_hz = 100.0;
+  double lag_s = 0.0;
+  Mount mount;
+  NoiseConfig accelerometer;  // m/s2
+  NoiseConfig gyroscope;      // rad/s
+};
+
+struct MagnetometerConfig {
+  std::string id = "compass";
+  double rate_hz = 50.0;
+  double lag_s = 0.0;
+  Mount mount;
+  double heading_noise_std_rad = 0.0;
+  double field_strength_ut = 50.0;  // Earth's field magnitude (microtesla)
+  double declination_deg = 0.0;     // magnetic north east of true north
+  double inclination_deg = 60.0;    // dip below the horizontal
+  double field_noise_std_ut = 0.0;
+};
+
+struct TachometerConfig {
+  std::string id = "tachometer";
+  double rate_hz = 100.0;
+  double lag_s = 0.0;
+  double noise_std_rad_s = 0.0;
+};
+
+struct CameraIntrinsics {
+  int width = 80;
+  int height = 45;
+  double hfov_rad = deg_to_rad(90.0);
+  double k1 = 0.0;
+  double k2 = 0.0;
+};
+
+enum class CameraMode { mounted, chase, fixed };
+enum class ExposureMode { instant, midpoint, average };
+enum class PixelNoiseModel { none, gaussian, pixel_dependent };
+
+struct ChaseConfig {
+  double distance_m = 8.0;       // behind the vehicle, horizontally
+  double height_m = 3.0;         // above the chassis reference point
+  double target_height_m = 1.0;  // the camera looks at this point above the reference
+};
+
+struct CameraConfig {
+  std::string id = "camera";
+  double rate_hz = 30.0;
+  double lag_s = 0.05;
+  Mount mount;  // mounted: on the chassis; fixed: world pose
+  CameraIntrinsics intrinsics;
+  CameraMode mode = CameraMode::mounted;
+  ChaseConfig chase;
+  // Exposure (collection window) [t_k, t_k + exposure_s]: instant renders at t_k; midpoint
+  // renders once at the tick nearest t_k + exposure/2; average renders `subframes` times at
+  // the ticks nearest t_k + exposure (i + 0.5) / N and averages the radiance (motion blur).
+  double exposure_s = 0.02;
+  ExposureMode exposure_mode = ExposureMode::midpoint;
+  int subframes = 1;
+  double gamma = 2.2;
+  double gain = 1.0;
+  PixelNoiseModel noise = PixelNoiseModel::gaussian;
+  double noise_std = 0.0004;  // on display values in [0, 1]
+  double noise_slope = 0.0;   // pixel-dependent: sigma^2 = slope v + intercept
+  double noise_intercept = 0.0;
+  bool hide_own_vehicle = true;  // ignored in chase mode (the vehicle is the subject)
+  int threads = 1;
+};
+
+enum class LidarReturnMode { nearest, strongest, mean };
+
+struct LidarConfig {
+  std::string id = "lidar";
+  double rate_hz = 10.0;
+  double lag_s = 0.1;
+  Mount mount;
+  int channels = 16;
+  int samples = 900;
+  double vfov_min_deg = -15.0;
+  double vfov_max_deg = 15.0;
+  double hfov_min_deg = -180.0;
+  double hfov_max_deg = 180.0;
+  double min_range_m = 0.3;
+  double max_range_m = 100.0;
+  double range_noise_std_m = 0.01;
+  double angle_noise_std_rad = 0.001;
+  double divergence_rad = 0.003;
+  int beam_samples = 1;  // 1: one ray per beam (divergence ignored)
+  LidarReturnMode return_mode = LidarReturnMode::nearest;
+  bool hide_own_vehicle = true;
+  int threads = 1;
+};
+
+// Budgets: the work one sensor may ask for per scan or frame, so that a rig within them
+// renders within the frame deadline and no process allocates in proportion to a number it
+// has not checked (docs/sensors.md, "Budgets").
+/// Rays of one lidar scan: channels x samples x beam sub-rays. 2^21 is 8 times an Ouster
+/// OS1-128 in its 2048 x 128 mode, 73 times a Velodyne VLP-16 at 0.2 degrees (16 x 1800).
+inline constexpr std::int64_t kMaxLidarRaysPerScan = std::int64_t{1} << 21;
+/// Rays of one camera frame: width x height x exposure subframes; one 8K UHD image.
+inline constexpr std::int64_t kMaxCameraPixelsPerFrame = std::int64_t{7680} * 4320;
+/// Sensor ids name CSV rows, DDS keys and files: a letter or digit, then letters, digits,
+/// '_', '.', '-' (at most 32 characters).
+bool is_valid_sensor_id(const std::string& id);
+
+/// Why a lidar or camera configuration cannot be built ("" if it can): geometry and budgets,
+/// checked in constant time (the renderers allocate per ray only when they are built).
+std::string config_error(const LidarConfig& config);
+std::string config_error(const CameraConfig& config);
+
+}  // namespace syndds::sensors
