@@ -98,8 +98,8 @@ std::string MemberSession::check_coordinator() const {
   if (c.config_fingerprint != config_.config_fingerprint) {
     return "scenario mismatch: the coordinator (host " + c.host +
            ") loaded a different scenario or overrides (fingerprint " +
-           std::to_string(c.config_fingerprint) + ", mine " +
-           std::to_string(config_.config_fingerprint) + ")";
+           fingerprint_hex(c.config_fingerprint) + ", mine " +
+           fingerprint_hex(config_.config_fingerprint) + "); " + kFingerprintHint;
   }
   if (c.protocol_version != kProtocolVersion) {
     return "protocol version mismatch: coordinator " + std::to_string(c.protocol_version) +

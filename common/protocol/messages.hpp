@@ -28,6 +28,17 @@
 namespace syndds::proto {
 
 inline constexpr std::int32_t kProtocolVersion = 1;
+/// A scenario fingerprint as every log shows it (16 hex digits).
+inline std::string fingerprint_hex(std::uint64_t f) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out(16, '0');
+  for (int i = 15; i >= 0; --i, f >>= 4) out[static_cast<std::size_t>(i)] = kDigits[f & 0xf];
+  return out;
+}
+/// Ends every fingerprint-mismatch message: how to find the file that differs.
+inline constexpr const char* kFingerprintHint =
+    "to find the file that differs, compare the 'files:' line each process logs at startup, or "
+    "run syndds_plan SCENARIO --format files on both hosts";
 
 enum class MemberKind : std::uint8_t { vehicle, controller, recorder, sensor, external, coordinator };
 std::string_view to_string(MemberKind kind);

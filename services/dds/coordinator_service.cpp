@@ -96,8 +96,9 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
   std::string mismatch;
   if (a.config_fingerprint != options_.config_fingerprint) {
     mismatch = "on " + a.host + " loaded a different scenario or overrides (fingerprint " +
-               std::to_string(a.config_fingerprint) + ", coordinator " +
-               std::to_string(options_.config_fingerprint) + ")";
+               proto::fingerprint_hex(a.config_fingerprint) + ", coordinator " +
+               proto::fingerprint_hex(options_.config_fingerprint) + "); " +
+               proto::kFingerprintHint;
   } else if (a.protocol_version != proto::kProtocolVersion) {
     mismatch = "speaks protocol version " + std::to_string(a.protocol_version);
   }

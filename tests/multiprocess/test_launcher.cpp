@@ -109,13 +109,13 @@ TEST(Launcher, MemberThatExitsBeforeJoiningEndsTheRunAtOnce) {
 }
 
 // Once the run has ended, the launcher starts nothing more: here the coordinator fails at once
-// and 40 vehicles with their controllers and the recorder (82 processes) are to be started.
+// and 30 vehicles with their controllers and the recorder (62 processes) are to be started.
 TEST(Launcher, StopsStartingOnceTheRunHasEnded) {
   TestRun run;
   const fs::path scenario = run.dir / "many.yaml";
   std::ofstream s(scenario);
   s << "name: many\ntime: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1.0}\nvehicles:\n";
-  for (int i = 0; i < 40; ++i) {
+  for (int i = 0; i < 30; ++i) {
     s << "  - id: v" << i << "\n    model: hmmwv\n    controller: {type: path_follower, path: "
       << "{waypoints: [[0, " << 10 * i << "], [50, " << 10 * i << "]]}, speed: {target_mps: 2}}\n";
   }
@@ -131,7 +131,7 @@ TEST(Launcher, StopsStartingOnceTheRunHasEnded) {
   ASSERT_TRUE(code.has_value()) << launcher->log();
   EXPECT_NE(*code, 0) << launcher->log();
   const auto started = launched_pids(run.dir / "out");
-  EXPECT_LT(started.size(), 82u) << launcher->log();
+  EXPECT_LT(started.size(), 62u) << launcher->log();
   EXPECT_NE(launcher->log().find("were not started"), std::string::npos) << launcher->log();
   for (const auto& [member, pid] : started) EXPECT_NE(::kill(pid, 0), 0) << member << " runs";
 }
