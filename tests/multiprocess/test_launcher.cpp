@@ -126,7 +126,8 @@ TEST(Launcher, StopsStartingOnceTheRunHasEnded) {
   auto launcher = launch(run, run.dir,
                          scenario.string() + run.common_args() + " --output " +
                              (run.dir / "out").string(),
-                         "launcher.log", "SYNDDS_PROCESS_MB=1 SYNDDS_LAUNCH_GRACE_S=2", bin.parent_path());
+                         "launcher.log", "SYNDDS_PROCESS_MB=1 SYNDDS_LAUNCH_GRACE_S=2",
+                         bin.parent_path());
   const auto code = launcher->wait(60);
   ASSERT_TRUE(code.has_value()) << launcher->log();
   EXPECT_NE(*code, 0) << launcher->log();

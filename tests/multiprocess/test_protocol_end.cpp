@@ -9,6 +9,7 @@
 #include "dds/coordinator_service.hpp"
 #include "dds/member_runtime.hpp"
 #include "harness.hpp"
+#include "../protocol/test_agents.hpp"
 
 using namespace syndds;
 using namespace syndds::test;
@@ -118,36 +119,11 @@ TEST(LateJoiner, StaleLateSensorIsRefusedAndTheRunGoesOn) {
 
 namespace {
 
-// Writes one vehicle_state of vehicle "x" per frame.
-struct StateWriter : proto::Agent {
-  std::string id = "vehicle/x";
-  const std::string& member_id() const override { return id; }
-  proto::MemberKind kind() const override { return proto::MemberKind::vehicle; }
-  std::vector<proto::Subscription> subscriptions() const override { return {}; }
-  std::vector<proto::Topic> publications() const override { return {proto::Topic::vehicle_state}; }
-  std::string vehicle_key() const override { return "x"; }
-  void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
-            proto::FrameSamples& out) override {
-    proto::VehicleStateMsg s;
-    s.vehicle_id = "x";
-    s.source = id;
-    s.frame = ctx.frame;
-    out.vehicle_states.push_back(s);
-  }
-};
-
 // Reads the states and fails when the run has ended (e.g. it cannot write its files).
-struct FailingFinisher : proto::Agent {
-  std::string id = "recorder";
+struct FailingFinisher : TestAgent {
   std::atomic<int> final_states{-1};
-  const std::string& member_id() const override { return id; }
-  proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
-  std::vector<proto::Subscription> subscriptions() const override {
-    return {{proto::Topic::vehicle_state, ""}};
-  }
-  std::vector<proto::Topic> publications() const override { return {}; }
-  void step(const proto::FrameContext&, const proto::FrameSamples&,
-            proto::FrameSamples&) override {}
+  FailingFinisher()
+      : TestAgent("recorder", proto::MemberKind::recorder, {{proto::Topic::vehicle_state, ""}}) {}
   void finish(const proto::RunEnd&, const proto::FrameSamples& in) override {
     final_states = static_cast<int>(in.vehicle_states.size());
     throw std::runtime_error("disk full");

@@ -9,8 +9,11 @@
 #include "agents/vehicle_agent.hpp"
 #include "core/error.hpp"
 #include "protocol/local_runner.hpp"
+#include "test_agents.hpp"
 
 using namespace syndds;
+using syndds::test::StateWriter;
+using syndds::test::TestAgent;
 namespace fs = std::filesystem;
 
 namespace {
@@ -52,15 +55,11 @@ TEST(LocalRunner, RunsTheDefaultScenarioDeterministically) {
 
 // Frame k sees only samples stamped k-1: a probe agent checks every input it receives.
 TEST(LocalRunner, AgentsSeeOnlyThePreviousFrame) {
-  struct Probe : proto::Agent {
-    std::string id = "probe";
+  struct Probe : TestAgent {
     std::int64_t seen = 0;
-    const std::string& member_id() const override { return id; }
-    proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
-    std::vector<proto::Subscription> subscriptions() const override {
-      return {{proto::Topic::vehicle_state, ""}, {proto::Topic::driver_command, ""}};
-    }
-    std::vector<proto::Topic> publications() const override { return {}; }
+    Probe()
+        : TestAgent("probe", proto::MemberKind::recorder,
+                    {{proto::Topic::vehicle_state, ""}, {proto::Topic::driver_command, ""}}) {}
     void step(const proto::FrameContext& ctx, const proto::FrameSamples& in,
               proto::FrameSamples&) override {
       for (const auto& s : in.vehicle_states) {
@@ -86,13 +85,10 @@ TEST(LocalRunner, AgentsSeeOnlyThePreviousFrame) {
 }
 
 TEST(LocalRunner, RejectsOutputsWithTheWrongStamp) {
-  struct Liar : proto::Agent {
-    std::string id = "liar";
-    const std::string& member_id() const override { return id; }
-    proto::MemberKind kind() const override { return proto::MemberKind::controller; }
-    std::vector<proto::Subscription> subscriptions() const override { return {}; }
-    std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
-    std::string vehicle_key() const override { return "x"; }
+  struct Liar : TestAgent {
+    Liar()
+        : TestAgent("liar", proto::MemberKind::controller, {}, {proto::Topic::driver_command},
+                    "x") {}
     void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
               proto::FrameSamples& out) override {
       proto::DriverCommandMsg c;
@@ -111,13 +107,10 @@ TEST(LocalRunner, RejectsOutputsWithTheWrongStamp) {
 // The DDS writers keep max_per_frame samples per vehicle and frame; one process refuses more
 // in the same way, so a run cannot pass in one process and lose samples distributed.
 TEST(LocalRunner, RejectsMoreSamplesPerFrameThanTheTopicCarries) {
-  struct Chatty : proto::Agent {
-    std::string id = "chatty";
-    const std::string& member_id() const override { return id; }
-    proto::MemberKind kind() const override { return proto::MemberKind::controller; }
-    std::vector<proto::Subscription> subscriptions() const override { return {}; }
-    std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
-    std::string vehicle_key() const override { return "x"; }
+  struct Chatty : TestAgent {
+    Chatty()
+        : TestAgent("chatty", proto::MemberKind::controller, {}, {proto::Topic::driver_command},
+                    "x") {}
     void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
               proto::FrameSamples& out) override {
       for (std::uint32_t i = 0;
@@ -166,32 +159,10 @@ TEST(VehicleAgent, RejectsNaNAndOutOfRangeCommands) {
 
 namespace {
 
-// Writes one vehicle_state of vehicle "x" per frame.
-struct Writer : proto::Agent {
-  std::string id = "vehicle/x";
-  const std::string& member_id() const override { return id; }
-  proto::MemberKind kind() const override { return proto::MemberKind::vehicle; }
-  std::vector<proto::Subscription> subscriptions() const override { return {}; }
-  std::vector<proto::Topic> publications() const override { return {proto::Topic::vehicle_state}; }
-  std::string vehicle_key() const override { return "x"; }
-  void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
-            proto::FrameSamples& out) override {
-    proto::VehicleStateMsg s;
-    s.vehicle_id = "x";
-    s.source = id;
-    s.frame = ctx.frame;
-    out.vehicle_states.push_back(s);
-  }
-};
-
 // Fails in frame `fail_at`.
-struct Failer : proto::Agent {
-  std::string id = "controller/x";
+struct Failer : TestAgent {
   std::int64_t fail_at = 3;
-  const std::string& member_id() const override { return id; }
-  proto::MemberKind kind() const override { return proto::MemberKind::controller; }
-  std::vector<proto::Subscription> subscriptions() const override { return {}; }
-  std::vector<proto::Topic> publications() const override { return {}; }
+  Failer() : TestAgent("controller/x", proto::MemberKind::controller) {}
   void step(const proto::FrameContext& ctx, const proto::FrameSamples&,
             proto::FrameSamples&) override {
     if (ctx.frame == fail_at) throw std::runtime_error("boom");
@@ -199,18 +170,13 @@ struct Failer : proto::Agent {
 };
 
 // Records the frames of the states it consumed, in steps and at the end.
-struct Keeper : proto::Agent {
-  std::string id;
+struct Keeper : TestAgent {
   std::vector<std::int64_t> stepped_frames;  // stamps of the states seen in steps
   std::vector<std::int64_t> final_frames;    // stamps of the final inputs
   std::optional<proto::RunControlMsg> end;
-  explicit Keeper(std::string name) : id(std::move(name)) {}
-  const std::string& member_id() const override { return id; }
-  proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
-  std::vector<proto::Subscription> subscriptions() const override {
-    return {{proto::Topic::vehicle_state, ""}};
-  }
-  std::vector<proto::Topic> publications() const override { return {}; }
+  explicit Keeper(std::string name)
+      : TestAgent(std::move(name), proto::MemberKind::recorder,
+                  {{proto::Topic::vehicle_state, ""}}) {}
   void step(const proto::FrameContext&, const proto::FrameSamples& in,
             proto::FrameSamples&) override {
     for (const auto& s : in.vehicle_states) stepped_frames.push_back(s.frame);
@@ -233,7 +199,7 @@ TEST(LocalRunner, AFailureKeepsTheLastCompleteFrame) {
   auto after = std::make_unique<Keeper>("recorder");
   Keeper* b = before.get();
   Keeper* a = after.get();
-  agents.push_back(std::make_unique<Writer>());
+  agents.push_back(std::make_unique<StateWriter>());
   agents.push_back(std::move(before));
   agents.push_back(std::make_unique<Failer>());
   agents.push_back(std::move(after));
