@@ -8,6 +8,9 @@
 namespace syndds::metrics {
 namespace {
 
+// Arc lengths are sums over thousands of frames: a sample this close past the end is the end.
+constexpr double kRoundingM = 1e-9;
+
 class Accumulator {
  public:
   void add(double v) {
@@ -99,13 +102,14 @@ Deviations deviations(const Trajectory& follower, const Trajectory& leader,
   for (std::size_t i = 0; i < d.leader_end_index; ++i) {
     const double len = (leader[i + 1].position - leader[i].position).norm();
     if (len <= 0.0) continue;  // standing still: no arc length, no sample
+    // A sample on a frame belongs to the next segment; the last segment takes its end too,
+    // and a sample a rounding error past it (arc lengths are sums of many steps). Same sum as
+    // leader_segment_m, so `last` is exact.
+    const bool last = arc + len >= d.leader_segment_m;
     for (;; ++k) {
       const double s = static_cast<double>(k) * settings.spacing_m;
-      if (s > arc + len) break;
-      // A sample exactly on a frame is taken by the next segment, unless none follows (the same
-      // sum as leader_segment_m, so the comparison is exact).
-      if (s == arc + len && arc + len < d.leader_segment_m) break;
-      const Located l = between(leader[i], leader[i + 1], (s - arc) / len);
+      if (last ? s > arc + len + kRoundingM : s >= arc + len) break;
+      const Located l = between(leader[i], leader[i + 1], std::min(1.0, (s - arc) / len));
       const Located f = closest_on(follower, d.follower_start_index, l.position);
       path.add((f.position - l.position).norm());
       if (s >= settings.speed_skip_m) {
