@@ -185,6 +185,18 @@ TEST(Deviations, SamplingSpacingIsASetting) {
   EXPECT_EQ(deviations(t, t, {.spacing_m = 0.3}).samples, 334u);  // 0, 0.3, ..., 99.9 m
 }
 
+// Recorded positions are sums of small steps: a 100 m track may measure a rounding error short
+// of 100 m, and its end still gets its sample.
+TEST(Deviations, TheEndSampleSurvivesRounding) {
+  Trajectory t;
+  double x = 0.0;
+  for (int i = 0; i <= 1000; ++i, x += 0.1) t.push_back({0.01 * i, Vec2(x, 0), 5.0});
+  const Deviations d = deviations(t, t);
+  ASSERT_LT(d.leader_segment_m, 100.0);
+  EXPECT_NEAR(d.leader_segment_m, 100.0, 1e-9);
+  EXPECT_EQ(d.samples, 201u);
+}
+
 TEST(Chains, FollowersAreComparedWithTheHeadOfTheirChain) {
   const auto c = resolve_chains({{"f1", "l1"}, {"f2", "f1"}, {"f3", "f2"}, {"g1", "l2"}});
   ASSERT_EQ(c.size(), 4u);
