@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <charconv>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -69,8 +70,13 @@ nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
 }
 
 // Numbers of metrics.json: 9 significant digits, as in every other file (JSON writes the
-// shortest text that reads back as the rounded value).
-double sig9(double v) { return std::stod(fmt::format("{:.9g}", v)); }
+// shortest text that reads back as the rounded value). from_chars: no locale can change it.
+double sig9(double v) {
+  const std::string text = fmt::format("{:.9g}", v);
+  double rounded = v;
+  std::from_chars(text.data(), text.data() + text.size(), rounded);
+  return rounded;
+}
 
 nlohmann::json metrics_json(const std::vector<FollowerMetrics>& all,
                             const metrics::Settings& settings) {
