@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <charconv>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -68,6 +69,56 @@ nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
   return out;
 }
 
+// Numbers of metrics.json: 9 significant digits, as in every other file (JSON writes the
+// shortest text that reads back as the rounded value). from_chars: no locale can change it.
+double sig9(double v) {
+  const std::string text = fmt::format("{:.9g}", v);
+  double rounded = v;
+  std::from_chars(text.data(), text.data() + text.size(), rounded);
+  return rounded;
+}
+
+nlohmann::json metrics_json(const std::vector<FollowerMetrics>& all,
+                            const metrics::Settings& settings) {
+  // A deviation without samples has no value: null, not 0.
+  const auto value = [](const metrics::Deviation& d, double v) {
+    return d.samples > 0 ? nlohmann::json(sig9(v)) : nlohmann::json(nullptr);
+  };
+  nlohmann::json followers = nlohmann::json::array();
+  for (const auto& m : all) {
+    const metrics::Deviations& d = m.deviations;
+    followers.push_back({{"id", m.follower},
+                         {"leader", m.chain.leader},
+                         {"follows", m.chain.follows},
+                         {"position", m.chain.position},
+                         {"m_p_avg", value(d.path_m, d.path_m.avg)},
+                         {"m_p_max", value(d.path_m, d.path_m.max)},
+                         {"m_as_avg", value(d.abs_speed_mps, d.abs_speed_mps.avg)},
+                         {"m_as_max", value(d.abs_speed_mps, d.abs_speed_mps.max)},
+                         {"m_rs_avg", value(d.rel_speed, d.rel_speed.avg)},
+                         {"m_rs_max", value(d.rel_speed, d.rel_speed.max)},
+                         {"obstacles_hit", m.obstacles_hit},
+                         {"samples", d.samples},
+                         {"speed_samples", d.abs_speed_mps.samples},
+                         {"relative_speed_samples", d.rel_speed.samples},
+                         {"segment_length_m", sig9(d.leader_segment_m)},
+                         {"follower_segment_length_m", sig9(d.follower_segment_m)},
+                         {"follower_start_time_s", sig9(m.follower_start_time_s)},
+                         {"leader_end_time_s", sig9(m.leader_end_time_s)}});
+  }
+  return {{"spacing_m", settings.spacing_m},
+          {"speed_skip_m", settings.speed_skip_m},
+          {"min_leader_speed_mps", settings.min_leader_speed_mps},
+          {"followers", followers}};
+}
+
+metrics::Trajectory trajectory_of(const convoy::Track& track) {
+  metrics::Trajectory t;
+  t.reserve(track.size());
+  for (const auto& p : track) t.push_back({p.time_s, p.position, p.speed_mps});
+  return t;
+}
+
 std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
   // Gaps in metres and seconds, cross-track in metres (definitions: docs/convoy.md).
   std::string text = fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>9} {:>11}\n", "follower",
@@ -104,6 +155,13 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
                           scenario::external_member(v.id), scenario::sensor_member(v.id)}) {
       vehicle_of_member_[m] = v.id;
     }
+  }
+  // Each follower is measured against the head of its chain: a chain must have one, which
+  // the scenario's own checks (each follower follows another vehicle) do not ensure.
+  try {
+    chains_ = metrics::resolve_chains({followers_.begin(), followers_.end()});
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(scenario.file + ": vehicles: controller.follow: " + e.what());
   }
   if (scenario.terrain.deformable()) {
     soil_ = std::make_unique<scm::ScmTerrain>(scenario.terrain.scm);
@@ -189,7 +247,10 @@ void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& 
           record(final_inputs);
           commit();
         }
-        if (!followers_.empty()) write_convoy_report();
+        if (!followers_.empty()) {
+          write_convoy_report();
+          write_metrics();
+        }
         if (end.control.status == proto::RunStatus::aborted) {
           note_event(last_frame_, "run_aborted", "", end.control.reason);
         } else {
@@ -326,6 +387,25 @@ void RecorderAgent::write_convoy_report() {
   }
   write_file_atomically(fs::path(options_.output_dir) / "convoy.json",
                         convoy_json(convoy_).dump(2) + "\n");
+}
+
+void RecorderAgent::write_metrics() {
+  const metrics::Settings settings;
+  metrics_.clear();
+  for (const auto& [follower, followed] : followers_) {
+    FollowerMetrics m;
+    m.follower = follower;
+    m.chain = chains_.at(follower);
+    const auto f = trajectory_of(tracks_[follower]);
+    const auto l = trajectory_of(tracks_[m.chain.leader]);
+    m.deviations = metrics::deviations(f, l, settings);
+    if (!f.empty()) m.follower_start_time_s = f[m.deviations.follower_start_index].time_s;
+    if (!l.empty()) m.leader_end_time_s = l[m.deviations.leader_end_index].time_s;
+    m.obstacles_hit = totals_.at(follower).collisions;
+    metrics_.push_back(std::move(m));
+  }
+  write_file_atomically(fs::path(options_.output_dir) / "metrics.json",
+                        metrics_json(metrics_, settings).dump(2) + "\n");
 }
 
 void RecorderAgent::write_summary(const proto::RunControlMsg* end) {

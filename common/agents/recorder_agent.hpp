@@ -5,14 +5,15 @@
 // recorder itself (a full disk) fails the frame, which ends the run with the reason. summary.json
 // is rewritten (atomically) about once a second while the run goes on, so a recorder that is
 // killed still says how far it got. Files (docs/outputs.md): vehicles.csv, commands.csv,
-// events.csv, summary.json, summary.txt, and on deformable terrain terrain_height.png,
-// terrain_rut.png, terrain_images.json.
+// events.csv, summary.json, summary.txt, with followers convoy.json and metrics.json, and on
+// deformable terrain terrain_height.png, terrain_rut.png, terrain_images.json.
 #include <chrono>
 #include <map>
 #include <memory>
 #include <string>
 
 #include "convoy/convoy_report.hpp"
+#include "metrics/deviation.hpp"
 #include "protocol/agent.hpp"
 #include "record/run_files.hpp"
 #include "scenario/scenario.hpp"
@@ -36,6 +37,16 @@ struct VehicleTotals {
   std::map<std::string, std::uint64_t> events;  // vehicle events by kind (leader_lost, ...)
   Vec3 last_position = Vec3::Zero();
   double mean_speed_mps() const { return samples ? speed_sum_mps / samples : 0.0; }
+};
+
+/// The paper's deviation metrics of one follower (metrics.json), computed when the run ends.
+struct FollowerMetrics {
+  std::string follower;
+  metrics::ChainLink chain;  // the leader it is compared with, the vehicle it follows
+  metrics::Deviations deviations;
+  std::uint64_t obstacles_hit = 0;
+  double follower_start_time_s = 0.0;  // start clip (on the follower's track)
+  double leader_end_time_s = 0.0;      // end clip (on the leader's track)
 };
 
 /// A member that left the run under on_member_loss: continue (it took no part from `frame` on).
@@ -67,6 +78,9 @@ class RecorderAgent final : public proto::Agent {
   const std::map<std::string, VehicleTotals>& totals() const { return totals_; }
   /// The convoy report (one entry per follower), computed when the run ends.
   const std::vector<convoy::FollowerReport>& convoy_report() const { return convoy_; }
+  /// The deviation metrics (one entry per follower, in scenario order), computed when the run
+  /// ends.
+  const std::vector<FollowerMetrics>& follower_metrics() const { return metrics_; }
   /// Every vehicle's recorded track (kept only when the scenario has followers).
   const std::map<std::string, convoy::Track>& tracks() const { return tracks_; }
   /// The last frame whose samples are completely on disk (-1: none yet).
@@ -80,6 +94,7 @@ class RecorderAgent final : public proto::Agent {
   void commit();
   void write_summary(const proto::RunControlMsg* end);
   void write_convoy_report();
+  void write_metrics();
   /// Runs `write`; a WriteError marks the recorder failed (every later frame fails too).
   template <typename F>
   void guarded(F&& write);
@@ -105,6 +120,8 @@ class RecorderAgent final : public proto::Agent {
   std::vector<std::pair<std::string, std::string>> followers_;
   std::map<std::string, convoy::Track> tracks_;
   std::vector<convoy::FollowerReport> convoy_;
+  std::map<std::string, metrics::ChainLink> chains_;  // per follower
+  std::vector<FollowerMetrics> metrics_;
   std::map<std::string, VehicleTotals> totals_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
   std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)

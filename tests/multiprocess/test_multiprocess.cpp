@@ -83,6 +83,38 @@ TEST(Determinism, TwelveVehiclesWithControllers) {
   EXPECT_EQ(distributed_csv(run, scenario.string(), args), single);
 }
 
+// The convoy files, computed by the recorder at the end from what it recorded: a leader and a
+// follower (V2V over DDS) give the same convoy.json and metrics.json as the single process.
+TEST(Determinism, ConvoyReportAndMetricsAreByteIdentical) {
+  TestRun run;
+  const fs::path scenario = run.dir / "convoy.yaml";
+  std::ofstream(scenario)
+      << "name: small_convoy\ntime: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 8}\n"
+      << "vehicles:\n"
+      << "  - id: l1\n    model: hmmwv\n    dynamics: reduced\n    sensors: convoy\n"
+      << "    v2v: {rate_hz: 10}\n    controller:\n      type: path_follower\n"
+      << "      path: {waypoints: [[0, 0], [100, 0]]}\n      speed: {target_mps: 6}\n"
+      << "  - id: f1\n    model: hmmwv\n    dynamics: reduced\n    start: {x: -12, y: 0}\n"
+      << "    sensors: convoy\n"
+      << "    controller: {type: follower, follow: l1, gap: {time_s: 0.5, standstill_m: 6}}\n";
+  const std::string args = "--config-dir " + kConfig;
+  const std::string single = single_process_csv(run, scenario.string(), args);
+  EXPECT_EQ(distributed_csv(run, scenario.string(), args), single);
+  const auto files = byte_identical_files(run.dir / "single");
+  EXPECT_EQ(byte_identical_files(run.dir / "distributed"), files);
+  for (const std::string f : {"convoy.json", "metrics.json", "v2v.csv"}) {
+    EXPECT_TRUE(files.contains(f)) << f;
+  }
+  for (const auto& f : files) {
+    EXPECT_EQ(read_file(run.dir / "distributed" / f), read_file(run.dir / "single" / f)) << f;
+  }
+  // Not an empty file: the follower drove part of the leader's segment.
+  const auto metrics = nlohmann::json::parse(read_file(run.dir / "single" / "metrics.json"));
+  ASSERT_EQ(metrics["followers"].size(), 1u);
+  EXPECT_EQ(metrics["followers"][0]["leader"], "l1");
+  EXPECT_GT(metrics["followers"][0]["samples"].get<int>(), 10);
+}
+
 TEST(Determinism, ReverseStartOrderGivesTheSameResult) {
   TestRun run;
   const std::string single = single_process_csv(run, kTwo, "");
