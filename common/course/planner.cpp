@@ -232,7 +232,8 @@ double reference_shortest_path(const Vec2& start, const Vec2& goal,
       const Edge& e = via[v];
       if (e.circle >= 0) {
         const Circle& c = circles[e.circle];
-        const int steps = std::max(1, static_cast<int>(std::ceil(std::abs(e.span) * c.radius / 0.5)));
+        const int steps =
+            std::max(1, static_cast<int>(std::ceil(std::abs(e.span) * c.radius / 0.5)));
         for (int k = steps - 1; k > 0; --k) {
           const double ang = e.from_angle + e.span * k / steps;
           reversed.push_back(c.centre + c.radius * Vec2(std::cos(ang), std::sin(ang)));
@@ -296,8 +297,8 @@ Problem make_problem(const Field& f, const PlannerParams& p) {
 // The swarm's seed path: Theta* (any-angle Dijkstra) on the 8-connected 0.5 m grid of the
 // square, nodes and edge midpoints outside the circles inflated by the clearance (less half a
 // cell), as K
-// waypoints. It picks the way round the obstacles; the swarm then shortens it. Empty when the grid has no path
-// (the field is then redrawn: a way missed by a 0.5 m grid has hardly any room to spare).
+// waypoints. It picks the way round the obstacles; the swarm then shortens it. Empty when the
+// grid has no path (the field is then redrawn: a way missed by a 0.5 m grid has hardly any room to spare).
 std::vector<double> grid_seed_path(const Problem& pr, int waypoints, double margin) {
   // Half a cell less than the clearance: a gap the grid's nodes just miss stays open (the swarm
   // then finds the exact way through, or the path is refused after the exact check).

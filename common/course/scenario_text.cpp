@@ -53,6 +53,13 @@ int leader_count(const std::string& convoy) {
   throw std::invalid_argument("convoy '" + convoy + "': expected 1L3F, 2L2F or 3L1F");
 }
 
+// Vehicle k of the column: leaders l1.., then followers f1.. (built with append: GCC 12 warns
+// -Wrestrict, wrongly, on "l" + std::to_string(...)).
+std::string vehicle_id(int k, int leaders) {
+  std::string id(1, k < leaders ? 'l' : 'f');
+  return id.append(std::to_string(k < leaders ? k + 1 : k - leaders + 1));
+}
+
 }  // namespace
 
 Terrain parse_terrain(const std::string& name) {
@@ -100,9 +107,11 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
   const double ramp_s = o.target_speed_mps / kRampMps2;
   const double ramp_m = 0.5 * kRampMps2 * ramp_s * ramp_s;
   const double drive_s = ramp_s + std::max(0.0, length - ramp_m) / o.target_speed_mps;
-  const double slow = o.terrain == Terrain::scm_soft ? 1.6 : o.terrain == Terrain::scm_hard ? 1.3
-                                                                                           : 1.15;
-  const int end_time_s = static_cast<int>(std::ceil(slow * drive_s + 4 * (kSpacingM / o.target_speed_mps + 1.0) + 10.0));
+  const double slow = o.terrain == Terrain::scm_soft   ? 1.6
+                     : o.terrain == Terrain::scm_hard ? 1.3
+                                                      : 1.15;
+  const double column_s = 4.0 * (kSpacingM / o.target_speed_mps + 1.0);
+  const int end_time_s = static_cast<int>(std::ceil(slow * drive_s + column_s + 10.0));
 
   std::ostringstream y;
   y << "# Random obstacle course of the paper's statistical study (docs/ensemble.md): seed "
@@ -142,8 +151,7 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
   }
   y << "vehicles:\n";
   for (int k = 0; k < 4; ++k) {
-    const std::string id = k < leaders ? "l" + std::to_string(k + 1)
-                                       : "f" + std::to_string(k - leaders + 1);
+    const std::string id = vehicle_id(k, leaders);
     const Vec2 start = course.field.start - kSpacingM * k * dir;
     y << "  - id: " << id << "\n    model: hmmwv\n    dynamics: full\n";
     y << "    start: {x: " << num(start.x()) << ", y: " << num(start.y())
@@ -158,8 +166,7 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
       y << "      type: path_follower\n      path: {waypoints: " << points(path) << "}\n";
       y << "      speed: {profile: ramp, target_mps: " << num(o.target_speed_mps) << "}\n";
     } else {
-      const std::string ahead = k - 1 < leaders ? "l" + std::to_string(k)
-                                                : "f" + std::to_string(k - leaders);
+      const std::string ahead = vehicle_id(k - 1, leaders);
       y << "      type: follower\n      follow: " << ahead
         << "\n      gap: {time_s: 1.0, standstill_m: 10}\n";
     }

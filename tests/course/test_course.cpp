@@ -109,7 +109,8 @@ TEST(CourseReference, OverlappingCircleForcesTheOtherWay) {
   std::vector<Vec2> pts;
   const double l = reference_shortest_path({0, 0}, {100, 100}, {mid, wall}, 100.0, &pts);
   const double d = 50.0 * kSqrt2;
-  const double one = 2.0 * std::sqrt(d * d - 100.0) + 10.0 * (std::numbers::pi - 2.0 * std::acos(10.0 / d));
+  const double one =
+      2.0 * std::sqrt(d * d - 100.0) + 10.0 * (std::numbers::pi - 2.0 * std::acos(10.0 / d));
   EXPECT_NEAR(l, one, 1e-9);  // the south-east way around is free and as short
   for (const Vec2& p : pts) EXPECT_LE(p.y() - p.x(), 1e-9);  // south-east of the diagonal
 }
@@ -199,7 +200,13 @@ TEST(CourseScenario, LoadsWithTheConvoyAndTheObstacles) {
       ASSERT_EQ(s.vehicles.size(), 4u);
       ASSERT_EQ(s.obstacles.size(), 34u);
       EXPECT_EQ(s.vehicles[0].id, "l1");
-      EXPECT_EQ(s.vehicles[3].id, std::string(mix) == "3L1F" ? "f1" : "f" + std::to_string(3 - (mix[0] - '1')));
+      const int leaders = mix[0] - '0';
+      EXPECT_EQ(s.vehicles[leaders - 1].id, "l" + std::to_string(leaders));
+      EXPECT_EQ(s.vehicles[3].id, "f" + std::to_string(4 - leaders));
+      // The first leader drives the planned path; every vehicle starts in the world box and
+      // outside every obstacle (a follower column on the start diagonal, behind the field).
+      EXPECT_EQ(s.vehicles[0].start.position.x(), 0.0);
+      EXPECT_LT(s.vehicles[3].start.position.x(), -25.0);
     }
   }
 }
