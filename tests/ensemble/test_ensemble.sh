@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# launch_scripts/run_ensemble.sh end to end: two courses on two terrains give every CSV column
+# and row; an ensemble interrupted after its first run resumes (finished runs skipped) and ends
+# with the same ensemble.csv as the uninterrupted one.
+#   tests/ensemble/test_ensemble.sh BUILD_DIR
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+export SYNDDS_BUILD_DIR=$1
+E=$ROOT/launch_scripts/run_ensemble.sh
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*" >&2; for f in "$work"/*.log; do echo "---- $f"; cat "$f"; done >&2; exit 1; }
+args=(--courses 2 --terrains rigid,scm_hard --duration 30)
+
+"$E" "${args[@]}" --jobs 2 --output "$work/a" > "$work/a.log" 2>&1 || fail "ensemble a failed"
+header="seed,terrain,convoy,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m"
+[ "$(head -n1 "$work/a/ensemble.csv")" = "$header" ] || fail "ensemble.csv header: $(head -n1 "$work/a/ensemble.csv")"
+[ "$(tail -n +2 "$work/a/ensemble.csv" | wc -l)" = 12 ] || fail "ensemble.csv: not 2 courses x 2 terrains x 3 followers rows"
+# Every row: a completed run with all six metrics (after 30 s every follower has driven past the first 10 m of the leader's track).
+awk -F, 'NR > 1 && ($4 != "completed" || $8 == "" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "") {exit 1}' \
+    "$work/a/ensemble.csv" || fail "ensemble.csv has an incomplete row: $(cat "$work/a/ensemble.csv")"
+[ "$(head -n1 "$work/a/runs.csv")" = "seed,terrain,status,sim_time_s,wall_time_s,real_time_factor" ] || fail "runs.csv header"
+[ "$(grep -c ',completed,' "$work/a/runs.csv")" = 4 ] || fail "runs.csv: not 4 completed runs"
+
+# Interrupted once its first run is complete (bounded wait), then resumed.
+"$E" "${args[@]}" --jobs 1 --output "$work/b" > "$work/b1.log" 2>&1 &
+pid=$!
+for _ in $(seq 1 1500); do
+  grep -q '"status": *"completed"' "$work/b/runs/1_rigid/summary.json" 2>/dev/null && break
+  kill -0 "$pid" 2>/dev/null || break
+  sleep 0.1
+done
+grep -q '"status": *"completed"' "$work/b/runs/1_rigid/summary.json" || fail "first run of b never completed"
+kill -INT "$pid"
+code=0; wait "$pid" || code=$?
+[ "$code" = 130 ] || [ "$code" = 0 ] || fail "interrupted ensemble exited $code"
+"$E" "${args[@]}" --jobs 1 --output "$work/b" > "$work/b2.log" 2>&1 || fail "resumed ensemble failed"
+grep -q "[1-4] finished before" "$work/b2.log" || fail "the resumed ensemble did not skip the finished runs"
+cmp "$work/a/ensemble.csv" "$work/b/ensemble.csv" || fail "resumed ensemble.csv differs from the uninterrupted one"
+# A third call has nothing to do and writes the same file again.
+"$E" "${args[@]}" --output "$work/b" > "$work/b3.log" 2>&1 || fail "third call failed"
+grep -q "4 finished before, 0 to run" "$work/b3.log" || fail "third call ran something"
+cmp "$work/a/ensemble.csv" "$work/b/ensemble.csv" || fail "ensemble.csv changed on a call with nothing to run"
+echo "ok"
