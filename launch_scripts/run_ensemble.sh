@@ -11,7 +11,8 @@
 # number of cores). Resumable: a run whose summary.json says "completed" is skipped, any other is
 # run again. At the end: DIR/ensemble.csv (one row per run and follower: the metrics, no wall
 # times, so an interrupted and resumed ensemble ends with the same file as an uninterrupted one)
-# and DIR/runs.csv (one row per run: status, simulated and wall time, real-time factor).
+# and DIR/runs.csv (one row per run: status, simulated and wall time, real-time factor), then the
+# figures (DIR/figures/) and DIR/report.md (tools/ensemble_figures.py).
 # Exit status: 0 every run completed, 2 some failed (listed), 1 bad command line, 130 interrupted.
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -173,6 +174,12 @@ with open(out / "ensemble.csv", "w", newline="") as f, \
 EOF
 [ $? = 0 ] || die "could not write $OUTPUT/ensemble.csv" 2
 echo "run_ensemble: $OUTPUT/ensemble.csv (metrics per run and follower), $OUTPUT/runs.csv (times)"
+# Figures and report.md need Debian's matplotlib, which lives with the system's Python.
+if /usr/bin/python3 -c "import matplotlib, numpy" 2> /dev/null; then
+  /usr/bin/python3 "$ROOT/tools/ensemble_figures.py" "$OUTPUT" || die "could not draw the figures" 2
+else
+  echo "run_ensemble: no figures: install python3-matplotlib python3-numpy (launch_scripts/setup.sh does)" >&2
+fi
 if [ ${#failed[@]} -gt 0 ]; then
   echo "run_ensemble: ${#failed[@]} runs failed: ${failed[*]}" >&2
   exit 2

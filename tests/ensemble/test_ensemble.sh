@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # launch_scripts/run_ensemble.sh end to end: two courses on two terrains give every CSV column
-# and row; an ensemble interrupted after its first run resumes (finished runs skipped) and ends
+# and row, the four figures and report.md; an ensemble interrupted after its first run resumes (finished runs skipped) and ends
 # with the same ensemble.csv as the uninterrupted one.
 #   tests/ensemble/test_ensemble.sh BUILD_DIR
 set -euo pipefail
@@ -21,6 +21,14 @@ awk -F, 'NR > 1 && ($4 != "completed" || $8 == "" || $9 == "" || $10 == "" || $1
     "$work/a/ensemble.csv" || fail "ensemble.csv has an incomplete row: $(cat "$work/a/ensemble.csv")"
 [ "$(head -n1 "$work/a/runs.csv")" = "seed,terrain,status,sim_time_s,wall_time_s,real_time_factor" ] || fail "runs.csv header"
 [ "$(grep -c ',completed,' "$work/a/runs.csv")" = 4 ] || fail "runs.csv: not 4 completed runs"
+# The figures and the report that embeds them.
+for f in trajectories metrics_boxplots obstacles_hit real_time_factor; do
+  [ -s "$work/a/figures/$f.png" ] || fail "figures/$f.png missing"
+  grep -q "(figures/$f.png)" "$work/a/report.md" || fail "report.md does not show $f.png"
+  [ "$(head -c 8 "$work/a/figures/$f.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] ||
+    fail "figures/$f.png is not a PNG"
+done
+grep -q "^| scm_hard | 3 | " "$work/a/report.md" || fail "report.md has no row for scm_hard, follower 3"
 
 # Interrupted once its first run is complete (bounded wait), then resumed.
 "$E" "${args[@]}" --jobs 1 --output "$work/b" > "$work/b1.log" 2>&1 &
