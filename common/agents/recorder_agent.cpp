@@ -33,6 +33,9 @@ const std::vector<std::string> kEventColumns = {"frame", "time_s", "kind", "vehi
 const std::vector<std::string> kV2VColumns = {
     "frame",         "vehicle",    "sequence",  "sensor_time_s", "latitude_deg",
     "longitude_deg", "altitude_m", "speed_mps", "heading_rad"};
+// metrics_samples.csv: each follower's samples along its leader's path (docs/convoy.md).
+const std::vector<std::string> kMetricsSampleColumns = {
+    "follower", "position", "leader", "arc_m", "path_m", "leader_speed_mps", "follower_speed_mps"};
 
 // Interoceptive sensor files: the stamp columns, then the sensor's own.
 std::vector<std::string> stamped(std::initializer_list<const char*> values) {
@@ -79,6 +82,7 @@ double sig9(double v) {
 }
 
 nlohmann::json metrics_json(const std::vector<FollowerMetrics>& all,
+                            const std::map<std::string, metrics::SpeedSummary>& leaders,
                             const metrics::Settings& settings) {
   // A deviation without samples has no value: null, not 0.
   const auto value = [](const metrics::Deviation& d, double v) {
@@ -106,10 +110,18 @@ nlohmann::json metrics_json(const std::vector<FollowerMetrics>& all,
                          {"follower_start_time_s", sig9(m.follower_start_time_s)},
                          {"leader_end_time_s", sig9(m.leader_end_time_s)}});
   }
+  nlohmann::json heads = nlohmann::json::array();
+  for (const auto& [id, s] : leaders) {
+    heads.push_back({{"id", id},
+                     {"max_speed_mps", sig9(s.max_mps)},
+                     {"mean_moving_speed_mps", sig9(s.mean_moving_mps)},
+                     {"distance_m", sig9(s.distance_m)}});
+  }
   return {{"spacing_m", settings.spacing_m},
           {"speed_skip_m", settings.speed_skip_m},
           {"min_leader_speed_mps", settings.min_leader_speed_mps},
-          {"followers", followers}};
+          {"followers", followers},
+          {"leaders", heads}};
 }
 
 metrics::Trajectory trajectory_of(const convoy::Track& track) {
@@ -404,8 +416,26 @@ void RecorderAgent::write_metrics() {
     m.obstacles_hit = totals_.at(follower).collisions;
     metrics_.push_back(std::move(m));
   }
+  // The heads of the follow chains: how fast they drove (soft soil may hold them back).
+  std::map<std::string, metrics::SpeedSummary> leaders;
+  for (const auto& m : metrics_) {
+    if (!leaders.contains(m.chain.leader)) {
+      leaders[m.chain.leader] =
+          metrics::speed_summary(trajectory_of(tracks_[m.chain.leader]), settings);
+    }
+  }
+  // The curves behind the averages, one row per sample of the leader's path.
+  CsvFile samples(fs::path(options_.output_dir) / "metrics_samples.csv", kMetricsSampleColumns);
+  for (const auto& m : metrics_) {
+    for (const auto& x : m.deviations.series) {
+      samples.row(m.follower, m.chain.position, m.chain.leader, x.arc_m, x.path_m,
+                  x.leader_speed_mps, x.follower_speed_mps);
+    }
+  }
+  samples.commit();
+  samples.close();
   write_file_atomically(fs::path(options_.output_dir) / "metrics.json",
-                        metrics_json(metrics_, settings).dump(2) + "\n");
+                        metrics_json(metrics_, leaders, settings).dump(2) + "\n");
 }
 
 void RecorderAgent::write_summary(const proto::RunControlMsg* end) {

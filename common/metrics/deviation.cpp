@@ -111,7 +111,9 @@ Deviations deviations(const Trajectory& follower, const Trajectory& leader,
       if (last ? s > arc + len + kRoundingM : s >= arc + len) break;
       const Located l = between(leader[i], leader[i + 1], std::min(1.0, (s - arc) / len));
       const Located f = closest_on(follower, d.follower_start_index, l.position);
-      path.add((f.position - l.position).norm());
+      const double gap = (f.position - l.position).norm();
+      path.add(gap);
+      d.series.push_back({s, gap, l.speed_mps, f.speed_mps});
       if (s >= settings.speed_skip_m) {
         const double dv = std::abs(f.speed_mps - l.speed_mps);
         abs_speed.add(dv);
@@ -125,6 +127,25 @@ Deviations deviations(const Trajectory& follower, const Trajectory& leader,
   d.rel_speed = rel_speed.result();
   d.samples = d.path_m.samples;
   return d;
+}
+
+SpeedSummary speed_summary(const Trajectory& t, const Settings& settings) {
+  SpeedSummary out;
+  if (t.empty()) return out;
+  out.distance_m = arc_length(t, 0, t.size() - 1);
+  std::optional<std::size_t> first, last;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    out.max_mps = std::max(out.max_mps, t[i].speed_mps);
+    if (t[i].speed_mps >= settings.min_leader_speed_mps) {
+      if (!first) first = i;
+      last = i;
+    }
+  }
+  if (first && *last > *first) {
+    out.mean_moving_mps =
+        arc_length(t, *first, *last) / (t[*last].time_s - t[*first].time_s);
+  }
+  return out;
 }
 
 std::map<std::string, ChainLink> resolve_chains(

@@ -46,6 +46,15 @@ struct Deviation {
   std::size_t samples = 0;
 };
 
+/// One sample of the leader's clipped segment and the follower's point paired with it: the
+/// curves behind the averages (deviation and speeds along the leader's path).
+struct Sample {
+  double arc_m = 0.0;               // arc length along the leader's segment
+  double path_m = 0.0;              // distance to the paired follower point
+  double leader_speed_mps = 0.0;
+  double follower_speed_mps = 0.0;  // interpolated at the paired point
+};
+
 /// The metrics of one follower against one leader, with the clip and sample details.
 struct Deviations {
   Deviation path_m;         // m_p
@@ -58,12 +67,25 @@ struct Deviations {
   std::size_t leader_end_index = 0;
   double leader_segment_m = 0.0;    // arc length of the leader's clipped trajectory
   double follower_segment_m = 0.0;  // arc length of the follower's clipped trajectory
+  std::vector<Sample> series;       // every sample, in arc-length order (size `samples`)
 };
 
 /// The six-metrics computation minus obstacles (those are events, not geometry). Empty
 /// trajectories, or a leader segment of zero length, give zero samples.
 Deviations deviations(const Trajectory& follower, const Trajectory& leader,
                       const Settings& settings = {});
+
+/// How fast a vehicle drove: the paper's observation that leaders on soft soil cannot reach
+/// their target speed is about these numbers.
+struct SpeedSummary {
+  double max_mps = 0.0;
+  // Distance over the time from the first to the last frame at which the vehicle moved at
+  // `min_leader_speed_mps` or more (the start from rest and the stop at the end stay in; the
+  // standing before and after do not). 0 when it never moved that fast.
+  double mean_moving_mps = 0.0;
+  double distance_m = 0.0;  // arc length of the whole trajectory
+};
+SpeedSummary speed_summary(const Trajectory& t, const Settings& settings = {});
 
 /// A follower's place in its convoy.
 struct ChainLink {

@@ -197,6 +197,48 @@ TEST(Deviations, TheEndSampleSurvivesRounding) {
   EXPECT_EQ(d.samples, 201u);
 }
 
+// The series behind the averages: one entry per sample at k * spacing along the leader, with
+// the distance and both speeds there; its mean and maximum are the metrics.
+TEST(Deviations, TheSeriesHoldsEverySampleAlongTheLeadersPath) {
+  const auto v = [](double x) { return 2.0 + 0.05 * x; };
+  const Trajectory leader = straight(0, 100, 0, v);
+  const Trajectory follower = straight(0, 100, 0.4, [&](double x) { return 0.5 * v(x); });
+  const Deviations d = deviations(follower, leader);
+  ASSERT_EQ(d.series.size(), d.samples);
+  ASSERT_EQ(d.series.size(), 201u);
+  double sum = 0.0;
+  for (std::size_t k = 0; k < d.series.size(); ++k) {
+    const Sample& s = d.series[k];
+    EXPECT_EQ(s.arc_m, 0.5 * static_cast<double>(k));
+    EXPECT_NEAR(s.path_m, 0.4, 1e-12);
+    EXPECT_NEAR(s.leader_speed_mps, v(s.arc_m), 1e-12);
+    EXPECT_NEAR(s.follower_speed_mps, 0.5 * v(s.arc_m), 1e-12);
+    sum += s.path_m;
+  }
+  EXPECT_NEAR(sum / 201.0, d.path_m.avg, 1e-12);
+  EXPECT_TRUE(deviations({}, leader).series.empty());
+}
+
+// A vehicle that stands 2 s, drives 100 m in 20 s (5 m/s) and stands 3 s: 5 m/s moving, not
+// 100 m / 25 s; the maximum is the fastest frame.
+TEST(SpeedSummary, MeanOverTheTimeMovingAndTheMaximum) {
+  Trajectory t;
+  double time = 0.0;
+  for (int i = 0; i < 200; ++i, time += 0.01) t.push_back({time, Vec2(0, 0), 0.0});
+  for (int i = 0; i <= 400; ++i, time += 0.05) {
+    t.push_back({time, Vec2(0.25 * i, 0), i == 200 ? 5.5 : 5.0});
+  }
+  for (int i = 0; i < 300; ++i, time += 0.01) t.push_back({time, Vec2(100, 0), 0.0});
+  const SpeedSummary s = speed_summary(t);
+  EXPECT_NEAR(s.mean_moving_mps, 5.0, 1e-9);
+  EXPECT_EQ(s.max_mps, 5.5);
+  EXPECT_NEAR(s.distance_m, 100.0, 1e-12);
+  // Never as fast as the threshold: no mean.
+  const Trajectory crawl = straight(0, 10, 0, constant(0.3));
+  EXPECT_EQ(speed_summary(crawl).mean_moving_mps, 0.0);
+  EXPECT_EQ(speed_summary({}).max_mps, 0.0);
+}
+
 TEST(Chains, FollowersAreComparedWithTheHeadOfTheirChain) {
   const auto c = resolve_chains({{"f1", "l1"}, {"f2", "f1"}, {"f3", "f2"}, {"g1", "l2"}});
   ASSERT_EQ(c.size(), 4u);

@@ -102,7 +102,7 @@ TEST(Determinism, ConvoyReportAndMetricsAreByteIdentical) {
   EXPECT_EQ(distributed_csv(run, scenario.string(), args), single);
   const auto files = byte_identical_files(run.dir / "single");
   EXPECT_EQ(byte_identical_files(run.dir / "distributed"), files);
-  for (const std::string f : {"convoy.json", "metrics.json", "v2v.csv"}) {
+  for (const std::string f : {"convoy.json", "metrics.json", "metrics_samples.csv", "v2v.csv"}) {
     EXPECT_TRUE(files.contains(f)) << f;
   }
   for (const auto& f : files) {

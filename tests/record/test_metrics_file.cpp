@@ -2,7 +2,11 @@
 // <- f2 writes the paper's deviation metrics per follower, each against the head of its chain.
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
+#include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "agents/recorder_agent.hpp"
 #include "record_test_util.hpp"
@@ -135,6 +139,37 @@ TEST(MetricsFile, ARunWithFollowersWritesTheDeviationMetrics) {
   EXPECT_EQ(f2["samples"], 53);  // 0, ..., 26 m
   EXPECT_EQ(f2["speed_samples"], 33);
   EXPECT_EQ(f2["segment_length_m"], 26.0);
+
+  // The head of the chain: 5 m/s in every frame, 50 m driven (frames 0..1000).
+  ASSERT_EQ(j["leaders"].size(), 1u);
+  EXPECT_EQ(j["leaders"][0]["id"], "l1");
+  EXPECT_EQ(j["leaders"][0]["max_speed_mps"], 5.0);
+  EXPECT_EQ(j["leaders"][0]["mean_moving_speed_mps"], 5.0);
+  EXPECT_EQ(j["leaders"][0]["distance_m"], 50.0);
+}
+
+// metrics_samples.csv: every sample of both followers, the distances and speeds behind the
+// averages above (f1 0.5 m aside at 5 m/s, f2 on the line at 4 m/s), every 0.5 m.
+TEST(MetricsFile, TheSamplesAlongTheLeadersPathAreWrittenToo) {
+  const fs::path dir = test_dir();
+  run_convoy(dir);
+  const std::string text = read_file(dir / "run" / "metrics_samples.csv");
+  std::istringstream in(text);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "follower,position,leader,arc_m,path_m,leader_speed_mps,follower_speed_mps");
+  std::map<std::string, int> rows;
+  while (std::getline(in, line)) {
+    const int k = rows[line.substr(0, 2)]++;
+    const double arc = 0.5 * k;
+    if (line.starts_with("f1,")) {
+      EXPECT_EQ(line, fmt::format("f1,1,l1,{:.9g},0.5,5,5", arc));
+    } else {
+      EXPECT_EQ(line, fmt::format("f2,2,l1,{:.9g},0,5,4", arc));
+    }
+  }
+  EXPECT_EQ(rows["f1"], 77);
+  EXPECT_EQ(rows["f2"], 53);
 }
 
 // Same input, same bytes (the distributed and single-process runs feed the recorder the same).
