@@ -148,7 +148,8 @@ with open(out / "ensemble.csv", "w", newline="") as f, \
      open(out / "runs.csv", "w", newline="") as g:
     e, r = csv.writer(f, lineterminator="\n"), csv.writer(g, lineterminator="\n")
     e.writerow(["seed", "terrain", "convoy", "status", "follower", "position", "leader",
-                *metrics, "obstacles_hit", "samples", "segment_length_m"])
+                *metrics, "obstacles_hit", "samples", "segment_length_m",
+                "leader_max_speed_mps", "leader_mean_speed_mps"])
     r.writerow(["seed", "terrain", "status", "sim_time_s", "wall_time_s", "real_time_factor"])
     for run_id in ids:
         seed, terrain = run_id.split("_", 1)
@@ -161,16 +162,19 @@ with open(out / "ensemble.csv", "w", newline="") as f, \
         r.writerow([seed, terrain, status, cell(s.get("sim_time_s")), cell(s.get("wall_time_s")),
                     cell(s.get("real_time_factor"))])
         try:
-            followers = json.loads((run / "metrics.json").read_text())["followers"]
-        except (OSError, ValueError, KeyError):
-            followers = []
+            j = json.loads((run / "metrics.json").read_text())
+            followers, leaders = j["followers"], {l["id"]: l for l in j["leaders"]}
+        except (OSError, ValueError, KeyError, TypeError):
+            followers, leaders = [], {}
         if status != "completed" or not followers:
-            e.writerow([seed, terrain, convoy, status] + [""] * (3 + len(metrics) + 3))
+            e.writerow([seed, terrain, convoy, status] + [""] * (3 + len(metrics) + 5))
             continue
         for m in sorted(followers, key=lambda m: m["position"]):
+            head = leaders.get(m["leader"], {})
             e.writerow([seed, terrain, convoy, status, m["id"], m["position"], m["leader"],
                         *[cell(m[k]) for k in metrics], m["obstacles_hit"], m["samples"],
-                        cell(m["segment_length_m"])])
+                        cell(m["segment_length_m"]), cell(head.get("max_speed_mps")),
+                        cell(head.get("mean_moving_speed_mps"))])
 EOF
 [ $? = 0 ] || die "could not write $OUTPUT/ensemble.csv" 2
 echo "run_ensemble: $OUTPUT/ensemble.csv (metrics per run and follower), $OUTPUT/runs.csv (times)"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # launch_scripts/run_ensemble.sh end to end: two courses on two terrains give every CSV column
-# and row, the four figures and report.md; an ensemble interrupted after its first run resumes (finished runs skipped) and ends
-# with the same ensemble.csv as the uninterrupted one.
+# and row, the six figures and report.md; an ensemble interrupted after its first run resumes
+# (finished runs skipped) and ends with the same ensemble.csv as the uninterrupted one; a run
+# that fails is listed and the others go on.
 #   tests/ensemble/test_ensemble.sh BUILD_DIR
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -13,16 +14,16 @@ fail() { echo "FAIL: $*" >&2; for f in "$work"/*.log; do echo "---- $f"; cat "$f
 args=(--courses 2 --terrains rigid,scm_hard --duration 30)
 
 "$E" "${args[@]}" --jobs 2 --output "$work/a" > "$work/a.log" 2>&1 || fail "ensemble a failed"
-header="seed,terrain,convoy,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m"
+header="seed,terrain,convoy,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m,leader_max_speed_mps,leader_mean_speed_mps"
 [ "$(head -n1 "$work/a/ensemble.csv")" = "$header" ] || fail "ensemble.csv header: $(head -n1 "$work/a/ensemble.csv")"
 [ "$(tail -n +2 "$work/a/ensemble.csv" | wc -l)" = 12 ] || fail "ensemble.csv: not 2 courses x 2 terrains x 3 followers rows"
 # Every row: a completed run with all six metrics (after 30 s every follower has driven past the first 10 m of the leader's track).
-awk -F, 'NR > 1 && ($4 != "completed" || $8 == "" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "") {exit 1}' \
+awk -F, 'NR > 1 && ($4 != "completed" || $8 == "" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "" || $17 <= 0 || $18 <= 0 || $18 > $17) {exit 1}' \
     "$work/a/ensemble.csv" || fail "ensemble.csv has an incomplete row: $(cat "$work/a/ensemble.csv")"
 [ "$(head -n1 "$work/a/runs.csv")" = "seed,terrain,status,sim_time_s,wall_time_s,real_time_factor" ] || fail "runs.csv header"
 [ "$(grep -c ',completed,' "$work/a/runs.csv")" = 4 ] || fail "runs.csv: not 4 completed runs"
 # The figures and the report that embeds them.
-for f in trajectories metrics_boxplots obstacles_hit real_time_factor; do
+for f in trajectories along_path metrics_boxplots obstacles_hit leader_speed real_time_factor; do
   [ -s "$work/a/figures/$f.png" ] || fail "figures/$f.png missing"
   grep -q "(figures/$f.png)" "$work/a/report.md" || fail "report.md does not show $f.png"
   [ "$(head -c 8 "$work/a/figures/$f.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] ||
@@ -49,4 +50,19 @@ cmp "$work/a/ensemble.csv" "$work/b/ensemble.csv" || fail "resumed ensemble.csv 
 "$E" "${args[@]}" --output "$work/b" > "$work/b3.log" 2>&1 || fail "third call failed"
 grep -q "4 finished before, 0 to run" "$work/b3.log" || fail "third call ran something"
 cmp "$work/a/ensemble.csv" "$work/b/ensemble.csv" || fail "ensemble.csv changed on a call with nothing to run"
+# A failed run is listed, not fatal: course 2's scenario is broken before the ensemble starts
+# (a course file is generated only when missing); course 1 still runs, the CSV lists both, the
+# figures are drawn, the exit status is 2 and the failure is named.
+mkdir -p "$work/c/courses"
+printf 'name: broken\nvehicles: 3\n' > "$work/c/courses/2_rigid.yaml"
+code=0
+"$E" --courses 2 --terrains rigid --duration 30 --output "$work/c" > "$work/c.log" 2>&1 || code=$?
+[ "$code" = 2 ] || fail "ensemble with a broken run exited $code, not 2"
+grep -q "1 runs failed: 2_rigid" "$work/c.log" || fail "the failed run is not named"
+grep -q "^1,rigid,1L3F,completed,f1," "$work/c/ensemble.csv" || fail "course 1 missing: $(cat "$work/c/ensemble.csv")"
+grep -q "^2,rigid,1L3F,no summary,,,,,,,,,,,,,,$" "$work/c/ensemble.csv" || fail "the failed run's row: $(cat "$work/c/ensemble.csv")"
+grep -q "^2,rigid,no summary,,,$" "$work/c/runs.csv" || fail "runs.csv: $(cat "$work/c/runs.csv")"
+grep -q "Runs that did not complete: 2_rigid (no summary)" "$work/c/report.md" || fail "report.md does not list the failed run"
+grep -q "2_rigid.yaml" "$work/c/runs/2_rigid.log" || fail "the failed run's log does not name its scenario"
+[ -s "$work/c/figures/along_path.png" ] || fail "no figures after a failed run"
 echo "ok"
