@@ -48,20 +48,84 @@ void check_outputs(const FrameSamples& out, std::int64_t frame, const std::strin
   });
 }
 
+FrameStepper::FrameStepper(std::vector<AgentPtr> agents, double heartbeat_s)
+    : agents_(std::move(agents)), heartbeat_s_(heartbeat_s) {
+  member_stats_.resize(agents_.size());
+  for (std::size_t i = 0; i < agents_.size(); ++i) {
+    subs_.push_back(agents_[i]->subscriptions());
+    member_stats_[i].member_id = agents_[i]->member_id();
+  }
+}
+
+void FrameStepper::step() {
+  if (finished_) throw ProtocolError("FrameStepper::step after the run ended");
+  const std::int64_t frame = completed_ + 1;
+  if (frame == 0) t0_ = Clock::now();
+  // Nobody joins late or departs here: every agent lives (and fails) with this process.
+  FrameContext ctx{frame, static_cast<double>(frame) * heartbeat_s_, heartbeat_s_, {}, {}};
+  FrameSamples current;
+  for (std::size_t i = 0; i < agents_.size(); ++i) {
+    const auto step_t0 = Clock::now();
+    FrameSamples inputs = previous_.filtered(subs_[i]);
+    FrameSamples outputs;
+    try {
+      agents_[i]->step(ctx, inputs, outputs);
+      check_outputs(outputs, frame, agents_[i]->member_id(), agents_[i]->vehicle_key());
+    } catch (const std::exception& e) {
+      // Every agent still learns how the run ended (the recorder writes its summary), and, as
+      // in the distributed run, the last complete frame is not lost: the agents that have not
+      // consumed its samples yet (not stepped in this frame) get them as final inputs.
+      RunControlMsg control;
+      control.status = RunStatus::aborted;
+      control.reason = agents_[i]->member_id() + " failed in frame " + std::to_string(frame) +
+                       ": " + e.what();
+      control.final_frame = completed_;
+      finished_ = true;
+      for (std::size_t j = 0; j < agents_.size(); ++j) {
+        agents_[j]->finish(RunEnd{control}, j > i ? previous_.filtered(subs_[j]) : FrameSamples{});
+      }
+      throw;
+    }
+    current.append(outputs);
+    member_stats_[i].mean_compute_s += seconds_since(step_t0);
+  }
+  current.sort();
+  previous_ = std::move(current);
+  completed_ = frame;
+}
+
+RunControlMsg FrameStepper::finish(RunStatus status, const std::string& reason) {
+  if (finished_) throw ProtocolError("FrameStepper::finish twice");
+  finished_ = true;
+  RunControlMsg control;
+  control.status = status;
+  control.reason = reason;
+  control.final_frame = completed_;
+  control.final_manifest.clear();
+  control.stats.frames = static_cast<std::uint64_t>(completed_ + 1);
+  control.stats.final_frame = completed_;
+  control.stats.sim_time_s = completed_ > 0 ? static_cast<double>(completed_) * heartbeat_s_ : 0.0;
+  control.stats.wall_time_s = completed_ >= 0 ? seconds_since(t0_) : 0.0;
+  control.stats.real_time_factor =
+      control.stats.sim_time_s > 0 ? control.stats.wall_time_s / control.stats.sim_time_s : 0.0;
+  for (auto& ms : member_stats_) {
+    if (completed_ >= 0) ms.mean_compute_s /= static_cast<double>(completed_ + 1);
+    ms.mean_response_s = ms.mean_compute_s;
+  }
+  control.stats.members = member_stats_;
+
+  RunEnd end{control};
+  for (std::size_t i = 0; i < agents_.size(); ++i) {
+    agents_[i]->finish(end, previous_.filtered(subs_[i]));
+  }
+  return control;
+}
+
 LocalRunner::LocalRunner(std::vector<AgentPtr> agents, LocalRunOptions options)
-    : agents_(std::move(agents)), options_(options) {}
+    : stepper_(std::move(agents), options.heartbeat_s), options_(options) {}
 
 RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
-  std::vector<std::vector<Subscription>> subs;
-  std::vector<MemberStatsMsg> member_stats(agents_.size());
-  for (std::size_t i = 0; i < agents_.size(); ++i) {
-    subs.push_back(agents_[i]->subscriptions());
-    member_stats[i].member_id = agents_[i]->member_id();
-  }
-
   const auto t0 = Clock::now();
-  FrameSamples previous;  // everything stamped frame - 1
-  std::int64_t completed = -1;
   bool interrupted = false;
   for (std::int64_t frame = 0; frame <= options_.final_frame; ++frame) {
     if (interrupt && interrupt->load()) {
@@ -71,63 +135,12 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
     if (options_.realtime) {
       std::this_thread::sleep_until(
           t0 + std::chrono::duration_cast<Clock::duration>(
-                   std::chrono::duration<double>(frame * options_.heartbeat_s)));
+                   std::chrono::duration<double>(static_cast<double>(frame) * options_.heartbeat_s)));
     }
-    // Nobody joins late or departs here: every agent lives (and fails) with this process.
-    FrameContext ctx{frame, static_cast<double>(frame) * options_.heartbeat_s,
-                     options_.heartbeat_s, {}, {}};
-    FrameSamples current;
-    for (std::size_t i = 0; i < agents_.size(); ++i) {
-      const auto step_t0 = Clock::now();
-      FrameSamples inputs = previous.filtered(subs[i]);
-      FrameSamples outputs;
-      try {
-        agents_[i]->step(ctx, inputs, outputs);
-        check_outputs(outputs, frame, agents_[i]->member_id(), agents_[i]->vehicle_key());
-      } catch (const std::exception& e) {
-        // Every agent still learns how the run ended (the recorder writes its summary), and, as
-        // in the distributed run, the last complete frame is not lost: the agents that have not
-        // consumed its samples yet (not stepped in this frame) get them as final inputs.
-        RunControlMsg control;
-        control.status = RunStatus::aborted;
-        control.reason = agents_[i]->member_id() + " failed in frame " + std::to_string(frame) +
-                         ": " + e.what();
-        control.final_frame = completed;
-        for (std::size_t j = 0; j < agents_.size(); ++j) {
-          agents_[j]->finish(RunEnd{control}, j > i ? previous.filtered(subs[j]) : FrameSamples{});
-        }
-        throw;
-      }
-      current.append(outputs);
-      member_stats[i].mean_compute_s += seconds_since(step_t0);
-    }
-    current.sort();
-    previous = std::move(current);
-    completed = frame;
+    stepper_.step();
   }
-
-  RunControlMsg control;
-  control.status = interrupted ? RunStatus::aborted : RunStatus::completed;
-  control.reason = interrupted ? "interrupted" : "";
-  control.final_frame = completed;
-  control.final_manifest.clear();
-  control.stats.frames = static_cast<std::uint64_t>(completed + 1);
-  control.stats.final_frame = completed;
-  control.stats.sim_time_s = completed > 0 ? completed * options_.heartbeat_s : 0.0;
-  control.stats.wall_time_s = seconds_since(t0);
-  control.stats.real_time_factor =
-      control.stats.sim_time_s > 0 ? control.stats.wall_time_s / control.stats.sim_time_s : 0.0;
-  for (auto& ms : member_stats) {
-    if (completed >= 0) ms.mean_compute_s /= static_cast<double>(completed + 1);
-    ms.mean_response_s = ms.mean_compute_s;
-  }
-  control.stats.members = member_stats;
-
-  RunEnd end{control};
-  for (std::size_t i = 0; i < agents_.size(); ++i) {
-    agents_[i]->finish(end, previous.filtered(subs[i]));
-  }
-  return control;
+  return stepper_.finish(interrupted ? RunStatus::aborted : RunStatus::completed,
+                        interrupted ? "interrupted" : "");
 }
 
 }  // namespace syndds::proto

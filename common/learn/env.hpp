@@ -1,0 +1,80 @@
+#pragma once
+// The learning environment API (Gymnasium's, in C++): reset(seed) -> observation,
+// step(action) -> {observation, reward, terminated, truncated, info}, and descriptions of the
+// observation and action spaces. No DDS, no learning library: environments are plain
+// simulations that a trainer (syndds_train, libtorch), the Python binding or a test drives.
+//
+// Conventions:
+//  - An observation is a vector of floats and, for environments with a camera, one RGB image
+//    (row-major height x width x 3, bytes 0..255).
+//  - Actions are vectors of floats within the action space's box; an environment clamps what
+//    is outside (a trainer's Gaussian policy samples beyond the box).
+//  - terminated: the episode reached an end state (collision, goal, leader lost), no value
+//    beyond it; truncated: it was cut (time limit), its value goes on. After either, reset.
+//  - The same seed gives the same episode, bit for bit.
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace syndds::learn {
+
+/// A box of floats, one bound pair per dimension.
+struct Box {
+  std::vector<float> low;
+  std::vector<float> high;
+  std::vector<std::string> names;  // one per dimension (documentation, CSV headers)
+  std::size_t size() const { return low.size(); }
+};
+
+struct ImageSpec {
+  int width = 0;
+  int height = 0;
+  int channels = 3;
+  std::size_t bytes() const {
+    return static_cast<std::size_t>(width) * static_cast<std::size_t>(height) *
+           static_cast<std::size_t>(channels);
+  }
+};
+
+struct ObservationSpace {
+  Box vector;
+  std::optional<ImageSpec> image;  // absent: no image in the observations
+};
+
+struct Observation {
+  std::vector<float> vector;
+  std::vector<std::uint8_t> image;  // empty without a camera
+};
+
+struct StepResult {
+  Observation observation;
+  double reward = 0.0;
+  bool terminated = false;
+  bool truncated = false;
+  std::map<std::string, double> info;  // diagnostics (distance to the leader, ...)
+};
+
+class Env {
+ public:
+  virtual ~Env() = default;
+  virtual ObservationSpace observation_space() const = 0;
+  virtual Box action_space() const = 0;
+  /// Starts an episode; the same seed gives the same episode.
+  virtual Observation reset(std::uint64_t seed) = 0;
+  /// Applies the action for one control period. Calling it before reset, or after an episode
+  /// ended, throws std::logic_error.
+  virtual StepResult step(std::span<const float> action) = 0;
+};
+
+using EnvFactory = std::function<std::unique_ptr<Env>()>;
+
+/// The seed of episode `episode` of copy `copy` in a vector environment reset with `seed`:
+/// a fixed hash, so that copy i's episodes do not depend on how many copies there are.
+std::uint64_t episode_seed(std::uint64_t seed, std::uint64_t copy, std::uint64_t episode);
+
+}  // namespace syndds::learn

@@ -1,0 +1,78 @@
+#include "learn/vector_env.hpp"
+
+#include <exception>
+#include <stdexcept>
+#include <string>
+
+namespace syndds::learn {
+namespace {
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+}  // namespace
+
+std::uint64_t episode_seed(std::uint64_t seed, std::uint64_t copy, std::uint64_t episode) {
+  return splitmix64(splitmix64(splitmix64(seed) ^ copy) ^ episode);
+}
+
+VectorEnv::VectorEnv(const EnvFactory& factory, int copies, int threads) : pool_(threads) {
+  if (copies < 1) throw std::invalid_argument("VectorEnv: copies must be >= 1");
+  for (int i = 0; i < copies; ++i) envs_.push_back(factory());
+  episodes_.assign(envs_.size(), 0);
+}
+
+std::vector<Observation> VectorEnv::reset(std::uint64_t seed) {
+  seed_ = seed;
+  reset_done_ = true;
+  std::vector<Observation> out(envs_.size());
+  std::vector<std::exception_ptr> errors(envs_.size());
+  pool_.run(size(), [&](int i) {
+    const auto k = static_cast<std::size_t>(i);
+    try {
+      episodes_[k] = 1;
+      out[k] = envs_[k]->reset(episode_seed(seed_, k, 0));
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  });
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  return out;
+}
+
+VectorStepResult VectorEnv::step(const std::vector<std::vector<float>>& actions) {
+  if (!reset_done_) throw std::logic_error("VectorEnv::step before reset");
+  if (actions.size() != envs_.size()) {
+    throw std::invalid_argument("VectorEnv::step: " + std::to_string(actions.size()) +
+                                " actions for " + std::to_string(envs_.size()) + " copies");
+  }
+  VectorStepResult out;
+  out.results.resize(envs_.size());
+  out.final_observations.resize(envs_.size());
+  std::vector<std::exception_ptr> errors(envs_.size());
+  pool_.run(size(), [&](int i) {
+    const auto k = static_cast<std::size_t>(i);
+    try {
+      StepResult r = envs_[k]->step(actions[k]);
+      if (r.terminated || r.truncated) {
+        out.final_observations[k] = std::move(r.observation);
+        r.observation = envs_[k]->reset(episode_seed(seed_, k, episodes_[k]++));
+      }
+      out.results[k] = std::move(r);
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  });
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  return out;
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,126 @@
+// The environment API on the double integrator: exact dynamics and episode ends, the same seed
+// giving the same episode, and VectorEnv giving every copy the same episodes whatever the
+// number of copies and threads (copy i's seeds depend on i only), with automatic resets.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <vector>
+
+#include "learn/double_integrator.hpp"
+#include "learn/vector_env.hpp"
+
+using namespace syndds::learn;
+
+TEST(DoubleIntegrator, ConstantForceFromRestIsExact) {
+  DoubleIntegrator env;
+  env.reset(7);
+  // x(t) = x0 + v0 t + a t^2 / 2 with a = 1 N on 1 kg.
+  const double x0 = env.position(), v0 = env.velocity();
+  const std::vector<float> push = {1.0f};
+  for (int k = 1; k <= 10; ++k) {
+    const StepResult r = env.step(push);
+    const double t = 0.1 * k;
+    EXPECT_NEAR(env.position(), x0 + v0 * t + 0.5 * t * t, 1e-12);
+    EXPECT_NEAR(env.velocity(), v0 + t, 1e-12);
+    EXPECT_FALSE(r.terminated);
+    EXPECT_FALSE(r.truncated);
+  }
+  // Out of the box: clamped to 1 N.
+  const std::vector<float> too_much = {5.0f};
+  const double v = env.velocity();
+  env.step(too_much);
+  EXPECT_NEAR(env.velocity(), v + 0.1, 1e-12);
+}
+
+TEST(DoubleIntegrator, EpisodesEndAfterOneHundredStepsAndAreSeeded) {
+  DoubleIntegrator a, b;
+  const Observation oa = a.reset(42), ob = b.reset(42);
+  EXPECT_EQ(oa.vector, ob.vector);
+  EXPECT_NE(a.reset(43).vector, oa.vector);
+  a.reset(42);
+  const std::vector<float> act = {0.3f};
+  for (int k = 1; k <= 100; ++k) {
+    const StepResult ra = a.step(act), rb = b.step(act);
+    EXPECT_EQ(ra.observation.vector, rb.observation.vector);
+    EXPECT_EQ(ra.reward, rb.reward);
+    EXPECT_EQ(ra.truncated, k == 100);
+    EXPECT_FALSE(ra.terminated);
+  }
+  EXPECT_THROW(a.step(act), std::logic_error);
+  DoubleIntegrator fresh;
+  EXPECT_THROW(fresh.step(act), std::logic_error);
+  fresh.reset(1);
+  const std::vector<float> two = {0.1f, 0.2f};
+  EXPECT_THROW(fresh.step(two), std::invalid_argument);
+}
+
+namespace {
+
+// The first `steps` steps of copy `copy` in a VectorEnv of `copies` copies on `threads`
+// threads, every copy pushed by a force that depends on its index and the step.
+std::vector<float> trace(int copies, int threads, int copy, int steps) {
+  VectorEnv env([] { return std::make_unique<DoubleIntegrator>(); }, copies, threads);
+  std::vector<float> out;
+  const auto first = env.reset(99);
+  out.insert(out.end(), first[copy].vector.begin(), first[copy].vector.end());
+  for (int k = 0; k < steps; ++k) {
+    std::vector<std::vector<float>> actions;
+    for (int i = 0; i < copies; ++i) actions.push_back({0.01f * static_cast<float>((i + k) % 7) - 0.03f});
+    const VectorStepResult r = env.step(actions);
+    const auto& o = r.results[copy].observation.vector;
+    out.insert(out.end(), o.begin(), o.end());
+    out.push_back(static_cast<float>(r.results[copy].reward));
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(VectorEnv, CopyStreamsDoNotDependOnCopiesOrThreads) {
+  const int steps = 250;  // two automatic resets
+  const std::vector<float> reference = trace(1, 1, 0, steps);
+  for (const int copies : {4, 8}) {
+    for (const int threads : {1, 2}) {
+      EXPECT_EQ(trace(copies, threads, 0, steps), reference) << copies << " " << threads;
+    }
+  }
+  EXPECT_EQ(trace(4, 1, 3, steps), trace(8, 2, 3, steps));
+  EXPECT_NE(trace(4, 1, 3, steps), trace(4, 1, 2, steps));
+}
+
+TEST(VectorEnv, AnEndedEpisodeIsResetWithTheNextEpisodeSeed) {
+  VectorEnv env([] { return std::make_unique<DoubleIntegrator>(); }, 2, 2);
+  env.reset(5);
+  const std::vector<std::vector<float>> zero = {{0.0f}, {0.0f}};
+  VectorStepResult r;
+  for (int k = 0; k < 100; ++k) {
+    r = env.step(zero);
+    if (k < 99) {
+      EXPECT_FALSE(r.final_observations[0].has_value());
+    }
+  }
+  ASSERT_TRUE(r.final_observations[1].has_value());
+  EXPECT_TRUE(r.results[1].truncated);
+  DoubleIntegrator expected;
+  EXPECT_EQ(r.results[1].observation.vector, expected.reset(episode_seed(5, 1, 1)).vector);
+  EXPECT_NE(r.final_observations[1]->vector, r.results[1].observation.vector);
+  EXPECT_THROW(env.step({{0.0f}}), std::invalid_argument);
+  VectorEnv unused([] { return std::make_unique<DoubleIntegrator>(); }, 1, 1);
+  EXPECT_THROW(unused.step({{0.0f}}), std::logic_error);
+}
+
+// Doing nothing: the mass drifts at its start velocity and every step costs x^2 + 0.1 v^2.
+TEST(DoubleIntegrator, DoingNothingAccumulatesTheQuadraticCost) {
+  DoubleIntegrator env;
+  env.reset(3);
+  const double v = env.velocity();
+  double expected = 0.0, x = env.position();
+  for (int k = 0; k < 100; ++k) {
+    expected += -(x * x + 0.1 * v * v);
+    x += v * 0.1;
+  }
+  double total = 0.0;
+  const std::vector<float> none = {0.0f};
+  for (int k = 0; k < 100; ++k) total += env.step(none).reward;
+  EXPECT_NEAR(total, expected, 1e-9);
+}
