@@ -33,6 +33,8 @@ const std::vector<std::string> kEventColumns = {"frame", "time_s", "kind", "vehi
 const std::vector<std::string> kV2VColumns = {
     "frame",         "vehicle",    "sequence",  "sensor_time_s", "latitude_deg",
     "longitude_deg", "altitude_m", "speed_mps", "heading_rad"};
+// The paper's settings of the deviation metrics (docs/convoy.md).
+const metrics::Settings kMetricsSettings{};
 // metrics_samples.csv: each follower's samples along its leader's path (docs/convoy.md).
 const std::vector<std::string> kMetricsSampleColumns = {
     "follower", "position", "leader", "arc_m", "path_m", "leader_speed_mps", "follower_speed_mps"};
@@ -129,6 +131,27 @@ metrics::Trajectory trajectory_of(const convoy::Track& track) {
   t.reserve(track.size());
   for (const auto& p : track) t.push_back({p.time_s, p.position, p.speed_mps});
   return t;
+}
+
+// The paper's six metrics per follower, against the head of its chain (metrics.json).
+std::string metrics_table(const std::vector<FollowerMetrics>& all) {
+  const auto cell = [](const metrics::Deviation& d, double v, int decimals) {
+    return d.samples > 0 ? fmt::format("{:.{}f}", v, decimals) : std::string("-");
+  };
+  std::string text = fmt::format("  {:<10} {:<8} {:>8} {:>14} {:>16} {:>16}\n", "follower",
+                                 "leader", "position", "m_p m avg/max", "m_as m/s avg/max",
+                                 "m_rs avg/max");
+  for (const auto& m : all) {
+    const metrics::Deviations& d = m.deviations;
+    text += fmt::format(
+        "  {:<10} {:<8} {:>8} {:>14} {:>16} {:>16}\n", m.follower, m.chain.leader,
+        m.chain.position,
+        cell(d.path_m, d.path_m.avg, 2) + "/" + cell(d.path_m, d.path_m.max, 2),
+        cell(d.abs_speed_mps, d.abs_speed_mps.avg, 2) + "/" +
+            cell(d.abs_speed_mps, d.abs_speed_mps.max, 2),
+        cell(d.rel_speed, d.rel_speed.avg, 3) + "/" + cell(d.rel_speed, d.rel_speed.max, 3));
+  }
+  return text;
 }
 
 std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
@@ -402,7 +425,7 @@ void RecorderAgent::write_convoy_report() {
 }
 
 void RecorderAgent::write_metrics() {
-  const metrics::Settings settings;
+  const metrics::Settings& settings = kMetricsSettings;
   metrics_.clear();
   for (const auto& [follower, followed] : followers_) {
     FollowerMetrics m;
@@ -417,10 +440,10 @@ void RecorderAgent::write_metrics() {
     metrics_.push_back(std::move(m));
   }
   // The heads of the follow chains: how fast they drove (soft soil may hold them back).
-  std::map<std::string, metrics::SpeedSummary> leaders;
+  leaders_.clear();
   for (const auto& m : metrics_) {
-    if (!leaders.contains(m.chain.leader)) {
-      leaders[m.chain.leader] =
+    if (!leaders_.contains(m.chain.leader)) {
+      leaders_[m.chain.leader] =
           metrics::speed_summary(trajectory_of(tracks_[m.chain.leader]), settings);
     }
   }
@@ -435,7 +458,7 @@ void RecorderAgent::write_metrics() {
   samples.commit();
   samples.close();
   write_file_atomically(fs::path(options_.output_dir) / "metrics.json",
-                        metrics_json(metrics_, leaders, settings).dump(2) + "\n");
+                        metrics_json(metrics_, leaders_, settings).dump(2) + "\n");
 }
 
 void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
@@ -517,6 +540,7 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                     {"grid_hash", fmt::format("{:016x}", soil_->grid_hash())}};
   }
   if (!convoy_.empty()) j["convoy"] = convoy_json(convoy_);
+  if (!metrics_.empty()) j["metrics"] = metrics_json(metrics_, leaders_, kMetricsSettings);
   const fs::path dir(options_.output_dir);
   write_file_atomically(dir / "summary.json", j.dump(2) + "\n");
 
@@ -554,6 +578,7 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
       }
     }
     if (!convoy_.empty()) text += convoy_table(convoy_);
+    if (!metrics_.empty()) text += metrics_table(metrics_);
   }
   write_file_atomically(dir / "summary.txt", text);
   summary_written_ = Clock::now();

@@ -122,6 +122,7 @@ class RecorderAgent final : public proto::Agent {
   std::vector<convoy::FollowerReport> convoy_;
   std::map<std::string, metrics::ChainLink> chains_;  // per follower
   std::vector<FollowerMetrics> metrics_;
+  std::map<std::string, metrics::SpeedSummary> leaders_;  // heads of the follow chains
   std::map<std::string, VehicleTotals> totals_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
   std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)

@@ -146,6 +146,15 @@ TEST(MetricsFile, ARunWithFollowersWritesTheDeviationMetrics) {
   EXPECT_EQ(j["leaders"][0]["max_speed_mps"], 5.0);
   EXPECT_EQ(j["leaders"][0]["mean_moving_speed_mps"], 5.0);
   EXPECT_EQ(j["leaders"][0]["distance_m"], 50.0);
+
+  // The run's summaries carry them too: the same document in summary.json, a table for people.
+  const auto summary = nlohmann::json::parse(read_file(dir / "run" / "summary.json"));
+  EXPECT_EQ(summary["metrics"], j);
+  const std::string text = read_file(dir / "run" / "summary.txt");
+  EXPECT_NE(text.find("m_p m avg/max"), std::string::npos) << text;
+  EXPECT_NE(text.find("f2         l1              2      0.00/0.00        1.00/1.00      0.200/0.200"),
+            std::string::npos)
+      << text;
 }
 
 // metrics_samples.csv: every sample of both followers, the distances and speeds behind the
