@@ -537,6 +537,19 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
                       "' sends no V2V messages (give it a v2v: block)");
       }
     }
+    // Every follow chain ends at a vehicle that follows nobody (its convoy's leader: the
+    // deviation metrics are measured against it).
+    for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
+      std::set<std::string> seen = {s.vehicles[i].id};
+      std::string chain = s.vehicles[i].id;
+      for (const VehicleConfig* v = &s.vehicles[i]; v->controller.type == "follower";) {
+        v = s.find_vehicle(v->controller.convoy.leader);
+        chain += " -> " + v->id;
+        if (!seen.insert(v->id).second) {
+          nodes[i].fail("controller.follow: follow chain without a leader: " + chain);
+        }
+      }
+    }
   }
   if (auto n = m.optional("recorder")) {
     MapReader r(*n);

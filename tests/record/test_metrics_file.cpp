@@ -205,8 +205,10 @@ vehicles:
   EXPECT_TRUE(recorder.follower_metrics().empty());
 }
 
-// Two followers following each other have no leader to be measured against: the recorder
-// refuses the scenario when it starts, naming the file and the chain.
+// Two followers following each other have no leader to be measured against. The scenario
+// loader refuses such a file (tests/scenario); a scenario built in code (a learning
+// environment, a test) is refused by the recorder when it starts, naming the file and the
+// chain.
 TEST(MetricsFile, AFollowChainWithoutALeaderIsAnError) {
   const fs::path dir = test_dir();
   const auto s = scenario_from(dir, R"(name: circle
@@ -217,7 +219,7 @@ vehicles:
     start: {x: 0, y: 0}
     sensors: convoy
     v2v: {rate_hz: 10}
-    controller: {type: follower, follow: b}
+    controller: {type: path_follower, path: {waypoints: [[0, 0], [100, 0]]}, speed: {target_mps: 5}}
   - id: b
     model: hmmwv
     start: {x: -12, y: 0}
@@ -225,8 +227,12 @@ vehicles:
     v2v: {rate_hz: 10}
     controller: {type: follower, follow: a}
 )");
+  auto circle = s;
+  circle.vehicles[0].controller.type = "follower";
+  circle.vehicles[0].controller.convoy = s.vehicles[1].controller.convoy;
+  circle.vehicles[0].controller.convoy.leader = "b";
   try {
-    record::RecorderAgent recorder(s, {(dir / "run").string(), "test", "single-process"});
+    record::RecorderAgent recorder(circle, {(dir / "run").string(), "test", "single-process"});
     FAIL() << "no error";
   } catch (const ConfigError& e) {
     const std::string what = e.what();

@@ -244,6 +244,13 @@ vehicles:
                 .find("unknown key"),
             std::string::npos)
       << error_of(leader + replaced(follower, "gap: {", "gap: {spacing_m: 3, "));
+  // Two followers following each other: no convoy leader to measure against.
+  const std::string circle = replaced(leader, "    controller:\n      type: path_follower\n      path: {waypoints: [[0, 0], [10, 0]]}\n      speed: {profile: ramp, target_mps: 3}\n",
+                                      "    start: {x: 0, y: 0}\n    controller: {type: follower, follow: f1}\n") +
+                             replaced(follower, "    sensors: convoy\n", "    sensors: convoy\n    v2v: {rate_hz: 10}\n");
+  EXPECT_NE(error_of(circle).find("vehicles[0]: controller.follow: follow chain without a leader: l1 -> f1 -> l1"),
+            std::string::npos)
+      << error_of(circle);
 }
 
 // The vehicle process simulates the rig's interoceptive sensors only: it builds no camera or
