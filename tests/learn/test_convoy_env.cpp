@@ -277,3 +277,28 @@ TEST(ConvoyEnv, CameraVariantGivesImagesThatChangeWhenTheLeaderMoves) {
   EXPECT_LT(changed, static_cast<int>(first.image.size()) / 2);
   std::printf("bytes changed by more than 10 levels: %d of %zu\n", changed, first.image.size());
 }
+
+TEST(ConvoyEnv, FullDynamicsOnSoftSoilFollows) {
+  // The test terrains: full dynamics on the coarse soft-soil patch, the hand-written follower
+  // for 8 s (the leader ramps to 3.8 m/s).
+  ConvoyEnvOptions o = test_options();
+  o.dynamics = ConvoyDynamics::full;
+  o.terrain = ConvoyTerrain::scm_soft;
+  ConvoyEnv env(o);
+  Observation obs = env.reset(4);
+  StepResult r;
+  double max_speed = 0.0;
+  for (int k = 0; k < 80; ++k) {
+    r = env.step(hand_policy(obs));
+    obs = r.observation;
+    max_speed = std::max(max_speed, r.info.at("speed_mps"));
+    ASSERT_FALSE(r.terminated || r.truncated) << "step " << k;
+  }
+  std::printf("full / scm_soft: distance %.2f m, speed %.2f m/s (max %.2f)\n",
+              r.info.at("distance_m"), r.info.at("speed_mps"), max_speed);
+  EXPECT_GT(max_speed, 1.5);
+  EXPECT_GT(r.reward, 0.3);
+  EXPECT_EQ(env.follower_state().wheels.size(), 4u);
+  std::printf("gear %d, engine %.0f rpm, z %.3f m\n", env.follower_state().gear,
+              env.follower_state().engine_speed_rpm, env.follower_state().pose.position.z());
+}
