@@ -1,0 +1,232 @@
+#include "learn/convoy_env.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "agents/agent_factory.hpp"
+#include "agents/controller_agent.hpp"
+#include "agents/sensor_agent.hpp"
+#include "core/yaml.hpp"
+
+namespace syndds::learn {
+namespace {
+
+ConvoyObservationConfig observation_config(const scenario::VehicleConfig& follower,
+                                           const std::string& leader_id) {
+  if (!follower.sensors || follower.sensors->rig.gps.empty()) {
+    throw std::invalid_argument("convoy follower '" + follower.id + "' has no GPS");
+  }
+  const auto& rig = follower.sensors->rig;
+  ConvoyObservationConfig c;
+  c.follower_id = follower.id;
+  c.leader_id = leader_id;
+  c.geodetic_origin = rig.geodetic_origin;
+  c.geodetic_model = rig.gps.front().model;
+  c.wheel_radius_m = follower.params.wheels.radius_m;
+  if (!rig.cameras.empty()) {
+    c.image = ImageSpec{rig.cameras.front().intrinsics.width,
+                        rig.cameras.front().intrinsics.height, 3};
+  }
+  return c;
+}
+
+// Does the chassis box's footprint (a rectangle) of `state` overlap the obstacle's circle?
+bool footprint_hits(const proto::VehicleStateMsg& state, const vehicle::ChassisParams& chassis,
+                    const ConvoyObstacle& ob) {
+  const double yaw = yaw_of(state.pose.orientation);
+  const Vec2 rel(ob.centre.x() - state.pose.position.x(), ob.centre.y() - state.pose.position.y());
+  // The obstacle's centre in the vehicle frame, relative to the box centre.
+  const double lx = std::cos(yaw) * rel.x() + std::sin(yaw) * rel.y() - chassis.box_centre_m.x();
+  const double ly = -std::sin(yaw) * rel.x() + std::cos(yaw) * rel.y() - chassis.box_centre_m.y();
+  const double hx = chassis.half_extents_m.x(), hy = chassis.half_extents_m.y();
+  const double dx = std::max(std::abs(lx) - hx, 0.0), dy = std::max(std::abs(ly) - hy, 0.0);
+  return dx * dx + dy * dy < ob.radius_m * ob.radius_m;
+}
+
+}  // namespace
+
+double convoy_reward(double distance_m, double heading_diff_rad, const ConvoyRewardParams& p) {
+  if (std::abs(heading_diff_rad) > p.heading_window_rad) return p.outside;
+  return 1.0 / (1.0 + std::abs(distance_m - p.optimal_gap_m) / p.width_m);
+}
+
+// ---- ConvoyDriverAgent ----------------------------------------------------------------------
+
+ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario&,
+                                     const scenario::VehicleConfig& follower,
+                                     const std::string& leader_id)
+    : vehicle_id_(follower.id),
+      leader_id_(leader_id),
+      member_id_(scenario::external_member(follower.id)),
+      builder_(observation_config(follower, leader_id)) {}
+
+std::vector<proto::Subscription> ConvoyDriverAgent::subscriptions() const {
+  return {{proto::Topic::gps_fix, vehicle_id_},
+          {proto::Topic::magnetometer, vehicle_id_},
+          {proto::Topic::wheel_speeds, vehicle_id_},
+          {proto::Topic::image, vehicle_id_},
+          {proto::Topic::v2v_message, leader_id_}};
+}
+
+void ConvoyDriverAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                             proto::FrameSamples& outputs) {
+  builder_.consume(inputs);
+  vehicle::DriverInputs cmd;
+  cmd.steering = steering_;
+  cmd.throttle = std::max(throttle_brake_, 0.0);
+  cmd.braking = std::max(-throttle_brake_, 0.0);
+  outputs.driver_commands.push_back(
+      agents::command_message(vehicle_id_, member_id_, ctx.frame, cmd));
+}
+
+void ConvoyDriverAgent::set_action(double steering, double throttle_brake) {
+  // NaN is not a command: it becomes 0 (straight ahead, coasting).
+  steering_ = std::isnan(steering) ? 0.0 : std::clamp(steering, -1.0, 1.0);
+  throttle_brake_ = std::isnan(throttle_brake) ? 0.0 : std::clamp(throttle_brake, -1.0, 1.0);
+}
+
+// ---- ConvoyEnv ------------------------------------------------------------------------------
+
+ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
+  if (options_.config_dir.empty()) options_.config_dir = scenario::default_config_dir();
+  if (options_.frames_per_step < 1 || options_.max_steps < 1) {
+    throw std::invalid_argument("ConvoyEnv: frames_per_step and max_steps must be >= 1");
+  }
+}
+
+ConvoyEnv::~ConvoyEnv() = default;
+
+ObservationSpace ConvoyEnv::observation_space() const {
+  ObservationSpace s{ConvoyObservationBuilder::vector_space(), std::nullopt};
+  if (options_.camera) s.image = ImageSpec{80, 45, 3};
+  return s;
+}
+
+Box ConvoyEnv::action_space() const {
+  return Box{{-1.0f, -1.0f}, {1.0f, 1.0f}, {"steering", "throttle_brake"}};
+}
+
+void ConvoyEnv::run_frame() {
+  stepper_->step();
+  const proto::FrameSamples& out = stepper_->last_outputs();
+  for (const auto& s : out.vehicle_states) {
+    if (s.vehicle_id == kConvoyFollowerId) follower_state_ = s;
+    if (s.vehicle_id == kConvoyLeaderId) leader_state_ = s;
+  }
+  for (const auto& c : out.collision_events) {
+    collided_ = collided_ || c.vehicle_id == kConvoyFollowerId;
+  }
+  // The reduced model passes through obstacles without contacts: test its chassis footprint.
+  const auto& chassis = scenario_->find_vehicle(kConvoyFollowerId)->params.chassis;
+  for (const auto& ob : episode_.obstacles) {
+    collided_ = collided_ || footprint_hits(follower_state_, chassis, ob);
+  }
+}
+
+Observation ConvoyEnv::reset(std::uint64_t seed) {
+  running_ = false;
+  driver_ = nullptr;
+  stepper_.reset();
+  episode_ = make_convoy_episode(seed, options_.episode);
+  ConvoyScenarioOptions so;
+  so.terrain = options_.terrain;
+  so.dynamics = options_.dynamics;
+  so.camera = options_.camera;
+  so.target_speed_mps = options_.target_speed_mps;
+  so.end_time_s = 0.01 * options_.frames_per_step * (options_.max_steps + 100);
+  so.seed = seed;
+  const std::string yaml = convoy_scenario_yaml(episode_, so);
+  const std::string name = options_.config_dir + "/scenarios/convoy_env.yaml";
+  scenario_.emplace(scenario::parse_scenario(YamlNode::load_string(yaml, name), yaml, {},
+                                             options_.config_dir));
+  const scenario::Scenario& s = *scenario_;
+
+  std::vector<proto::AgentPtr> agents;
+  const record::RecorderOptions no_recorder;
+  for (const auto& m : s.member_ids()) {
+    if (m == scenario::external_member(kConvoyFollowerId)) {
+      auto d = std::make_unique<ConvoyDriverAgent>(s, *s.find_vehicle(kConvoyFollowerId),
+                                                   kConvoyLeaderId);
+      driver_ = d.get();
+      agents.push_back(std::move(d));
+    } else if (m == scenario::sensor_member(kConvoyFollowerId)) {
+      // Renders only: the rig saves no frames, so no output directory is needed.
+      agents.push_back(std::make_unique<agents::SensorAgent>(
+          s, *s.find_vehicle(kConvoyFollowerId), agents::SensorAgentOptions{""}));
+    } else {
+      agents.push_back(agents::make_agent(s, m, no_recorder));
+    }
+  }
+  stepper_ = std::make_unique<proto::FrameStepper>(std::move(agents), s.time.heartbeat_s);
+  collided_ = false;
+  steps_ = 0;
+  follower_state_ = {};
+  leader_state_ = {};
+  // Frames until every input of the observation has arrived (the first GPS fix and V2V
+  // message, lagged 0.1 s, and the first camera frame): the follower holds its brake.
+  driver_->set_action(0.0, -1.0);
+  for (int k = 0; !driver_->observations().ready(); ++k) {
+    if (k > 100 * options_.frames_per_step) {
+      throw std::runtime_error("ConvoyEnv: the observation is incomplete after " +
+                               std::to_string(k) + " frames");
+    }
+    run_frame();
+  }
+  running_ = true;
+  return driver_->observations().observation();
+}
+
+StepResult ConvoyEnv::step(std::span<const float> action) {
+  if (!running_) throw std::logic_error("ConvoyEnv::step before reset or after the episode ended");
+  if (action.size() != 2) {
+    throw std::invalid_argument("ConvoyEnv::step: expected 2 action values, got " +
+                                std::to_string(action.size()));
+  }
+  driver_->set_action(action[0], action[1]);
+  for (int f = 0; f < options_.frames_per_step && !collided_; ++f) run_frame();
+  ++steps_;
+
+  StepResult r;
+  r.observation = driver_->observations().observation();
+  const Vec3 rel = leader_state_.pose.position - follower_state_.pose.position;
+  const double distance = std::hypot(rel.x(), rel.y());
+  const double heading_diff =
+      wrap_angle(std::atan2(rel.y(), rel.x()) - yaw_of(follower_state_.pose.orientation));
+  const double speed = std::hypot(follower_state_.linear_velocity.x(),
+                                  follower_state_.linear_velocity.y());
+  const double leader_speed =
+      std::hypot(leader_state_.linear_velocity.x(), leader_state_.linear_velocity.y());
+  const Vec2 end = episode_.path.back();
+  const bool leader_done =
+      std::hypot(leader_state_.pose.position.x() - end.x(),
+                 leader_state_.pose.position.y() - end.y()) < 3.0 &&
+      leader_speed < 0.1;
+  const bool lost = distance > options_.lost_distance_m;
+  if (collided_) {
+    r.reward = options_.reward.collision;
+    r.terminated = true;
+  } else if (lost) {
+    r.reward = options_.reward.lost;
+    r.terminated = true;
+  } else {
+    r.reward = convoy_reward(distance, heading_diff, options_.reward);
+    r.truncated = leader_done || steps_ >= options_.max_steps;
+  }
+  r.info = {{"distance_m", distance},
+            {"heading_diff_rad", heading_diff},
+            {"speed_mps", speed},
+            {"leader_speed_mps", leader_speed},
+            {"collided", collided_ ? 1.0 : 0.0},
+            {"leader_lost", lost ? 1.0 : 0.0},
+            {"leader_done", leader_done ? 1.0 : 0.0},
+            {"steps", static_cast<double>(steps_)}};
+  running_ = !(r.terminated || r.truncated);
+  return r;
+}
+
+std::unique_ptr<Env> make_convoy_env(const ConvoyEnvOptions& options) {
+  return std::make_unique<ConvoyEnv>(options);
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,113 @@
+#pragma once
+// The convoy-follow environment (docs/learning.md, "Convoy-follow environment"): a follower
+// vehicle that has to keep behind a leader driving an S- or C-shaped path among obstacles,
+// simulated by the project's own agents (vehicles, the leader's path follower, sensors, V2V)
+// stepped frame by frame. The follower's controller is ConvoyDriverAgent, the member
+// external/follower: it builds the observation from the samples it subscribes to and writes
+// the current action as its DriverCommand every frame, exactly as a policy controller would
+// over DDS. One step = one control period of 10 frames (0.1 s).
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "learn/convoy_episode.hpp"
+#include "learn/convoy_observation.hpp"
+#include "learn/env.hpp"
+#include "protocol/local_runner.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::learn {
+
+/// The reward's constants: r = 1 / (1 + |d - optimal_gap_m| / width_m) while the leader is
+/// within +-heading_window_rad of the follower's nose, `outside` otherwise; `collision` and
+/// `lost` replace it in the step that ends the episode so.
+struct ConvoyRewardParams {
+  double optimal_gap_m = 15.0;
+  double width_m = 5.0;
+  double heading_window_rad = 0.7853981633974483;  // pi / 4
+  double outside = -0.1;
+  double collision = -10.0;
+  double lost = -10.0;
+};
+
+/// The reward of a step at centre distance `distance_m` with the leader `heading_diff_rad`
+/// off the follower's nose (neither a collision nor a lost leader).
+double convoy_reward(double distance_m, double heading_diff_rad, const ConvoyRewardParams& p);
+
+struct ConvoyEnvOptions {
+  ConvoyTerrain terrain = ConvoyTerrain::rigid;
+  ConvoyDynamics dynamics = ConvoyDynamics::reduced;
+  bool camera = false;             // the 80 x 45 front-bumper camera in the observation
+  double target_speed_mps = 5.0;   // the leader's ramp cap
+  int frames_per_step = 10;        // control period: 10 frames of 0.01 s
+  int max_steps = 500;             // truncated after this many steps (50 s)
+  double lost_distance_m = 40.0;   // terminated when the leader is farther than this
+  ConvoyRewardParams reward;
+  ConvoyEpisodeOptions episode;
+  std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
+};
+
+/// The external/<follower> member: observation from its inputs, the action as its command.
+class ConvoyDriverAgent final : public proto::Agent {
+ public:
+  ConvoyDriverAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& follower,
+                    const std::string& leader_id);
+
+  const std::string& member_id() const override { return member_id_; }
+  std::string vehicle_key() const override { return vehicle_id_; }
+  proto::MemberKind kind() const override { return proto::MemberKind::external; }
+  std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+            proto::FrameSamples& outputs) override;
+
+  /// steering in [-1, 1] (positive left), throttle_brake in [-1, 1] (positive throttle,
+  /// negative brake); clamped.
+  void set_action(double steering, double throttle_brake);
+  const ConvoyObservationBuilder& observations() const { return builder_; }
+
+ private:
+  std::string vehicle_id_;
+  std::string leader_id_;
+  std::string member_id_;
+  ConvoyObservationBuilder builder_;
+  double steering_ = 0.0;
+  double throttle_brake_ = -1.0;  // holds the brake until the first action
+};
+
+class ConvoyEnv final : public Env {
+ public:
+  explicit ConvoyEnv(ConvoyEnvOptions options = {});
+  ~ConvoyEnv() override;
+
+  ObservationSpace observation_space() const override;
+  Box action_space() const override;
+  Observation reset(std::uint64_t seed) override;
+  StepResult step(std::span<const float> action) override;
+
+  const ConvoyEnvOptions& options() const { return options_; }
+  /// The current episode (valid after reset).
+  const ConvoyEpisode& episode() const { return episode_; }
+  /// Ground truth of the last frame (valid after reset).
+  const proto::VehicleStateMsg& follower_state() const { return follower_state_; }
+  const proto::VehicleStateMsg& leader_state() const { return leader_state_; }
+
+ private:
+  void run_frame();
+
+  ConvoyEnvOptions options_;
+  ConvoyEpisode episode_;
+  std::optional<scenario::Scenario> scenario_;
+  std::unique_ptr<proto::FrameStepper> stepper_;
+  ConvoyDriverAgent* driver_ = nullptr;  // owned by stepper_
+  proto::VehicleStateMsg follower_state_;
+  proto::VehicleStateMsg leader_state_;
+  bool collided_ = false;
+  int steps_ = 0;
+  bool running_ = false;
+};
+
+/// A convoy environment (for registries of environments by name).
+std::unique_ptr<Env> make_convoy_env(const ConvoyEnvOptions& options);
+
+}  // namespace syndds::learn

@@ -1,0 +1,226 @@
+#include "learn/convoy_episode.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+namespace syndds::learn {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kCentre = 0.5 * kConvoyAreaM;
+
+// [0, 1) from 53 random bits: the same numbers on every standard library.
+double unit(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
+
+// The canonical shapes inside [10, 80] x [10, 80] (obstacles up to 10 m aside stay in the area).
+std::vector<Vec2> s_shape() {
+  // x = 10 + 70 t, y = 10 + 70 (3 t^2 - 2 t^3): leaves heading east, bends left, then right,
+  // arrives heading east at the opposite corner; the steepest stretch is 56 degrees.
+  std::vector<Vec2> fine;
+  for (int i = 0; i <= 2000; ++i) {
+    const double t = i / 2000.0;
+    fine.emplace_back(10.0 + 70.0 * t, 10.0 + 70.0 * (3.0 * t * t - 2.0 * t * t * t));
+  }
+  return fine;
+}
+
+std::vector<Vec2> c_shape() {
+  std::vector<Vec2> fine;
+  for (int i = 0; i <= 400; ++i) fine.emplace_back(10.0 + 40.0 * i / 400.0, 15.0);  // east
+  for (int i = 1; i <= 1200; ++i) {  // half circle of 30 m about (50, 45), anticlockwise
+    const double a = -0.5 * kPi + kPi * i / 1200.0;
+    fine.emplace_back(50.0 + 30.0 * std::cos(a), 45.0 + 30.0 * std::sin(a));
+  }
+  for (int i = 1; i <= 400; ++i) fine.emplace_back(50.0 - 40.0 * i / 400.0, 75.0);  // west
+  return fine;
+}
+
+// Resamples a finely drawn polyline at whole metres of arc length (plus its end point).
+std::vector<Vec2> resample(const std::vector<Vec2>& fine, double spacing) {
+  std::vector<Vec2> out{fine.front()};
+  double acc = 0.0, next = spacing;
+  for (std::size_t i = 1; i < fine.size(); ++i) {
+    const double d = (fine[i] - fine[i - 1]).norm();
+    while (acc + d >= next) {
+      out.push_back(fine[i - 1] + (next - acc) / d * (fine[i] - fine[i - 1]));
+      next += spacing;
+    }
+    acc += d;
+  }
+  if ((out.back() - fine.back()).norm() > 0.25 * spacing) out.push_back(fine.back());
+  else out.back() = fine.back();
+  return out;
+}
+
+double length(const std::vector<Vec2>& p) {
+  double l = 0.0;
+  for (std::size_t i = 1; i < p.size(); ++i) l += (p[i] - p[i - 1]).norm();
+  return l;
+}
+
+// Point and unit tangent at arc length s.
+void at_arc(const std::vector<Vec2>& p, double s, Vec2& point, Vec2& tangent) {
+  double acc = 0.0;
+  for (std::size_t i = 1; i < p.size(); ++i) {
+    const double d = (p[i] - p[i - 1]).norm();
+    if (acc + d >= s || i + 1 == p.size()) {
+      tangent = (p[i] - p[i - 1]) / d;
+      point = p[i - 1] + std::clamp(s - acc, 0.0, d) * tangent;
+      return;
+    }
+    acc += d;
+  }
+  throw std::logic_error("at_arc: a path of fewer than two points");
+}
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  std::string s = buf;
+  while (s.back() == '0') s.pop_back();
+  if (s.back() == '.') s.pop_back();
+  return s == "-0" ? "0" : s;
+}
+
+}  // namespace
+
+PathVariant PathVariant::from_index(int v) {
+  if (v < 0 || v >= kConvoyPathVariants) {
+    throw std::invalid_argument("convoy path variant " + std::to_string(v) + ": expected 0..15");
+  }
+  return {(v & 1) != 0, (v & 2) != 0, (v & 4) != 0, (v & 8) != 0};
+}
+
+std::vector<Vec2> convoy_path(int variant) {
+  const PathVariant pv = PathVariant::from_index(variant);
+  std::vector<Vec2> p = resample(pv.c_shape ? c_shape() : s_shape(), 1.0);
+  for (Vec2& q : p) {
+    if (pv.mirror_east_west) q.x() = kConvoyAreaM - q.x();
+    if (pv.mirror_north_south) q.y() = kConvoyAreaM - q.y();
+    if (pv.rotated) q = Vec2(kCentre - (q.y() - kCentre), kCentre + (q.x() - kCentre));
+  }
+  return p;
+}
+
+double distance_to_path(const std::vector<Vec2>& path, const Vec2& p) {
+  double best = (p - path.front()).norm();
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    const Vec2 a = path[i - 1], ab = path[i] - a;
+    const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (p - (a + t * ab)).norm());
+  }
+  return best;
+}
+
+ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions& o) {
+  std::mt19937_64 rng(seed);
+  ConvoyEpisode e;
+  e.variant = static_cast<int>(unit(rng) * kConvoyPathVariants);
+  e.path = convoy_path(e.variant);
+  e.path_length_m = length(e.path);
+  e.follower_arc_m = unit(rng) * 0.5 * e.path_length_m;
+  e.leader_arc_m = e.follower_arc_m + o.gap_m;
+  Vec2 t;
+  at_arc(e.path, e.follower_arc_m, e.follower_start, t);
+  e.follower_yaw_rad = std::atan2(t.y(), t.x());
+  at_arc(e.path, e.leader_arc_m, e.leader_start, t);
+  e.leader_yaw_rad = std::atan2(t.y(), t.x());
+  // The leader's path: its start, then the path's points beyond it (at least 0.5 m on, so
+  // that no two waypoints coincide).
+  e.leader_path.push_back(e.leader_start);
+  double acc = 0.0;
+  for (std::size_t i = 1; i < e.path.size(); ++i) {
+    acc += (e.path[i] - e.path[i - 1]).norm();
+    if (acc > e.leader_arc_m + 0.5) e.leader_path.push_back(e.path[i]);
+  }
+  if (e.leader_path.size() < 2) throw std::logic_error("convoy episode: leader starts at the end");
+
+  // Obstacles: rocks, trees and bushes in turn (the kinds of the convoy scenarios), each
+  // beside the stretch ahead of the follower, at a drawn side and offset, redrawn until it
+  // keeps the path and the other obstacles clear and stays in the area.
+  struct Kind {
+    const char* label;
+    double radius, height;
+  };
+  static constexpr Kind kKinds[] = {{"rock", 0.8, 3.0}, {"tree", 0.4, 6.0}, {"bush", 1.0, 1.5}};
+  for (int k = 0; k < o.obstacles; ++k) {
+    const Kind& kind = kKinds[k % 3];
+    bool placed = false;
+    for (int draw = 0; draw < 1000 && !placed; ++draw) {
+      const double s = e.follower_arc_m + 5.0 +
+                       unit(rng) * (e.path_length_m - e.follower_arc_m - 5.0);
+      const double side = unit(rng) < 0.5 ? -1.0 : 1.0;
+      const double offset =
+          o.obstacle_offset_min_m + unit(rng) * (o.obstacle_offset_max_m - o.obstacle_offset_min_m);
+      Vec2 p, tan;
+      at_arc(e.path, s, p, tan);
+      const Vec2 c = p + side * offset * Vec2(-tan.y(), tan.x());
+      if (c.x() < kind.radius || c.y() < kind.radius || c.x() > kConvoyAreaM - kind.radius ||
+          c.y() > kConvoyAreaM - kind.radius) {
+        continue;
+      }
+      if (distance_to_path(e.path, c) - kind.radius < o.clearance_m) continue;
+      bool apart = true;
+      for (const auto& other : e.obstacles) {
+        apart = apart && (other.centre - c).norm() > other.radius_m + kind.radius + 1.0;
+      }
+      if (!apart) continue;
+      e.obstacles.push_back({std::string(kind.label) + std::to_string(k + 1), kind.label, c,
+                             kind.radius, kind.height});
+      placed = true;
+    }
+    if (!placed) throw std::runtime_error("convoy episode: no place for obstacle " + std::to_string(k + 1));
+  }
+  return e;
+}
+
+std::string convoy_scenario_yaml(const ConvoyEpisode& e, const ConvoyScenarioOptions& o) {
+  // Reduced dynamics: 10 ms steps (one per frame, the tachometer's 100 Hz); full: 2 ms.
+  const double step_s = o.dynamics == ConvoyDynamics::full ? 0.002 : 0.01;
+  std::ostringstream y;
+  y << "name: convoy_env\n";
+  y << "seed: " << (o.seed % 4000000000000000ULL) << "\n";
+  y << "time: {step_s: " << num(step_s) << ", heartbeat_s: 0.01, end_time_s: "
+    << num(o.end_time_s) << "}\n";
+  y << "world: {x_min_m: -10, x_max_m: 100, y_min_m: -10, y_max_m: 100}\n";
+  if (o.terrain == ConvoyTerrain::rigid) {
+    y << "terrain: {type: rigid, friction: 0.8}\n";
+  } else {
+    y << "terrain:\n  type: scm\n  preset: "
+      << (o.terrain == ConvoyTerrain::scm_soft ? "soft" : "hard") << "\n  spacing_m: "
+      << num(o.scm_spacing_m) << "\n  area: {x_min_m: -5, x_max_m: 95, y_min_m: -5, y_max_m: 95}\n";
+  }
+  y << "obstacles:\n";
+  for (const auto& ob : e.obstacles) {
+    y << "  - {id: " << ob.id << ", label: " << ob.label << ", shape: cylinder, position: ["
+      << num(ob.centre.x()) << ", " << num(ob.centre.y()) << "], radius_m: " << num(ob.radius_m)
+      << ", height_m: " << num(ob.height_m) << "}\n";
+  }
+  const double rad2deg = 180.0 / std::numbers::pi;
+  y << "vehicles:\n";
+  y << "  - id: " << kConvoyLeaderId << "\n    model: hmmwv\n    dynamics: reduced\n";
+  y << "    start: {x: " << num(e.leader_start.x()) << ", y: " << num(e.leader_start.y())
+    << ", yaw_deg: " << num(e.leader_yaw_rad * rad2deg) << "}\n";
+  y << "    sensors: convoy\n    v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}\n";
+  y << "    controller:\n      type: path_follower\n      path: {waypoints: [";
+  for (std::size_t i = 0; i < e.leader_path.size(); ++i) {
+    y << (i ? ", [" : "[") << num(e.leader_path[i].x()) << ", " << num(e.leader_path[i].y()) << "]";
+  }
+  y << "]}\n      speed: {profile: ramp, target_mps: " << num(o.target_speed_mps)
+    << ", accel_mps2: " << num(o.accel_mps2) << "}\n";
+  y << "  - id: " << kConvoyFollowerId << "\n    model: hmmwv\n    dynamics: "
+    << (o.dynamics == ConvoyDynamics::full ? "full" : "reduced") << "\n";
+  y << "    start: {x: " << num(e.follower_start.x()) << ", y: " << num(e.follower_start.y())
+    << ", yaw_deg: " << num(e.follower_yaw_rad * rad2deg) << "}\n";
+  y << "    sensors: " << (o.camera ? "convoy_camera" : "convoy") << "\n";
+  y << "    controller: {type: external}\n";
+  y << "recorder: {enabled: false}\n";
+  return y.str();
+}
+
+}  // namespace syndds::learn

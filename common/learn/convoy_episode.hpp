@@ -1,0 +1,91 @@
+#pragma once
+// Episodes of the convoy-follow task (docs/learning.md, "Convoy-follow environment"): a leader
+// path in a 90 x 90 m area, the follower's and the leader's start on it, eight obstacles beside
+// it, and the scenario (YAML for the normal loader) that runs them. Pure functions of the seed:
+// no simulation here, so the tests can check every variant cheaply.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.hpp"
+
+namespace syndds::learn {
+
+inline constexpr double kConvoyAreaM = 90.0;     // the area is [0, 90] x [0, 90] m
+inline constexpr int kConvoyPathVariants = 16;   // 2 shapes x mirror E-W x mirror N-S x rotate
+
+enum class ConvoyTerrain { rigid, scm_hard, scm_soft };
+enum class ConvoyDynamics { reduced, full };
+
+/// Path variant v (0..15): bit 0 C shape (else S), bit 1 mirrored east-west, bit 2 mirrored
+/// north-south, bit 3 rotated 90 degrees anticlockwise about the area's centre.
+struct PathVariant {
+  bool c_shape = false;
+  bool mirror_east_west = false;
+  bool mirror_north_south = false;
+  bool rotated = false;
+  static PathVariant from_index(int v);
+};
+
+/// The leader path of a variant: points about 1 m apart, first to last in driving order
+/// (x east, y north, metres). S: from one corner region to the opposite one with two bends of
+/// opposite sense; C: out along one side, a half circle of 30 m, back along the same side.
+std::vector<Vec2> convoy_path(int variant);
+
+struct ConvoyObstacle {
+  std::string id;     // rock1, tree2, bush3, ...
+  std::string label;  // rock | tree | bush
+  Vec2 centre = Vec2::Zero();
+  double radius_m = 0.0;
+  double height_m = 0.0;
+};
+
+struct ConvoyEpisodeOptions {
+  double gap_m = 15.0;            // the leader starts this far ahead along the path
+  int obstacles = 8;
+  double obstacle_offset_min_m = 4.0;  // obstacle centre to path, drawn in [min, max]
+  double obstacle_offset_max_m = 10.0;
+  double clearance_m = 2.2;       // obstacle edge to path at least this (the vehicle's width)
+};
+
+struct ConvoyEpisode {
+  int variant = 0;
+  std::vector<Vec2> path;          // the whole path of the variant
+  double path_length_m = 0.0;
+  double follower_arc_m = 0.0;     // where the follower starts (arc length along the path)
+  double leader_arc_m = 0.0;
+  Vec2 follower_start = Vec2::Zero();
+  double follower_yaw_rad = 0.0;   // anticlockwise from east (the path's direction there)
+  Vec2 leader_start = Vec2::Zero();
+  double leader_yaw_rad = 0.0;
+  std::vector<Vec2> leader_path;   // the path from the leader's start to the end
+  std::vector<ConvoyObstacle> obstacles;
+};
+
+/// The episode of `seed`: variant, follower start drawn in the first half of the path, the
+/// leader gap_m ahead of it, obstacles beside the path ahead of the follower. Deterministic.
+ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions& options = {});
+
+/// Distance from `p` to the polyline `path`.
+double distance_to_path(const std::vector<Vec2>& path, const Vec2& p);
+
+struct ConvoyScenarioOptions {
+  ConvoyTerrain terrain = ConvoyTerrain::rigid;
+  ConvoyDynamics dynamics = ConvoyDynamics::reduced;  // the follower's; the leader is reduced
+  bool camera = false;            // the follower's rig: convoy_camera (else convoy)
+  double target_speed_mps = 5.0;  // the leader's ramp cap
+  double accel_mps2 = 0.47;       // the leader's ramp (the paper's)
+  double end_time_s = 70.0;
+  double scm_spacing_m = 0.2;     // coarse soil grid over the area only
+  std::uint64_t seed = 1;         // the scenario seed (sensor noise, ...)
+};
+
+inline constexpr const char* kConvoyLeaderId = "leader";
+inline constexpr const char* kConvoyFollowerId = "follower";
+
+/// The scenario of an episode as YAML for scenario::parse_scenario: the leader (reduced
+/// dynamics, path follower on the speed ramp, V2V at 10 Hz), the follower (controller
+/// external: the environment's agent drives it), the obstacles, the terrain; no recorder.
+std::string convoy_scenario_yaml(const ConvoyEpisode& episode, const ConvoyScenarioOptions& o);
+
+}  // namespace syndds::learn

@@ -1,0 +1,87 @@
+#include "learn/convoy_observation.hpp"
+
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace syndds::learn {
+namespace {
+
+// The newest of `list`'s samples of `vehicle` by measurement time, if newer than `held`.
+template <typename Msg>
+void take_newest(const std::vector<Msg>& list, const std::string& vehicle,
+                 std::optional<Msg>& held) {
+  for (const Msg& m : list) {
+    if (m.vehicle_id != vehicle) continue;
+    if (!held || m.stamp.time_s >= held->stamp.time_s) held = m;
+  }
+}
+
+}  // namespace
+
+ConvoyObservationBuilder::ConvoyObservationBuilder(ConvoyObservationConfig config)
+    : config_(std::move(config)), converter_(config_.geodetic_origin, config_.geodetic_model) {}
+
+Box ConvoyObservationBuilder::vector_space() {
+  return Box{{-200.0f, -200.0f, 0.0f, -30.0f},
+             {200.0f, 200.0f, 6.2832f, 30.0f},
+             {"leader_north_m", "leader_east_m", "heading_rad", "closing_speed_mps"}};
+}
+
+void ConvoyObservationBuilder::consume(const proto::FrameSamples& s) {
+  take_newest(s.gps_fixes, config_.follower_id, fix_);
+  take_newest(s.magnetometers, config_.follower_id, compass_);
+  take_newest(s.wheel_speeds, config_.follower_id, wheels_);
+  if (config_.image) take_newest(s.images, config_.follower_id, image_);
+  for (const auto& m : s.v2v_messages) {
+    if (m.vehicle_id != config_.leader_id) continue;
+    if (!v2v_ || m.sequence > v2v_->sequence) v2v_ = m;
+  }
+}
+
+bool ConvoyObservationBuilder::ready() const {
+  return fix_ && compass_ && wheels_ && v2v_ && (!config_.image || image_);
+}
+
+Observation ConvoyObservationBuilder::observation() const {
+  if (!ready()) throw std::logic_error("ConvoyObservationBuilder: an input has not arrived yet");
+  // Positions: both latitude / longitude pairs into the local east-north frame of the GPS's
+  // own origin and model, then the difference (metres: the same information as the latitude
+  // and longitude difference, scaled).
+  const Vec3 own = converter_.to_enu({fix_->latitude_deg, fix_->longitude_deg, fix_->altitude_m});
+  const Vec3 lead = converter_.to_enu({v2v_->latitude_deg, v2v_->longitude_deg, v2v_->altitude_m});
+  const double east = lead.x() - own.x(), north = lead.y() - own.y();
+  // Own speed as the V2V sender computes its own: mean wheel spin times the wheel radius.
+  const auto& spins = wheels_->wheel_spin_rad_s;
+  const double own_speed =
+      spins.empty() ? 0.0
+                    : std::accumulate(spins.begin(), spins.end(), 0.0) /
+                          static_cast<double>(spins.size()) * config_.wheel_radius_m;
+  // Closing speed: how fast the distance to the leader shrinks, -d|r|/dt, with both vehicles
+  // moving along their compass headings (clockwise from north) at their tachometer speeds.
+  const double range = std::hypot(north, east);
+  double closing = own_speed - v2v_->speed_mps;  // the leader straight ahead
+  if (range > 1e-6) {
+    const double un = north / range, ue = east / range;
+    const double h_own = compass_->heading_rad, h_lead = v2v_->heading_rad;
+    closing = own_speed * (std::cos(h_own) * un + std::sin(h_own) * ue) -
+              v2v_->speed_mps * (std::cos(h_lead) * un + std::sin(h_lead) * ue);
+  }
+  Observation o;
+  o.vector = {static_cast<float>(north), static_cast<float>(east),
+              static_cast<float>(compass_->heading_rad), static_cast<float>(closing)};
+  if (config_.image) {
+    if (image_->width != config_.image->width || image_->height != config_.image->height ||
+        image_->data.size() != config_.image->bytes()) {
+      throw std::runtime_error("ConvoyObservationBuilder: image of " +
+                               std::to_string(image_->width) + " x " +
+                               std::to_string(image_->height) + " px, expected " +
+                               std::to_string(config_.image->width) + " x " +
+                               std::to_string(config_.image->height));
+    }
+    o.image = image_->data;
+  }
+  return o;
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,304 @@
+// The convoy-follow environment: its 16 path variants, obstacles beside the path, the reward,
+// episode ends, determinism through VectorEnv whatever the number of copies and threads, a
+// hand-written follower beating do-nothing and random actions, and the camera variant's images.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "learn/convoy_env.hpp"
+#include "learn/vector_env.hpp"
+
+using namespace syndds;
+using namespace syndds::learn;
+
+namespace {
+
+ConvoyEnvOptions test_options() {
+  ConvoyEnvOptions o;
+  o.config_dir = SYNDDS_TEST_CONFIG_DIR;
+  return o;
+}
+
+// Steer toward the leader, throttle by the gap: the baseline a learned policy has to beat.
+std::vector<float> hand_policy(const Observation& o) {
+  const double north = o.vector[0], east = o.vector[1], heading = o.vector[2];
+  const double closing = o.vector[3];
+  const double bearing = std::atan2(east, north);  // clockwise from north, as the compass
+  const double off = wrap_angle(bearing - heading);  // > 0: the leader is to the right
+  const double gap = std::hypot(north, east);
+  const double steer = std::clamp(-2.0 * off, -1.0, 1.0);  // steering > 0 turns left
+  const double pedal = std::clamp(0.15 * (gap - 15.0) - 0.3 * closing, -1.0, 1.0);
+  return {static_cast<float>(steer), static_cast<float>(pedal)};
+}
+
+struct EpisodeResult {
+  double total = 0.0;
+  int steps = 0;
+  bool terminated = false;
+};
+
+template <typename Policy>
+EpisodeResult run_episode(Env& env, std::uint64_t seed, Policy&& policy, int max_steps) {
+  EpisodeResult e;
+  Observation o = env.reset(seed);
+  for (; e.steps < max_steps; ) {
+    const StepResult r = env.step(policy(o));
+    ++e.steps;
+    e.total += r.reward;
+    o = r.observation;
+    if (r.terminated || r.truncated) {
+      e.terminated = r.terminated;
+      break;
+    }
+  }
+  return e;
+}
+
+}  // namespace
+
+TEST(ConvoyEpisode, SixteenDistinctPathVariantsStayInTheArea) {
+  std::vector<std::vector<Vec2>> paths;
+  for (int v = 0; v < kConvoyPathVariants; ++v) {
+    paths.push_back(convoy_path(v));
+    for (const Vec2& p : paths.back()) {
+      ASSERT_GE(p.x(), 10.0 - 1e-9);
+      ASSERT_LE(p.x(), 80.0 + 1e-9);
+      ASSERT_GE(p.y(), 10.0 - 1e-9);
+      ASSERT_LE(p.y(), 80.0 + 1e-9);
+    }
+    ASSERT_GT(paths.back().size(), 100u);
+  }
+  // Distinct as driven: some point i lies more than 5 m from point i of every other variant
+  // (or the lengths differ: S about 114 m, C about 174 m).
+  for (int a = 0; a < kConvoyPathVariants; ++a) {
+    for (int b = a + 1; b < kConvoyPathVariants; ++b) {
+      const auto& pa = paths[static_cast<std::size_t>(a)];
+      const auto& pb = paths[static_cast<std::size_t>(b)];
+      double worst = 0.0;
+      for (std::size_t i = 0; i < std::min(pa.size(), pb.size()); ++i) {
+        worst = std::max(worst, (pa[i] - pb[i]).norm());
+      }
+      EXPECT_TRUE(pa.size() != pb.size() || worst > 5.0) << "variants " << a << " and " << b;
+    }
+  }
+  // C shapes start and end on the same side (within 1 m along one axis), S shapes at
+  // opposite corners.
+  for (int v = 0; v < kConvoyPathVariants; ++v) {
+    const auto& p = paths[static_cast<std::size_t>(v)];
+    const Vec2 d = p.back() - p.front();
+    if (PathVariant::from_index(v).c_shape) {
+      EXPECT_LT(std::min(std::abs(d.x()), std::abs(d.y())), 1.0) << v;
+    } else {
+      EXPECT_NEAR(std::abs(d.x()), 70.0, 1e-6) << v;
+      EXPECT_NEAR(std::abs(d.y()), 70.0, 1e-6) << v;
+    }
+  }
+}
+
+TEST(ConvoyEpisode, ObstaclesKeepThePathClearAndStartsAreOnThePath) {
+  std::vector<int> variants_seen(kConvoyPathVariants, 0);
+  for (std::uint64_t seed = 0; seed < 200; ++seed) {
+    const ConvoyEpisode e = make_convoy_episode(seed);
+    ++variants_seen[static_cast<std::size_t>(e.variant)];
+    ASSERT_EQ(e.obstacles.size(), 8u);
+    for (const auto& ob : e.obstacles) {
+      const double to_path = distance_to_path(e.path, ob.centre);
+      EXPECT_GE(to_path - ob.radius_m, 2.2) << "seed " << seed << " " << ob.id;
+      EXPECT_GE(to_path, 4.0 - 1e-9);
+      EXPECT_TRUE(ob.label == "rock" || ob.label == "tree" || ob.label == "bush");
+      EXPECT_GE(ob.centre.x() - ob.radius_m, 0.0);
+      EXPECT_LE(ob.centre.x() + ob.radius_m, kConvoyAreaM);
+      EXPECT_GE(ob.centre.y() - ob.radius_m, 0.0);
+      EXPECT_LE(ob.centre.y() + ob.radius_m, kConvoyAreaM);
+    }
+    EXPECT_LE(e.follower_arc_m, 0.5 * e.path_length_m);
+    EXPECT_DOUBLE_EQ(e.leader_arc_m, e.follower_arc_m + 15.0);
+    EXPECT_LT(distance_to_path(e.path, e.follower_start), 1e-9);
+    EXPECT_LT(distance_to_path(e.path, e.leader_start), 1e-9);
+  }
+  // Every variant is drawn (200 draws of 16: each expected 12.5 times).
+  for (int v = 0; v < kConvoyPathVariants; ++v) EXPECT_GT(variants_seen[static_cast<std::size_t>(v)], 0) << v;
+  // The same seed, the same episode.
+  const ConvoyEpisode a = make_convoy_episode(77), b = make_convoy_episode(77);
+  EXPECT_EQ(convoy_scenario_yaml(a, {}), convoy_scenario_yaml(b, {}));
+}
+
+TEST(ConvoyReward, MaximalAtTheOptimalGapInsideTheHeadingWindow) {
+  const ConvoyRewardParams p;
+  EXPECT_DOUBLE_EQ(convoy_reward(p.optimal_gap_m, 0.0, p), 1.0);
+  double previous = 1.0;
+  for (double k = 0.5; k <= 30.0; k += 0.5) {
+    const double nearer = convoy_reward(p.optimal_gap_m - std::min(k, p.optimal_gap_m), 0.0, p);
+    const double farther = convoy_reward(p.optimal_gap_m + k, 0.0, p);
+    EXPECT_LT(farther, previous);
+    EXPECT_LT(nearer, 1.0);
+    EXPECT_GT(farther, 0.0);
+    previous = farther;
+  }
+  // Hyperbolic: one width away gives one half.
+  EXPECT_DOUBLE_EQ(convoy_reward(p.optimal_gap_m + p.width_m, 0.3, p), 0.5);
+  // Inside the window up to pi/4, outside it the small penalty, whatever the gap.
+  EXPECT_DOUBLE_EQ(convoy_reward(p.optimal_gap_m, 0.78, p), 1.0);
+  EXPECT_DOUBLE_EQ(convoy_reward(p.optimal_gap_m, -0.79, p), p.outside);
+  EXPECT_LT(p.outside, convoy_reward(1000.0, 0.0, p));
+}
+
+TEST(ConvoyEnv, CollisionWithAnObstacleEndsTheEpisode) {
+  // Obstacles on the path itself: the hand-written follower drives into one.
+  ConvoyEnvOptions o = test_options();
+  o.episode.obstacle_offset_min_m = 0.0;
+  o.episode.obstacle_offset_max_m = 0.0;
+  o.episode.clearance_m = -100.0;
+  ConvoyEnv env(o);
+  Observation obs = env.reset(5);
+  StepResult r;
+  int steps = 0;
+  for (; steps < 500; ++steps) {
+    r = env.step(hand_policy(obs));
+    obs = r.observation;
+    if (r.terminated || r.truncated) break;
+  }
+  EXPECT_TRUE(r.terminated);
+  EXPECT_FALSE(r.truncated);
+  EXPECT_EQ(r.info.at("collided"), 1.0);
+  EXPECT_EQ(r.reward, o.reward.collision);
+  EXPECT_THROW(env.step(hand_policy(obs)), std::logic_error);
+}
+
+TEST(ConvoyEnv, LeaderLostEndsTheEpisode) {
+  ConvoyEnv env(test_options());
+  Observation obs = env.reset(11);
+  EXPECT_EQ(obs.vector.size(), 4u);
+  EXPECT_TRUE(obs.image.empty());
+  const std::vector<float> brake = {0.0f, -1.0f};
+  StepResult r;
+  for (int k = 0; k < 400; ++k) {
+    r = env.step(brake);
+    if (r.terminated || r.truncated) break;
+  }
+  EXPECT_TRUE(r.terminated);
+  EXPECT_EQ(r.info.at("leader_lost"), 1.0);
+  EXPECT_GT(r.info.at("distance_m"), 40.0);
+  EXPECT_EQ(r.reward, -10.0);
+}
+
+namespace {
+
+// The first `steps` (observation, reward) of copy `copy` through a VectorEnv.
+std::vector<std::vector<double>> vector_trace(int copies, int threads, int steps) {
+  const ConvoyEnvOptions o = test_options();
+  VectorEnv venv([&] { return make_convoy_env(o); }, copies, threads);
+  std::vector<std::vector<double>> trace(static_cast<std::size_t>(copies));
+  auto record = [&](int i, const Observation& ob, double reward) {
+    auto& t = trace[static_cast<std::size_t>(i)];
+    t.insert(t.end(), ob.vector.begin(), ob.vector.end());
+    t.push_back(reward);
+  };
+  const auto first = venv.reset(2024);
+  for (int i = 0; i < copies; ++i) record(i, first[static_cast<std::size_t>(i)], 0.0);
+  for (int k = 0; k < steps; ++k) {
+    std::vector<std::vector<float>> actions;
+    for (int i = 0; i < copies; ++i) {
+      actions.push_back({0.3f * std::sin(0.1f * static_cast<float>(k + i)),
+                         k < 15 ? 0.8f : -0.2f});
+    }
+    const auto r = venv.step(actions);
+    for (int i = 0; i < copies; ++i) {
+      record(i, r.results[static_cast<std::size_t>(i)].observation,
+             r.results[static_cast<std::size_t>(i)].reward);
+    }
+  }
+  return trace;
+}
+
+}  // namespace
+
+TEST(ConvoyEnv, SameSeedSameEpisodesWhateverCopiesAndThreads) {
+  const int steps = 25;
+  const auto one = vector_trace(1, 1, steps);
+  const auto four = vector_trace(4, 2, steps);
+  const auto eight = vector_trace(8, 2, steps);
+  const auto eight_one_thread = vector_trace(8, 1, steps);
+  ASSERT_EQ(one[0].size(), static_cast<std::size_t>(5 * (steps + 1)));
+  EXPECT_EQ(one[0], four[0]);  // bit for bit
+  EXPECT_EQ(one[0], eight[0]);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(four[i], eight[i]) << "copy " << i;
+  EXPECT_EQ(eight, eight_one_thread);
+  // The copies are different episodes.
+  EXPECT_NE(eight[0], eight[1]);
+}
+
+TEST(ConvoyEnv, HandWrittenFollowerBeatsDoingNothingAndRandomActions) {
+  ConvoyEnv env(test_options());
+  std::mt19937_64 rng(99);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  double hand = 0.0, nothing = 0.0, random = 0.0;
+  int hand_terminated = 0;
+  const std::vector<float> zero = {0.0f, 0.0f};
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const EpisodeResult h = run_episode(env, seed, hand_policy, 500);
+    hand += h.total;
+    hand_terminated += h.terminated ? 1 : 0;
+    nothing += run_episode(env, seed, [&](const Observation&) { return zero; }, 500).total;
+    random += run_episode(env, seed, [&](const Observation&) {
+      return std::vector<float>{u(rng), u(rng)};
+    }, 500).total;
+  }
+  std::printf("returns over 3 episodes: hand %.1f, nothing %.1f, random %.1f\n", hand, nothing,
+              random);
+  EXPECT_EQ(hand_terminated, 0);
+  EXPECT_GT(hand, 2.0 * std::max(nothing, random));
+  EXPECT_GT(hand - std::max(nothing, random), 100.0);
+}
+
+TEST(ConvoyEnv, CameraVariantGivesImagesThatChangeWhenTheLeaderMoves) {
+  ConvoyEnvOptions o = test_options();
+  o.camera = true;
+  ConvoyEnv env(o);
+  EXPECT_EQ(env.observation_space().image->bytes(), 80u * 45u * 3u);
+  const Observation first = env.reset(3);
+  ASSERT_EQ(first.image.size(), 80u * 45u * 3u);
+  // The follower stands braked; the leader drives off in view (6 s: 2.8 m/s, 8.5 m on).
+  const std::vector<float> brake = {0.0f, -1.0f};
+  Observation later;
+  for (int k = 0; k < 60; ++k) later = env.step(brake).observation;
+  ASSERT_EQ(later.image.size(), first.image.size());
+  int changed = 0;
+  for (std::size_t i = 0; i < first.image.size(); ++i) {
+    changed += std::abs(int(first.image[i]) - int(later.image[i])) > 10 ? 1 : 0;
+  }
+  EXPECT_GT(changed, 100);
+  // Not every pixel: the scene around stands still.
+  EXPECT_LT(changed, static_cast<int>(first.image.size()) / 2);
+  std::printf("bytes changed by more than 10 levels: %d of %zu\n", changed, first.image.size());
+}
+
+TEST(ConvoyEnv, FullDynamicsOnSoftSoilFollows) {
+  // The test terrains: full dynamics on the coarse soft-soil patch, the hand-written follower
+  // for 8 s (the leader ramps to 3.8 m/s).
+  ConvoyEnvOptions o = test_options();
+  o.dynamics = ConvoyDynamics::full;
+  o.terrain = ConvoyTerrain::scm_soft;
+  ConvoyEnv env(o);
+  Observation obs = env.reset(4);
+  StepResult r;
+  double max_speed = 0.0;
+  for (int k = 0; k < 80; ++k) {
+    r = env.step(hand_policy(obs));
+    obs = r.observation;
+    max_speed = std::max(max_speed, r.info.at("speed_mps"));
+    ASSERT_FALSE(r.terminated || r.truncated) << "step " << k;
+  }
+  std::printf("full / scm_soft: distance %.2f m, speed %.2f m/s (max %.2f)\n",
+              r.info.at("distance_m"), r.info.at("speed_mps"), max_speed);
+  EXPECT_GT(max_speed, 1.5);
+  EXPECT_GT(r.reward, 0.3);
+  EXPECT_EQ(env.follower_state().wheels.size(), 4u);
+  std::printf("gear %d, engine %.0f rpm, z %.3f m\n", env.follower_state().gear,
+              env.follower_state().engine_speed_rpm, env.follower_state().pose.position.z());
+}
