@@ -12,25 +12,6 @@
 namespace syndds::learn {
 namespace {
 
-ConvoyObservationConfig observation_config(const scenario::VehicleConfig& follower,
-                                           const std::string& leader_id) {
-  if (!follower.sensors || follower.sensors->rig.gps.empty()) {
-    throw std::invalid_argument("convoy follower '" + follower.id + "' has no GPS");
-  }
-  const auto& rig = follower.sensors->rig;
-  ConvoyObservationConfig c;
-  c.follower_id = follower.id;
-  c.leader_id = leader_id;
-  c.geodetic_origin = rig.geodetic_origin;
-  c.geodetic_model = rig.gps.front().model;
-  c.wheel_radius_m = follower.params.wheels.radius_m;
-  if (!rig.cameras.empty()) {
-    c.image = ImageSpec{rig.cameras.front().intrinsics.width,
-                        rig.cameras.front().intrinsics.height, 3};
-  }
-  return c;
-}
-
 // Does the chassis box's footprint (a rectangle) of `state` overlap the obstacle's circle?
 bool footprint_hits(const proto::VehicleStateMsg& state, const vehicle::ChassisParams& chassis,
                     const ConvoyObstacle& ob) {
@@ -59,7 +40,7 @@ ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario&,
     : vehicle_id_(follower.id),
       leader_id_(leader_id),
       member_id_(scenario::external_member(follower.id)),
-      builder_(observation_config(follower, leader_id)) {}
+      builder_(convoy_observation_config(follower, leader_id)) {}
 
 std::vector<proto::Subscription> ConvoyDriverAgent::subscriptions() const {
   return {{proto::Topic::gps_fix, vehicle_id_},

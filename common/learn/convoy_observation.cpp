@@ -19,6 +19,25 @@ void take_newest(const std::vector<Msg>& list, const std::string& vehicle,
 
 }  // namespace
 
+ConvoyObservationConfig convoy_observation_config(const scenario::VehicleConfig& follower,
+                                                  const std::string& leader_id) {
+  if (!follower.sensors || follower.sensors->rig.gps.empty()) {
+    throw std::invalid_argument("convoy follower '" + follower.id + "' has no GPS");
+  }
+  const auto& rig = follower.sensors->rig;
+  ConvoyObservationConfig c;
+  c.follower_id = follower.id;
+  c.leader_id = leader_id;
+  c.geodetic_origin = rig.geodetic_origin;
+  c.geodetic_model = rig.gps.front().model;
+  c.wheel_radius_m = follower.params.wheels.radius_m;
+  if (!rig.cameras.empty()) {
+    c.image = ImageSpec{rig.cameras.front().intrinsics.width,
+                        rig.cameras.front().intrinsics.height, 3};
+  }
+  return c;
+}
+
 ConvoyObservationBuilder::ConvoyObservationBuilder(ConvoyObservationConfig config)
     : config_(std::move(config)), converter_(config_.geodetic_origin, config_.geodetic_model) {}
 

@@ -11,6 +11,7 @@
 
 #include "learn/env.hpp"
 #include "protocol/agent.hpp"
+#include "scenario/scenario.hpp"
 #include "sensors/geodesy.hpp"
 
 namespace syndds::learn {
@@ -23,6 +24,12 @@ struct ConvoyObservationConfig {
   double wheel_radius_m = 0.0;        // the tachometer's spin times this is the own speed
   std::optional<ImageSpec> image;     // the camera's frame size; absent: no image
 };
+
+/// The observation's configuration for `follower` of a scenario following `leader_id`: its
+/// GPS's origin and model, its wheel radius, its first camera's frame size (if any). Throws
+/// std::invalid_argument if the follower has no GPS.
+ConvoyObservationConfig convoy_observation_config(const scenario::VehicleConfig& follower,
+                                                  const std::string& leader_id);
 
 class ConvoyObservationBuilder {
  public:
