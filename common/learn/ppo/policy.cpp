@@ -15,6 +15,12 @@ torch::Tensor floats(const std::vector<float>& v) {
   return torch::tensor(at::ArrayRef<float>(v), torch::kFloat32);
 }
 
+torch::Tensor read(torch::serialize::InputArchive& archive, const std::string& key) {
+  torch::Tensor t;  // fresh: reading into a defined tensor copies into its storage
+  archive.read(key, t);
+  return t;
+}
+
 std::vector<float> floats(const torch::Tensor& t) {
   const torch::Tensor c = t.contiguous().to(torch::kFloat32);
   return {c.data_ptr<float>(), c.data_ptr<float>() + c.numel()};
@@ -58,13 +64,10 @@ namespace syndds::learn {
 void Policy::load(const std::string& path) {
   torch::serialize::InputArchive archive;
   archive.load_from(path);
-  torch::Tensor t;
-  archive.read("observation_low", t);
-  observations_.vector.low = ppo::floats(t);
-  archive.read("observation_high", t);
-  observations_.vector.high = ppo::floats(t);
+  observations_.vector.low = ppo::floats(ppo::read(archive, "observation_low"));
+  observations_.vector.high = ppo::floats(ppo::read(archive, "observation_high"));
   observations_.vector.names.clear();
-  archive.read("image", t);
+  const torch::Tensor t = ppo::read(archive, "image");
   if (t[0].item<std::int64_t>() != 0) {
     observations_.image = ImageSpec{static_cast<int>(t[1].item<std::int64_t>()),
                                     static_cast<int>(t[2].item<std::int64_t>()),
@@ -72,10 +75,8 @@ void Policy::load(const std::string& path) {
   } else {
     observations_.image.reset();
   }
-  archive.read("action_low", t);
-  actions_.low = ppo::floats(t);
-  archive.read("action_high", t);
-  actions_.high = ppo::floats(t);
+  actions_.low = ppo::floats(ppo::read(archive, "action_low"));
+  actions_.high = ppo::floats(ppo::read(archive, "action_high"));
   actions_.names.clear();
   c10::IValue network;
   archive.read("network", network);
