@@ -4,6 +4,7 @@
 // matplotlib is there, DIR/training_curve.png (tools/training_curve.py).
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -70,17 +71,17 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("--env-option", env_option_args, "Environment option KEY=VALUE (repeatable)");
   app.add_option("--updates", updates, "Updates in all (a resumed run goes on to this count)")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   app.add_option("--steps-per-update", ppo.steps_per_update,
                  "Interactions per update, summed over the copies")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   app.add_option("--copies", options.copies, "Environment copies")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   app.add_option("--threads", options.threads, "Threads stepping the copies")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   app.add_option("--seed", options.seed, "Seed of the networks, sampling and episodes")
       ->capture_default_str();
@@ -88,13 +89,13 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "mlp", "fusion"}))
       ->capture_default_str();
   app.add_option("--epochs", ppo.epochs, "Passes over each rollout")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   app.add_option("--minibatch", ppo.minibatch, "Minibatch size")
       ->check(CLI::Range(2, 1 << 20))
       ->capture_default_str();
   app.add_option("--learning-rate", ppo.learning_rate, "Adam's learning rate")
-      ->check(CLI::PositiveNumber)
+      ->check(CLI::Range(1e-9, 1.0))
       ->capture_default_str();
   app.add_option("--entropy-coef", ppo.entropy_coef, "Weight of the entropy bonus")
       ->check(CLI::NonNegativeNumber)
@@ -116,11 +117,21 @@ int main(int argc, char** argv) {
   try {
     const fs::path dir(output);
     const fs::path checkpoint = dir / "checkpoint.pt", csv = dir / "training.csv";
+    const auto names = learn::env_names();
+    if (std::find(names.begin(), names.end(), env_name) == names.end()) {
+      std::cerr << "syndds_train: --env: unknown environment " << env_name << "\n";
+      return 1;
+    }
     learn::EnvFactory factory;
     try {
       factory = learn::env_factory(env_name, env_options);
     } catch (const std::invalid_argument& e) {
-      std::cerr << "syndds_train: --env: " << e.what() << "\n";
+      std::cerr << "syndds_train: --env-option: " << e.what() << "\n";
+      return 1;
+    }
+    if (options.network == "fusion" && !factory()->observation_space().image) {
+      std::cerr << "syndds_train: --network fusion: " << env_name
+                << "'s observations have no image\n";
       return 1;
     }
     std::error_code ec;

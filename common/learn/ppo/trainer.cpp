@@ -153,6 +153,7 @@ UpdateStats Trainer::update() {
   std::vector<bool> terminated(n), truncated(n);
   std::vector<double> finished;
   UpdateStats stats;
+  const auto t0 = std::chrono::steady_clock::now();
 
   // Rollout.
   for (int t = 0; t < T; ++t) {
@@ -226,6 +227,7 @@ UpdateStats Trainer::update() {
       }
     }
   }
+  const auto t1 = std::chrono::steady_clock::now();
   const Gae gae =
       compute_gae(rewards, values, next_values, terminated, truncated, T, K, p.gamma, p.lambda);
 
@@ -280,6 +282,9 @@ UpdateStats Trainer::update() {
     }
   }
 
+  const auto t2 = std::chrono::steady_clock::now();
+  stats.rollout_s = std::chrono::duration<double>(t1 - t0).count();
+  stats.learn_s = std::chrono::duration<double>(t2 - t1).count();
   ++updates_;
   interactions_ += static_cast<std::int64_t>(n);
   for (const double r : finished) {

@@ -15,6 +15,7 @@
 // exactly as the run that wrote it.
 #include <torch/torch.h>
 
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -68,6 +69,8 @@ struct UpdateStats {
   double entropy = 0.0;
   double approx_kl = 0.0;          // mean of (r - 1) - log r, r the probability ratio
   double clip_fraction = 0.0;      // fraction of samples with |r - 1| > clip
+  double rollout_s = 0.0;          // wall time collecting the rollout (not deterministic)
+  double learn_s = 0.0;            // wall time of GAE and the epochs of minibatches
 };
 
 /// GAE over a rollout of `steps` x `copies` (index t * copies + k). next_values[i] is the value
