@@ -46,6 +46,44 @@ std::vector<Observation> VectorEnv::reset(std::uint64_t seed) {
   return out;
 }
 
+std::vector<Observation> VectorEnv::restore(
+    std::uint64_t seed, const std::vector<std::uint64_t>& episodes,
+    const std::vector<std::vector<std::vector<float>>>& actions) {
+  if (episodes.size() != envs_.size() || actions.size() != envs_.size()) {
+    throw std::invalid_argument("VectorEnv::restore: state of " +
+                                std::to_string(episodes.size()) + " copies for " +
+                                std::to_string(envs_.size()));
+  }
+  for (const auto e : episodes) {
+    if (e < 1) throw std::invalid_argument("VectorEnv::restore: a copy with no episode started");
+  }
+  seed_ = seed;
+  reset_done_ = true;
+  episodes_ = episodes;
+  std::vector<Observation> out(envs_.size());
+  std::vector<std::exception_ptr> errors(envs_.size());
+  pool_.run(size(), [&](int i) {
+    const auto k = static_cast<std::size_t>(i);
+    try {
+      out[k] = envs_[k]->reset(episode_seed(seed_, k, episodes_[k] - 1));
+      for (const auto& a : actions[k]) {
+        StepResult r = envs_[k]->step(a);
+        if (r.terminated || r.truncated) {
+          throw std::runtime_error("VectorEnv::restore: copy " + std::to_string(k) +
+                                   "'s episode ended during the replay (not deterministic?)");
+        }
+        out[k] = std::move(r.observation);
+      }
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  });
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+  return out;
+}
+
 VectorStepResult VectorEnv::step(const std::vector<std::vector<float>>& actions) {
   if (!reset_done_) throw std::logic_error("VectorEnv::step before reset");
   if (actions.size() != envs_.size()) {

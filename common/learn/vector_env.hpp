@@ -35,6 +35,18 @@ class VectorEnv {
   /// One action per copy (each of the action space's size).
   VectorStepResult step(const std::vector<std::vector<float>>& actions);
 
+  /// The seed of the last reset, and the episodes started per copy since (copy i is in its
+  /// episode episodes()[i] - 1): with the actions of the current episodes, what restore needs.
+  std::uint64_t seed() const { return seed_; }
+  const std::vector<std::uint64_t>& episodes() const { return episodes_; }
+  /// Puts every copy back where a run reset with `seed` was (a trainer resuming from a
+  /// checkpoint): copy i restarts its episode episodes[i] - 1 and replays `actions[i]`, the
+  /// actions step was given since that episode began. Relies on environments being
+  /// deterministic for a seed. Returns the current observations. Throws std::invalid_argument
+  /// for sizes that do not match the copies, std::runtime_error if a replayed episode ends.
+  std::vector<Observation> restore(std::uint64_t seed, const std::vector<std::uint64_t>& episodes,
+                                   const std::vector<std::vector<std::vector<float>>>& actions);
+
  private:
   std::vector<std::unique_ptr<Env>> envs_;
   std::vector<std::uint64_t> episodes_;  // episodes started per copy

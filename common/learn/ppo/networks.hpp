@@ -1,0 +1,73 @@
+#pragma once
+// The actor-critic networks of the PPO trainer. Both map a batch of (normalised) observation
+// vectors [B, D] and, for the sensor-fusion network, camera images [B, H, W, 3] (uint8, as the
+// environments give them) to the Gaussian policy's mean [B, A] and the value [B]; the policy's
+// log standard deviation is one learned parameter per action dimension, independent of the
+// state.
+//  - MlpActorCritic: separate actor and critic trunks, each two hidden layers of 64, tanh.
+//  - FusionActorCritic (the JCISE 2022 paper's sensor fusion): a Nature-DQN convolutional stack
+//    on the image (8x8 stride 4, 32 filters; 4x4 stride 2, 64; 3x3 stride 1, 64; ReLU; an
+//    80 x 45 image gives 64 x 2 x 6 = 768 features), one fully connected layer of 64 on the
+//    vector, the two concatenated, then three fully connected layers (256, 128, 64, ReLU) shared
+//    by the policy-mean and value heads. Images become float C x H x W in [0, 1].
+// Hidden layers are initialised orthogonally with gain sqrt(2), the mean head with 0.01 and the
+// value head with 1, biases 0 (what PPO implementations usually do); the log-std starts at 0.
+#include <torch/torch.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "learn/env.hpp"
+
+namespace syndds::learn::ppo {
+
+struct ActorCriticOutput {
+  torch::Tensor mean;   // [B, A]
+  torch::Tensor value;  // [B]
+};
+
+class ActorCritic : public torch::nn::Module {
+ public:
+  /// `image` is undefined for networks without a camera input.
+  virtual ActorCriticOutput forward(const torch::Tensor& vector, const torch::Tensor& image) = 0;
+  /// "mlp" or "fusion".
+  virtual std::string kind() const = 0;
+  torch::Tensor log_std;  // [A]
+};
+
+class MlpActorCritic final : public ActorCritic {
+ public:
+  MlpActorCritic(int observation_size, int action_size, int hidden = 64);
+  ActorCriticOutput forward(const torch::Tensor& vector, const torch::Tensor& image) override;
+  std::string kind() const override { return "mlp"; }
+
+ private:
+  torch::nn::Sequential actor_{nullptr}, critic_{nullptr};
+};
+
+class FusionActorCritic final : public ActorCritic {
+ public:
+  FusionActorCritic(int observation_size, const ImageSpec& image, int action_size);
+  ActorCriticOutput forward(const torch::Tensor& vector, const torch::Tensor& image) override;
+  std::string kind() const override { return "fusion"; }
+  /// Features out of the convolutional stack for the image size given.
+  int cnn_features() const { return cnn_features_; }
+
+ private:
+  torch::nn::Sequential cnn_{nullptr}, vector_fc_{nullptr}, trunk_{nullptr};
+  torch::nn::Linear mean_head_{nullptr}, value_head_{nullptr};
+  int cnn_features_ = 0;
+};
+
+/// The network for an observation space: "mlp" (vector only), "fusion" (needs an image) or
+/// "auto" (fusion when the observations have an image). Throws std::invalid_argument otherwise.
+std::shared_ptr<ActorCritic> make_actor_critic(const std::string& kind,
+                                               const ObservationSpace& observations,
+                                               const Box& actions);
+
+/// Images as the networks take them: [B, H, W, C] uint8 from B observations' bytes.
+torch::Tensor image_batch(const std::vector<const std::vector<std::uint8_t>*>& images,
+                          const ImageSpec& spec);
+
+}  // namespace syndds::learn::ppo

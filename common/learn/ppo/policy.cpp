@@ -1,0 +1,118 @@
+#include "learn/ppo/policy.hpp"
+
+#include <ATen/CPUGeneratorImpl.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+
+#include "learn/ppo/trainer.hpp"
+
+namespace syndds::learn::ppo {
+namespace {
+
+torch::Tensor floats(const std::vector<float>& v) {
+  return torch::tensor(at::ArrayRef<float>(v), torch::kFloat32);
+}
+
+torch::Tensor read(torch::serialize::InputArchive& archive, const std::string& key) {
+  torch::Tensor t;  // fresh: reading into a defined tensor copies into its storage
+  archive.read(key, t);
+  return t;
+}
+
+std::vector<float> floats(const torch::Tensor& t) {
+  const torch::Tensor c = t.contiguous().to(torch::kFloat32);
+  return {c.data_ptr<float>(), c.data_ptr<float>() + c.numel()};
+}
+
+}  // namespace
+
+void save_policy_file(const std::string& path, const ActorCritic& model,
+                      const RunningNormalizer& normalizer, const ObservationSpace& observations,
+                      const Box& actions) {
+  torch::serialize::OutputArchive archive, m, n;
+  model.save(m);
+  normalizer.save(n);
+  archive.write("model", m);
+  archive.write("normalizer", n);
+  archive.write("network", c10::IValue(model.kind()));
+  archive.write("observation_low", floats(observations.vector.low));
+  archive.write("observation_high", floats(observations.vector.high));
+  const ImageSpec image = observations.image.value_or(ImageSpec{});
+  archive.write("image", torch::tensor({static_cast<std::int64_t>(observations.image.has_value()),
+                                        static_cast<std::int64_t>(image.width),
+                                        static_cast<std::int64_t>(image.height),
+                                        static_cast<std::int64_t>(image.channels)}));
+  archive.write("action_low", floats(actions.low));
+  archive.write("action_high", floats(actions.high));
+  const std::string tmp = path + ".tmp";
+  archive.save_to(tmp);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    throw std::runtime_error("cannot rename " + tmp + " to " + path);
+  }
+}
+
+void Trainer::save_policy(const std::string& path) const {
+  save_policy_file(path, *model_, normalizer_, observation_space_, action_space_);
+}
+
+}  // namespace syndds::learn::ppo
+
+namespace syndds::learn {
+
+void Policy::load(const std::string& path) {
+  torch::serialize::InputArchive archive;
+  archive.load_from(path);
+  observations_.vector.low = ppo::floats(ppo::read(archive, "observation_low"));
+  observations_.vector.high = ppo::floats(ppo::read(archive, "observation_high"));
+  observations_.vector.names.clear();
+  const torch::Tensor t = ppo::read(archive, "image");
+  if (t[0].item<std::int64_t>() != 0) {
+    observations_.image = ImageSpec{static_cast<int>(t[1].item<std::int64_t>()),
+                                    static_cast<int>(t[2].item<std::int64_t>()),
+                                    static_cast<int>(t[3].item<std::int64_t>())};
+  } else {
+    observations_.image.reset();
+  }
+  actions_.low = ppo::floats(ppo::read(archive, "action_low"));
+  actions_.high = ppo::floats(ppo::read(archive, "action_high"));
+  actions_.names.clear();
+  c10::IValue network;
+  archive.read("network", network);
+  model_ = ppo::make_actor_critic(network.toStringRef(), observations_, actions_);
+  torch::serialize::InputArchive m, n;
+  archive.read("model", m);
+  archive.read("normalizer", n);
+  model_->load(m);
+  model_->eval();
+  normalizer_.load(n);
+  if (!generator_.defined()) seed(0);
+}
+
+void Policy::seed(std::uint64_t seed) {
+  generator_ = at::make_generator<at::CPUGeneratorImpl>(seed);
+}
+
+std::vector<float> Policy::act(const Observation& observation, bool deterministic) {
+  if (!model_) throw std::logic_error("Policy::act before load");
+  const std::vector<float> z = normalizer_.normalize(observation.vector);
+  const torch::Tensor vec =
+      torch::tensor(at::ArrayRef<float>(z), torch::kFloat32).reshape({1, -1});
+  torch::Tensor img;
+  if (observations_.image) img = ppo::image_batch({&observation.image}, *observations_.image);
+  torch::NoGradGuard no_grad;
+  const ppo::ActorCriticOutput out = model_->forward(vec, img);
+  torch::Tensor a = out.mean;
+  if (!deterministic) {
+    a = a + torch::exp(model_->log_std) *
+                at::normal(0.0, 1.0, a.sizes(), generator_, torch::kFloat32);
+  }
+  std::vector<float> action = ppo::floats(a);
+  for (std::size_t j = 0; j < action.size(); ++j) {
+    action[j] = std::clamp(action[j], actions_.low[j], actions_.high[j]);
+  }
+  return action;
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,136 @@
+#pragma once
+// Proximal Policy Optimization (Schulman et al. 2017) over a VectorEnv, on libtorch, CPU.
+//
+// One update: the K copies step ceil(steps_per_update / K) times with actions sampled from the
+// Gaussian policy (the environments clamp them to the box), then `epochs` passes over the
+// rollout in shuffled minibatches of the clipped surrogate, the (optionally clipped) value loss
+// and an entropy bonus, with Adam and a global gradient-norm clip. Advantages are GAE(gamma,
+// lambda): a terminated episode has no value beyond its last step, a truncated one is
+// bootstrapped from the value of its final observation (VectorEnv's final_observations).
+// Observation vectors are normalised by a running mean / variance (normalizer.hpp).
+//
+// Deterministic: for fixed options the parameters after n updates are the same bit for bit,
+// whatever `threads` (the environments' threads; torch runs on `torch_threads`, 1 by default,
+// which is what bit-identical results need), and a run resumed from a checkpoint continues
+// exactly as the run that wrote it.
+#include <torch/torch.h>
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "learn/ppo/networks.hpp"
+#include "learn/ppo/normalizer.hpp"
+#include "learn/vector_env.hpp"
+
+namespace syndds::learn::ppo {
+
+struct PpoOptions {
+  int steps_per_update = 1500;  // interactions per update, summed over the copies
+  int epochs = 10;
+  int minibatch = 64;
+  double learning_rate = 3e-4;
+  double adam_epsilon = 1e-5;
+  double gamma = 0.99;
+  double lambda = 0.95;
+  double clip = 0.2;
+  bool clip_value = false;  // value loss clipped around the rollout's values, with `clip`
+  double value_coef = 0.5;
+  double entropy_coef = 0.0;
+  double max_grad_norm = 0.5;
+  bool normalize_advantages = true;  // per minibatch
+  // Rewards divided by the running standard deviation of the discounted return (per copy,
+  // restarted at episode ends) for learning, and clipped to +-10; statistics stay unscaled.
+  bool normalize_rewards = true;
+};
+
+struct TrainerOptions {
+  PpoOptions ppo;
+  int copies = 1;    // environment copies
+  int threads = 1;   // threads stepping the copies
+  int torch_threads = 1;
+  std::uint64_t seed = 0;  // network initialisation, sampling, shuffling, episode seeds
+  std::string network = "auto";  // mlp, fusion or auto (networks.hpp)
+  int return_window = 20;        // episodes in the moving average of returns
+};
+
+/// What one update did. Returns are the environment's (unscaled) episode returns.
+struct UpdateStats {
+  int update = 0;                  // 1-based count of updates done
+  std::int64_t interactions = 0;   // total so far, summed over the copies
+  std::int64_t episodes = 0;       // episodes finished during this update
+  double mean_return = 0.0;        // of those episodes; NaN when none finished
+  double moving_average_return = 0.0;  // of the last return_window finished episodes; NaN before any
+  double policy_loss = 0.0;        // means over the update's minibatches
+  double value_loss = 0.0;
+  double entropy = 0.0;
+  double approx_kl = 0.0;          // mean of (r - 1) - log r, r the probability ratio
+  double clip_fraction = 0.0;      // fraction of samples with |r - 1| > clip
+  double rollout_s = 0.0;          // wall time collecting the rollout (not deterministic)
+  double learn_s = 0.0;            // wall time of GAE and the epochs of minibatches
+};
+
+/// GAE over a rollout of `steps` x `copies` (index t * copies + k). next_values[i] is the value
+/// of the observation that followed step i in the same episode: the next step's value, the
+/// bootstrap value after the rollout's last step, or, where the episode was truncated at i,
+/// the value of its final observation; it is ignored where the episode terminated at i.
+struct Gae {
+  std::vector<double> advantages;
+  std::vector<double> returns;  // advantages + values
+};
+Gae compute_gae(const std::vector<double>& rewards, const std::vector<double>& values,
+                const std::vector<double>& next_values, const std::vector<bool>& terminated,
+                const std::vector<bool>& truncated, int steps, int copies, double gamma,
+                double lambda);
+
+class Trainer {
+ public:
+  Trainer(EnvFactory factory, TrainerOptions options);
+
+  /// Collects one rollout and updates the networks.
+  UpdateStats update();
+
+  int updates() const { return updates_; }
+  std::int64_t interactions() const { return interactions_; }
+  /// Interactions per update: steps_per_update rounded up to a multiple of the copies.
+  int rollout_size() const { return steps_ * options_.copies; }
+  const TrainerOptions& options() const { return options_; }
+  ActorCritic& model() { return *model_; }
+  const RunningNormalizer& normalizer() const { return normalizer_; }
+
+  /// Everything a resumed run needs (written to `path`.tmp, then renamed over `path`).
+  void save_checkpoint(const std::string& path) const;
+  /// Continues the run that wrote `path`; this trainer must have the same options (copies,
+  /// steps, seed, network: checked) and environment.
+  void load_checkpoint(const std::string& path);
+  /// The inference file Policy::load reads: network, normaliser, spaces.
+  void save_policy(const std::string& path) const;
+
+ private:
+  torch::Tensor vector_tensor(const std::vector<const Observation*>& obs) const;
+  torch::Tensor image_tensor(const std::vector<const Observation*>& obs) const;
+  double scaled_reward(std::size_t copy, double reward, bool ended);
+
+  TrainerOptions options_;
+  VectorEnv envs_;
+  ObservationSpace observation_space_;
+  Box action_space_;
+  std::shared_ptr<ActorCritic> model_;
+  std::unique_ptr<torch::optim::Adam> optimizer_;
+  RunningNormalizer normalizer_;
+  RunningNormalizer return_normalizer_{1};
+  std::vector<double> discounted_returns_;  // per copy, for return_normalizer_
+  at::Generator generator_;
+  int steps_ = 0;
+  int updates_ = 0;
+  std::int64_t interactions_ = 0;
+  std::vector<Observation> observations_;                     // current, raw
+  std::vector<std::vector<std::vector<float>>> episode_actions_;  // per copy, current episode
+  std::vector<double> episode_returns_;                       // per copy, current episode
+  std::deque<double> recent_returns_;                         // finished episodes, last window
+};
+
+}  // namespace syndds::learn::ppo

@@ -1,0 +1,118 @@
+#include "learn/registry.hpp"
+
+#include <charconv>
+#include <set>
+#include <stdexcept>
+
+#include "learn/convoy_env.hpp"
+#include "learn/double_integrator.hpp"
+
+namespace syndds::learn {
+namespace {
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+void no_options(const std::string& name, const EnvOptions& options) {
+  if (!options.empty()) {
+    throw std::invalid_argument("environment " + name + " takes no options (got " +
+                                options.begin()->first + ")");
+  }
+}
+
+// Reads option values: every key must be known, every value parse, and be in range.
+class OptionReader {
+ public:
+  OptionReader(std::string env, const EnvOptions& options) : env_(std::move(env)), options_(options) {}
+
+  std::string choice(const std::string& key, const std::string& fallback,
+                     const std::vector<std::string>& allowed) {
+    const std::string v = raw(key, fallback);
+    for (const auto& a : allowed) {
+      if (v == a) return v;
+    }
+    fail(key, "'" + v + "' is not one of " + joined(allowed));
+  }
+  bool flag(const std::string& key, bool fallback) {
+    const std::string v = raw(key, fallback ? "true" : "false");
+    if (v == "true" || v == "True" || v == "1") return true;
+    if (v == "false" || v == "False" || v == "0") return false;
+    fail(key, "'" + v + "' is not true or false");
+  }
+  double number(const std::string& key, double fallback, double lo, double hi) {
+    const std::string v = raw(key, "");
+    if (v.empty()) return fallback;
+    double x = 0.0;
+    const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+    if (ec != std::errc() || end != v.data() + v.size()) fail(key, "'" + v + "' is not a number");
+    if (!(x >= lo && x <= hi)) {
+      fail(key, "'" + v + "' is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    return x;
+  }
+  /// Throws naming the first option that was never read.
+  void finish() const {
+    for (const auto& [k, v] : options_) {
+      if (!read_.contains(k)) {
+        throw std::invalid_argument("environment " + env_ + " has no option " + k);
+      }
+    }
+  }
+
+ private:
+  std::string raw(const std::string& key, const std::string& fallback) {
+    read_.insert(key);
+    const auto it = options_.find(key);
+    return it == options_.end() ? fallback : it->second;
+  }
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+    throw std::invalid_argument("environment " + env_ + ", option " + key + ": " + what);
+  }
+
+  std::string env_;
+  const EnvOptions& options_;
+  std::set<std::string> read_;
+};
+
+ConvoyEnvOptions convoy_options(const EnvOptions& options) {
+  OptionReader r("convoy_follow", options);
+  ConvoyEnvOptions o;
+  const std::string terrain = r.choice("terrain", "rigid", {"rigid", "scm_hard", "scm_soft"});
+  o.terrain = terrain == "rigid"      ? ConvoyTerrain::rigid
+              : terrain == "scm_hard" ? ConvoyTerrain::scm_hard
+                                      : ConvoyTerrain::scm_soft;
+  o.dynamics = r.choice("dynamics", "reduced", {"reduced", "full"}) == "full"
+                   ? ConvoyDynamics::full
+                   : ConvoyDynamics::reduced;
+  o.camera = r.flag("camera", false);
+  o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
+  o.max_steps = static_cast<int>(r.number("max_steps", o.max_steps, 1, 100000));
+  r.finish();
+  return o;
+}
+
+}  // namespace
+
+std::vector<std::string> env_names() { return {"convoy_follow", "double_integrator"}; }
+
+EnvFactory env_factory(const std::string& name, const EnvOptions& options) {
+  if (name == "convoy_follow") {
+    const ConvoyEnvOptions o = convoy_options(options);
+    return [o] { return make_convoy_env(o); };
+  }
+  if (name == "double_integrator") {
+    no_options(name, options);
+    return [] { return std::make_unique<DoubleIntegrator>(); };
+  }
+  throw std::invalid_argument("unknown environment " + name + " (known: " + joined(env_names()) +
+                              ")");
+}
+
+std::unique_ptr<Env> make_env(const std::string& name, const EnvOptions& options) {
+  return env_factory(name, options)();
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,214 @@
+// syndds_train: PPO on one of the learning environments (docs/learning.md): one progress line
+// per update, DIR/training.csv, DIR/checkpoint.pt (rewritten after every update; --resume
+// continues from it bit for bit), DIR/policy.pt (for learn::Policy) and, when Debian's
+// matplotlib is there, DIR/training_curve.png (tools/training_curve.py).
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "learn/ppo/trainer.hpp"
+#include "learn/registry.hpp"
+
+using namespace syndds;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kHeader =
+    "update,interactions,episodes,mean_return,moving_average_return,policy_loss,value_loss,"
+    "entropy,approx_kl,clip_fraction,wall_s";
+
+std::string number(double v) {
+  if (std::isnan(v)) return "nan";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+/// Keeps the header and the rows of updates <= `updates` of an existing training.csv (a resumed
+/// run rewrites what came after its checkpoint).
+std::string kept_rows(const fs::path& csv, int updates) {
+  std::ifstream in(csv);
+  std::string line, out = std::string(kHeader) + "\n";
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    if (!line.empty() && std::stoi(line.substr(0, line.find(','))) <= updates) out += line + "\n";
+  }
+  return out;
+}
+
+std::string duration(double s) {
+  const long t = std::lround(s);
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, t / 60 % 60, t % 60);
+  return buf;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"syndds train: PPO on a learning environment (docs/learning.md)"};
+  std::string env_name;
+  std::vector<std::string> env_option_args;
+  int updates = 100;
+  std::string output = "training";
+  bool resume = false;
+  learn::ppo::TrainerOptions options;
+  auto& ppo = options.ppo;
+  app.add_option("--env", env_name, "Environment (" + [] {
+                   std::string s;
+                   for (const auto& n : learn::env_names()) s += (s.empty() ? "" : ", ") + n;
+                   return s;
+                 }() + ")")
+      ->required();
+  app.add_option("--env-option", env_option_args, "Environment option KEY=VALUE (repeatable)");
+  app.add_option("--updates", updates, "Updates in all (a resumed run goes on to this count)")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  app.add_option("--steps-per-update", ppo.steps_per_update,
+                 "Interactions per update, summed over the copies")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  app.add_option("--copies", options.copies, "Environment copies")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  app.add_option("--threads", options.threads, "Threads stepping the copies")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  app.add_option("--seed", options.seed, "Seed of the networks, sampling and episodes")
+      ->capture_default_str();
+  app.add_option("--network", options.network, "Actor-critic network")
+      ->check(CLI::IsMember({"auto", "mlp", "fusion"}))
+      ->capture_default_str();
+  app.add_option("--epochs", ppo.epochs, "Passes over each rollout")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  app.add_option("--minibatch", ppo.minibatch, "Minibatch size")
+      ->check(CLI::Range(2, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--learning-rate", ppo.learning_rate, "Adam's learning rate")
+      ->check(CLI::Range(1e-9, 1.0))
+      ->capture_default_str();
+  app.add_option("--entropy-coef", ppo.entropy_coef, "Weight of the entropy bonus")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--output", output, "Directory of training.csv, checkpoint.pt, policy.pt")
+      ->capture_default_str();
+  app.add_flag("--resume", resume, "Continue from OUTPUT/checkpoint.pt");
+  CLI11_PARSE(app, argc, argv);
+
+  learn::EnvOptions env_options;
+  for (const auto& kv : env_option_args) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      std::cerr << "syndds_train: --env-option " << kv << ": expected KEY=VALUE\n";
+      return 1;
+    }
+    env_options[kv.substr(0, eq)] = kv.substr(eq + 1);
+  }
+  try {
+    const fs::path dir(output);
+    const fs::path checkpoint = dir / "checkpoint.pt", csv = dir / "training.csv";
+    const auto names = learn::env_names();
+    if (std::find(names.begin(), names.end(), env_name) == names.end()) {
+      std::cerr << "syndds_train: --env: unknown environment " << env_name << "\n";
+      return 1;
+    }
+    learn::EnvFactory factory;
+    try {
+      factory = learn::env_factory(env_name, env_options);
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "syndds_train: --env-option: " << e.what() << "\n";
+      return 1;
+    }
+    if (options.network == "fusion" && !factory()->observation_space().image) {
+      std::cerr << "syndds_train: --network fusion: " << env_name
+                << "'s observations have no image\n";
+      return 1;
+    }
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+      std::cerr << "syndds_train: cannot create --output " << output << ": " << ec.message()
+                << "\n";
+      return 1;
+    }
+    learn::ppo::Trainer trainer(factory, options);
+    std::string rows = std::string(kHeader) + "\n";
+    if (resume) {
+      if (!fs::exists(checkpoint)) {
+        std::cerr << "syndds_train: --resume: no " << checkpoint.string() << "\n";
+        return 1;
+      }
+      trainer.load_checkpoint(checkpoint.string());
+      rows = kept_rows(csv, trainer.updates());
+      std::printf("resumed from %s after update %d (%lld interactions)\n",
+                  checkpoint.string().c_str(), trainer.updates(),
+                  static_cast<long long>(trainer.interactions()));
+    } else if (fs::exists(checkpoint)) {
+      std::cerr << "syndds_train: " << checkpoint.string()
+                << " exists: pass --resume to continue it or choose another --output\n";
+      return 1;
+    }
+    std::ofstream out(csv, std::ios::binary | std::ios::trunc);
+    if (!out || !(out << rows) || !out.flush()) {
+      std::cerr << "syndds_train: cannot write " << csv.string() << "\n";
+      return 1;
+    }
+    std::printf("%s: %d interactions per update (%d copies), network %s, seed %llu\n",
+                env_name.c_str(), trainer.rollout_size(), options.copies,
+                trainer.model().kind().c_str(), static_cast<unsigned long long>(options.seed));
+    const auto t0 = std::chrono::steady_clock::now();
+    const int first = trainer.updates();
+    while (trainer.updates() < updates) {
+      const learn::ppo::UpdateStats s = trainer.update();
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      trainer.save_checkpoint(checkpoint.string());
+      out << s.update << ',' << s.interactions << ',' << s.episodes << ',' << number(s.mean_return)
+          << ',' << number(s.moving_average_return) << ',' << number(s.policy_loss) << ','
+          << number(s.value_loss) << ',' << number(s.entropy) << ',' << number(s.approx_kl) << ','
+          << number(s.clip_fraction) << ',' << number(wall) << '\n';
+      out.flush();
+      const double left = wall / (s.update - first) * (updates - s.update);
+      std::printf("update %d/%d  interactions %lld  episodes %lld  mean return %s  (last %d: %s)"
+                  "  time left %s\n",
+                  s.update, updates, static_cast<long long>(s.interactions),
+                  static_cast<long long>(s.episodes), number(s.mean_return).c_str(),
+                  options.return_window, number(s.moving_average_return).c_str(),
+                  duration(left).c_str());
+      std::fflush(stdout);
+    }
+    if (!out) {
+      std::cerr << "syndds_train: cannot write " << csv.string() << "\n";
+      return 1;
+    }
+    trainer.save_checkpoint(checkpoint.string());
+    trainer.save_policy((dir / "policy.pt").string());
+    std::printf("wrote %s, %s, %s\n", csv.string().c_str(), checkpoint.string().c_str(),
+                (dir / "policy.pt").string().c_str());
+    const std::string script = std::string(SYNDDS_SOURCE_TOOLS_DIR) + "/training_curve.py";
+    if (std::system("/usr/bin/python3 -c 'import matplotlib' > /dev/null 2>&1") == 0) {
+      const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir.string() + "'";
+      if (std::system(cmd.c_str()) != 0) {
+        std::cerr << "syndds_train: " << script << " failed\n";
+        return 1;
+      }
+    } else {
+      std::printf("no training_curve.png: install python3-matplotlib (launch_scripts/setup.sh "
+                  "does), then run %s %s\n",
+                  script.c_str(), dir.string().c_str());
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "syndds_train: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
