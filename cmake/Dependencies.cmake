@@ -12,6 +12,16 @@ find_package(embree 3 REQUIRED)
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs videoio)
 pkg_check_modules(ODE REQUIRED IMPORTED_TARGET ode)
 find_program(FASTDDSGEN fastddsgen REQUIRED)
+# The Python binding is built for Debian's python3 (whose python3-numpy and python3-dev
+# setup.sh installs), not whichever python3 comes first on PATH.
+if(NOT DEFINED Python3_EXECUTABLE AND EXISTS /usr/bin/python3)
+  set(Python3_EXECUTABLE /usr/bin/python3)
+endif()
+find_package(Python3 COMPONENTS Interpreter Development.Module REQUIRED)
+set(PYBIND11_FINDPYTHON ON)
+find_package(pybind11 2.10 CONFIG REQUIRED)
+# libtorch (Debian's libtorch-dev): the PPO trainer and the learned-policy controller.
+find_package(Torch REQUIRED)
 if(SYNDDS_BUILD_TESTS)
   find_package(GTest REQUIRED)
 endif()

@@ -23,7 +23,7 @@ PACKAGES=(
   libeigen3-dev libode-dev libembree-dev
   libopencv-dev libyaml-cpp-dev libspdlog-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libtorch-dev
+  libtorch-dev pybind11-dev python3-dev
   cyclonedds-dev cyclonedds-tools
   python3 python3-matplotlib python3-numpy
   iproute2 util-linux procps

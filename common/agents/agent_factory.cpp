@@ -5,10 +5,23 @@
 #include "agents/sensor_agent.hpp"
 
 #include <filesystem>
+#include <map>
 #include "agents/vehicle_agent.hpp"
 #include "core/error.hpp"
 
 namespace syndds::agents {
+namespace {
+
+std::map<std::string, ControllerFactory>& controller_types() {
+  static std::map<std::string, ControllerFactory> types;
+  return types;
+}
+
+}  // namespace
+
+void register_controller_type(const std::string& type, ControllerFactory factory) {
+  controller_types()[type] = std::move(factory);
+}
 
 proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& member_id,
                            const record::RecorderOptions& recorder_options) {
@@ -21,6 +34,15 @@ proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& membe
     }
     if (member_id == scenario::controller_member(v.id) && v.controller.type == "follower") {
       return std::make_unique<FollowerAgent>(s, v);
+    }
+    if (member_id == scenario::controller_member(v.id) && v.controller.type == "policy") {
+      const auto f = controller_types().find(v.controller.type);
+      if (f == controller_types().end()) {
+        throw ConfigError(s.file + ": vehicle " + v.id + ": controller type '" + v.controller.type +
+                          "' runs in syndds_controller or syndds_sim (this program does not "
+                          "load learned policies)");
+      }
+      return f->second(s, v);
     }
     if (member_id == scenario::sensor_member(v.id) && v.has_rendered_sensors()) {
       return std::make_unique<SensorAgent>(

@@ -1,6 +1,7 @@
 #pragma once
 // Builds the agents a scenario declares: all of them (single-process runs) or one member
 // (one service process).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -9,6 +10,13 @@
 #include "scenario/scenario.hpp"
 
 namespace syndds::agents {
+
+/// Makes the controller agent of a vehicle whose controller type lives outside this library.
+using ControllerFactory = std::function<proto::AgentPtr(const scenario::Scenario&,
+                                                        const scenario::VehicleConfig&)>;
+/// Lets make_agent build controllers of `type` in this process (`policy`: the learned-policy
+/// controller, registered by the programs that link libtorch; see learn/policy_controller.hpp).
+void register_controller_type(const std::string& type, ControllerFactory factory);
 
 /// The agent for `member_id` ("vehicle/v1", "controller/v1", "recorder").
 /// Throws ConfigError if the scenario declares no such member or it is not built in (external).

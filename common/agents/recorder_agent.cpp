@@ -185,7 +185,7 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
     vehicle_ids_.push_back(v.id);
     totals_[v.id];
     v2v = v2v || v.v2v.has_value();
-    if (v.controller.type == "follower") followers_.emplace_back(v.id, v.controller.convoy.leader);
+    if (v.controller.follows()) followers_.emplace_back(v.id, v.controller.convoy.leader);
     for (const auto& m : {scenario::vehicle_member(v.id), scenario::controller_member(v.id),
                           scenario::external_member(v.id), scenario::sensor_member(v.id)}) {
       vehicle_of_member_[m] = v.id;

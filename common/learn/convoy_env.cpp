@@ -42,29 +42,39 @@ ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario&,
       member_id_(scenario::external_member(follower.id)),
       builder_(convoy_observation_config(follower, leader_id)) {}
 
+vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake) {
+  const double s = std::isnan(steering) ? 0.0 : std::clamp(steering, -1.0, 1.0);
+  const double p = std::isnan(throttle_brake) ? 0.0 : std::clamp(throttle_brake, -1.0, 1.0);
+  vehicle::DriverInputs cmd;
+  cmd.steering = s;
+  cmd.throttle = std::max(p, 0.0);
+  cmd.braking = std::max(-p, 0.0);
+  return cmd;
+}
+
+std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,
+                                                             const std::string& leader_id) {
+  return {{proto::Topic::gps_fix, vehicle_id},
+          {proto::Topic::magnetometer, vehicle_id},
+          {proto::Topic::wheel_speeds, vehicle_id},
+          {proto::Topic::image, vehicle_id},
+          {proto::Topic::v2v_message, leader_id}};
+}
+
 std::vector<proto::Subscription> ConvoyDriverAgent::subscriptions() const {
-  return {{proto::Topic::gps_fix, vehicle_id_},
-          {proto::Topic::magnetometer, vehicle_id_},
-          {proto::Topic::wheel_speeds, vehicle_id_},
-          {proto::Topic::image, vehicle_id_},
-          {proto::Topic::v2v_message, leader_id_}};
+  return convoy_driver_subscriptions(vehicle_id_, leader_id_);
 }
 
 void ConvoyDriverAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                              proto::FrameSamples& outputs) {
   builder_.consume(inputs);
-  vehicle::DriverInputs cmd;
-  cmd.steering = steering_;
-  cmd.throttle = std::max(throttle_brake_, 0.0);
-  cmd.braking = std::max(-throttle_brake_, 0.0);
-  outputs.driver_commands.push_back(
-      agents::command_message(vehicle_id_, member_id_, ctx.frame, cmd));
+  outputs.driver_commands.push_back(agents::command_message(
+      vehicle_id_, member_id_, ctx.frame, convoy_driver_inputs(steering_, throttle_brake_)));
 }
 
 void ConvoyDriverAgent::set_action(double steering, double throttle_brake) {
-  // NaN is not a command: it becomes 0 (straight ahead, coasting).
-  steering_ = std::isnan(steering) ? 0.0 : std::clamp(steering, -1.0, 1.0);
-  throttle_brake_ = std::isnan(throttle_brake) ? 0.0 : std::clamp(throttle_brake, -1.0, 1.0);
+  steering_ = steering;  // clamped when written (convoy_driver_inputs)
+  throttle_brake_ = throttle_brake;
 }
 
 // ---- ConvoyEnv ------------------------------------------------------------------------------

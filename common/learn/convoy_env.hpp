@@ -47,6 +47,16 @@ struct ConvoyEnvOptions {
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
 };
 
+/// The driver inputs of a convoy action: steering in [-1, 1] (positive left) and one
+/// throttle/brake value in [-1, 1] (positive throttle, negative brake), clamped; NaN is 0
+/// (straight ahead, coasting).
+vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake);
+
+/// The subscriptions of a convoy follower's controller: its own GPS, compass, tachometer and
+/// camera samples and the V2V messages of the vehicle it follows.
+std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,
+                                                             const std::string& leader_id);
+
 /// The external/<follower> member: observation from its inputs, the action as its command.
 class ConvoyDriverAgent final : public proto::Agent {
  public:

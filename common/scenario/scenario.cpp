@@ -230,10 +230,32 @@ control::SpeedProfile parse_speed(const YamlNode& node) {
   return s;
 }
 
-ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world) {
+// A learned policy's file: under the config directory (config/policies/...) or next to the
+// scenario; read through `files` so that every process of a run drives with the same bytes.
+std::string resolve_policy_file(const YamlNode& node, const std::string& config_dir,
+                                ConfigFiles& files) {
+  const std::string name = node.as_string();
+  fs::path file = fs::path(config_dir) / name;
+  if (!fs::exists(file)) file = fs::path(node.file()).parent_path() / name;
+  if (!fs::exists(file)) {
+    node.fail("policy file not found: " + name + " (looked in " + config_dir + " and next to " +
+              node.file() + ")");
+  }
+  files.read(file.string(), node.path());
+  return file.string();
+}
+
+ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world,
+                                  const std::string& config_dir, ConfigFiles& files) {
   MapReader m(node);
   ControllerConfig c;
-  c.type = m.choice("type", std::nullopt, {"path_follower", "follower", "external", "none"});
+  c.type = m.choice("type", std::nullopt,
+                    {"path_follower", "follower", "policy", "external", "none"});
+  if (c.type == "policy") {
+    c.convoy.leader = m.required("follow").as_string();
+    c.policy_file = resolve_policy_file(m.required("model"), config_dir, files);
+    c.policy_period_s = m.number("period_s", c.policy_period_s, 0.001, 10.0);
+  }
   if (c.type == "follower") {
     auto& f = c.convoy;
     f.leader = m.required("follow").as_string();
@@ -389,7 +411,16 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   }
   std::optional<YamlNode> controller_node = m.optional("controller");
   if (controller_node) {
-    v.controller = parse_controller(*controller_node, world);
+    v.controller = parse_controller(*controller_node, world, config_dir, files);
+    if (v.controller.type == "policy") {
+      const double frames = v.controller.policy_period_s / time.heartbeat_s;
+      if (frames < 1.0 - 1e-9 || std::abs(frames - std::round(frames)) > 1e-6) {
+        std::ostringstream msg;
+        msg << "period_s (" << v.controller.policy_period_s
+            << " s) must be a whole multiple of time.heartbeat_s (" << time.heartbeat_s << " s)";
+        controller_node->fail(msg.str());
+      }
+    }
   } else {
     v.controller.type = "none";
   }
@@ -412,7 +443,9 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
     }
   };
   if (v2v_node) needs_own_sensors(*v2v_node, "v2v");
-  if (v.controller.type == "follower") needs_own_sensors(*controller_node, "a follower controller");
+  if (v.controller.follows()) {
+    needs_own_sensors(*controller_node, ("a " + v.controller.type + " controller").c_str());
+  }
   if (start) {
     v.start = parse_start(*start, world);
   } else if (v.controller.type == "path_follower") {
@@ -526,7 +559,7 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
     const auto nodes = vehicles.elements();
     for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
       const auto& v = s.vehicles[i];
-      if (v.controller.type != "follower") continue;
+      if (!v.controller.follows()) continue;
       const std::string& leader = v.controller.convoy.leader;
       const VehicleConfig* l = s.find_vehicle(leader);
       if (!l || leader == v.id) {
@@ -542,7 +575,7 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
     for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
       std::set<std::string> seen = {s.vehicles[i].id};
       std::string chain = s.vehicles[i].id;
-      for (const VehicleConfig* v = &s.vehicles[i]; v->controller.type == "follower";) {
+      for (const VehicleConfig* v = &s.vehicles[i]; v->controller.follows();) {
         v = s.find_vehicle(v->controller.convoy.leader);
         chain += " -> " + v->id;
         if (!seen.insert(v->id).second) {

@@ -88,13 +88,17 @@ struct TerrainConfig {
 };
 
 struct ControllerConfig {
-  std::string type = "path_follower";  // path_follower | follower | external | none
+  std::string type = "path_follower";  // path_follower | follower | policy | external | none
   std::vector<Vec2> waypoints;         // path_follower
   bool closed = false;
   control::PathFollowerConfig follower;
-  convoy::FollowerConfig convoy;       // follower: the vehicle followed, gaps, gains
-  /// Runs as the member controller/<id> (path_follower and follower).
-  bool is_builtin() const { return type == "path_follower" || type == "follower"; }
+  convoy::FollowerConfig convoy;       // follower and policy: the vehicle followed (convoy.leader)
+  std::string policy_file;             // policy: the learned policy (syndds_train's policy.pt)
+  double policy_period_s = 0.1;        // policy: a new action every period (as in training)
+  /// Runs as the member controller/<id> (path_follower, follower and policy).
+  bool is_builtin() const { return type == "path_follower" || follows(); }
+  /// Follows another vehicle of the scenario (convoy.leader) from its V2V messages.
+  bool follows() const { return type == "follower" || type == "policy"; }
 };
 
 /// The sensors a vehicle carries (`sensors:` of a vehicle entry).

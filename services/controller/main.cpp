@@ -1,10 +1,13 @@
-// syndds_controller: a path-following driver for one vehicle, as a barrier member.
+// syndds_controller: the driver of one vehicle (path follower, convoy follower or learned
+// policy), as a barrier member.
 #include "common/member_main.hpp"
+#include "learn/policy_controller.hpp"
 
 int main(int argc, char** argv) {
+  syndds::learn::register_policy_controller();
   std::string vehicle;
   return syndds::service::member_main(
-      "controller", "syndds controller: drives one vehicle along its scenario path", argc, argv,
+      "controller", "syndds controller: drives one vehicle (path follower, convoy follower or learned policy)", argc, argv,
       [&](CLI::App& app) {
         app.add_option("--vehicle", vehicle, "Vehicle id from the scenario")->required();
       },

@@ -8,12 +8,14 @@
 
 #include "agents/agent_factory.hpp"
 #include "common/service_cli.hpp"
+#include "learn/policy_controller.hpp"
 #include "protocol/local_runner.hpp"
 
 using namespace syndds;
 namespace sdds = syndds::dds;
 
 int main(int argc, char** argv) {
+  learn::register_policy_controller();
   CLI::App app{"syndds single-process runner: all agents of a scenario in one process"};
   service::CommonArgs common;
   service::add_common_options(app, common);

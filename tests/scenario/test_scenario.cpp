@@ -251,6 +251,19 @@ vehicles:
   EXPECT_NE(error_of(circle).find("vehicles[0]: controller.follow: follow chain without a leader: l1 -> f1 -> l1"),
             std::string::npos)
       << error_of(circle);
+  // A learned follower: its policy file must exist, its period fit the heartbeat.
+  const std::string policy = replaced(
+      follower, "controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_m: 8}}",
+      "controller: {type: policy, follow: l1, model: no_such_policy.pt}");
+  EXPECT_NE(error_of(leader + policy).find("controller.model: policy file not found: no_such_policy.pt"),
+            std::string::npos)
+      << error_of(leader + policy);
+  const std::string odd_period = replaced(policy, "model: no_such_policy.pt",
+                                          "model: vehicles/hmmwv.yaml, period_s: 0.015");
+  EXPECT_NE(error_of(leader + odd_period)
+                .find("period_s (0.015 s) must be a whole multiple of time.heartbeat_s (0.01 s)"),
+            std::string::npos)
+      << error_of(leader + odd_period);
 }
 
 // The vehicle process simulates the rig's interoceptive sensors only: it builds no camera or

@@ -1,0 +1,86 @@
+#include "learn/policy_controller.hpp"
+
+#include <ATen/Parallel.h>
+
+#include <cmath>
+
+#include "agents/agent_factory.hpp"
+#include "agents/controller_agent.hpp"
+#include "core/error.hpp"
+#include "learn/convoy_env.hpp"
+
+namespace syndds::learn {
+namespace {
+
+std::string describe(const ObservationSpace& s) {
+  std::string out = std::to_string(s.vector.size()) + " numbers";
+  if (s.image) {
+    out += " and a " + std::to_string(s.image->width) + " x " + std::to_string(s.image->height) +
+           " image";
+  }
+  return out;
+}
+
+}  // namespace
+
+PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
+                                             const scenario::VehicleConfig& v)
+    : vehicle_id_(v.id),
+      leader_id_(v.controller.convoy.leader),
+      member_id_(scenario::controller_member(v.id)),
+      builder_(convoy_observation_config(v, v.controller.convoy.leader)) {
+  const std::string where = s.file + ": vehicle " + v.id + ": controller.model " +
+                            v.controller.policy_file + ": ";
+  // One thread: the same action in every process, whatever its thread pool would do.
+  at::set_num_threads(1);
+  try {
+    policy_.load(v.controller.policy_file);
+  } catch (const std::exception& e) {
+    throw ConfigError(where + "not a policy file (" + e.what() + ")");
+  }
+  const ObservationSpace expected = builder_.space();
+  const ObservationSpace& got = policy_.observation_space();
+  const bool same_image = expected.image.has_value() == got.image.has_value() &&
+                          (!got.image || (got.image->width == expected.image->width &&
+                                          got.image->height == expected.image->height &&
+                                          got.image->channels == expected.image->channels));
+  if (got.vector.size() != expected.vector.size() || !same_image) {
+    throw ConfigError(where + "the policy observes " + describe(got) +
+                      ", the vehicle's sensors give " + describe(expected) +
+                      " (a camera policy needs the vehicle's camera, a low-dimensional one none)");
+  }
+  if (policy_.action_space().size() != 2) {
+    throw ConfigError(where + "the policy has " + std::to_string(policy_.action_space().size()) +
+                      " actions; a convoy follower's are 2 (steering, throttle/brake)");
+  }
+  period_frames_ = std::llround(v.controller.policy_period_s / s.time.heartbeat_s);
+}
+
+std::vector<proto::Subscription> PolicyControllerAgent::subscriptions() const {
+  return convoy_driver_subscriptions(vehicle_id_, leader_id_);
+}
+
+void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                                 proto::FrameSamples& outputs) {
+  // The observation as it stood after the previous frame (as the environment returns it).
+  if (builder_.ready() && (actions_ == 0 || since_action_ >= period_frames_)) {
+    const std::vector<float> a = policy_.act(builder_.observation(), true);
+    steering_ = a[0];
+    throttle_brake_ = a[1];
+    since_action_ = 0;
+    ++actions_;
+  }
+  builder_.consume(inputs);
+  outputs.driver_commands.push_back(agents::command_message(
+      vehicle_id_, member_id_, ctx.frame, convoy_driver_inputs(steering_, throttle_brake_)));
+  ++since_action_;
+}
+
+void register_policy_controller() {
+  agents::register_controller_type(
+      "policy", [](const scenario::Scenario& s, const scenario::VehicleConfig& v) {
+        return std::make_unique<PolicyControllerAgent>(s, v);
+      });
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,54 @@
+#pragma once
+// The learned-policy controller member (`controller: {type: policy, model: FILE, follow: ID}`):
+// a convoy follower driven by a policy trained on the convoy-follow environment, from the same
+// observation built from the same samples (its vehicle's GPS, compass, tachometer and camera,
+// the followed vehicle's V2V) with the same timing: until every input has arrived it holds
+// the brake; then, in the frame after the observation is complete and every `period_s` after
+// (0.1 s, the environment's control period), it takes the policy's deterministic action from
+// the observation as it stood after the previous frame, and writes it as its DriverCommand
+// every frame. Inference runs on one thread, so every process computes the same actions.
+#include <cstdint>
+#include <string>
+
+#include "learn/convoy_observation.hpp"
+#include "learn/ppo/policy.hpp"
+#include "protocol/agent.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::learn {
+
+class PolicyControllerAgent final : public proto::Agent {
+ public:
+  /// Loads the policy file and checks it against the vehicle's sensors; ConfigError naming the
+  /// scenario file, the vehicle and the policy file if it does not fit.
+  PolicyControllerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);
+
+  const std::string& member_id() const override { return member_id_; }
+  std::string vehicle_key() const override { return vehicle_id_; }
+  proto::MemberKind kind() const override { return proto::MemberKind::controller; }
+  std::vector<proto::Subscription> subscriptions() const override;
+  std::vector<proto::Topic> publications() const override { return {proto::Topic::driver_command}; }
+  void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+            proto::FrameSamples& outputs) override;
+
+  /// Actions taken so far (one per control period once the observation was complete).
+  std::uint64_t actions_taken() const { return actions_; }
+
+ private:
+  std::string vehicle_id_;
+  std::string leader_id_;
+  std::string member_id_;
+  ConvoyObservationBuilder builder_;
+  Policy policy_;
+  std::int64_t period_frames_ = 10;
+  std::int64_t since_action_ = 0;
+  std::uint64_t actions_ = 0;
+  double steering_ = 0.0;
+  double throttle_brake_ = -1.0;  // the brake until the first action
+};
+
+/// Lets this process's agent factory build `controller: {type: policy}` members (the programs
+/// that run controllers call it at start; others leave libtorch unloaded).
+void register_policy_controller();
+
+}  // namespace syndds::learn

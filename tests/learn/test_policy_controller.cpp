@@ -1,0 +1,154 @@
+// The learned-policy controller member against the environment it was trained in: the same
+// episode driven by the environment (actions from Policy::act on its observations) and by a
+// scenario whose follower has `controller: {type: policy}` (the agent builds the observation
+// from its inputs and acts every 0.1 s) gives the same follower track bit for bit; a policy that
+// does not fit the vehicle's sensors is refused naming the files.
+#include <gtest/gtest.h>
+
+#include <ATen/Parallel.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "agents/agent_factory.hpp"
+#include "core/error.hpp"
+#include "core/yaml.hpp"
+#include "learn/convoy_env.hpp"
+#include "learn/policy_controller.hpp"
+#include "learn/ppo/trainer.hpp"
+#include "protocol/local_runner.hpp"
+#include "scenario/scenario.hpp"
+
+namespace fs = std::filesystem;
+using namespace syndds;
+using namespace syndds::learn;
+
+namespace {
+
+fs::path test_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::temp_directory_path() /
+                       (std::string("syndds-") + info->test_suite_name() + "-" + info->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// An untrained (randomly initialised) policy for the environment `options` describe: its
+// actions are arbitrary but deterministic, which is all the comparison needs; the mean head's
+// bias makes it drive (a little left, some throttle) rather than stand.
+std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
+  ppo::TrainerOptions t;
+  t.seed = 3;
+  ppo::Trainer trainer([options] { return make_convoy_env(options); }, t);
+  {
+    torch::NoGradGuard no_grad;
+    bool found = false;
+    for (auto& p : trainer.model().named_parameters()) {
+      if (p.key() == "actor.4.bias" || p.key() == "mean.bias") {
+        p.value().copy_(torch::tensor({0.1f, 0.6f}));
+        found = true;
+      }
+    }
+    EXPECT_TRUE(found) << "no mean-head bias in the network";
+  }
+  const std::string path = (dir / "policy.pt").string();
+  trainer.save_policy(path);
+  return path;
+}
+
+// The follower's positions, frame by frame, in the scenario of the environment's episode
+// `seed` whose follower is driven by the policy controller.
+std::vector<proto::VehicleStateMsg> run_with_controller(const ConvoyEnvOptions& options,
+                                                         std::uint64_t seed,
+                                                         const std::string& policy,
+                                                         std::int64_t frames) {
+  ConvoyScenarioOptions so;
+  so.terrain = options.terrain;
+  so.dynamics = options.dynamics;
+  so.camera = options.camera;
+  so.target_speed_mps = options.target_speed_mps;
+  so.end_time_s = 0.01 * options.frames_per_step * (options.max_steps + 100);
+  so.seed = seed;
+  std::string yaml = convoy_scenario_yaml(make_convoy_episode(seed, options.episode), so);
+  const std::string external = "    controller: {type: external}\n";
+  yaml.replace(yaml.find(external), external.size(),
+               "    controller: {type: policy, follow: leader, model: " + policy + "}\n");
+  const std::string file = scenario::default_config_dir() + "/scenarios/convoy_env.yaml";
+  const auto s = scenario::parse_scenario(YamlNode::load_string(yaml, file), yaml, {},
+                                          scenario::default_config_dir());
+  proto::FrameStepper stepper(agents::make_all_agents(s, {}), s.time.heartbeat_s);
+  std::vector<proto::VehicleStateMsg> track;
+  for (std::int64_t f = 0; f < frames; ++f) {
+    stepper.step();
+    for (const auto& v : stepper.last_outputs().vehicle_states) {
+      if (v.vehicle_id == kConvoyFollowerId) track.push_back(v);
+    }
+  }
+  return track;
+}
+
+}  // namespace
+
+TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
+  register_policy_controller();
+  at::set_num_threads(1);
+  const fs::path dir = test_dir();
+  ConvoyEnvOptions options;
+  const std::string policy_file = write_policy(dir, options);
+  Policy policy;
+  policy.load(policy_file);
+
+  // The environment: its own driver agent, the policy's deterministic actions; the follower's
+  // state at the end of every step (frames from 0, as in a run).
+  ConvoyEnv env(options);
+  const std::uint64_t seed = 21;
+  Observation obs = env.reset(seed);
+  const std::vector<float> first_action = policy.act(obs, true);
+  std::vector<proto::VehicleStateMsg> env_states = {env.follower_state()};
+  for (int k = 0; k < 40; ++k) {  // 4 s
+    const StepResult r = env.step(policy.act(obs, true));
+    obs = r.observation;
+    env_states.push_back(env.follower_state());
+    ASSERT_FALSE(r.terminated || r.truncated) << "the episode ended early; pick another seed";
+  }
+
+  const auto track =
+      run_with_controller(options, seed, policy_file, env_states.back().frame + 1);
+  ASSERT_EQ(track.size(), static_cast<std::size_t>(env_states.back().frame + 1));
+  for (const auto& e : env_states) {
+    const auto& t = track.at(static_cast<std::size_t>(e.frame));
+    ASSERT_EQ(t.frame, e.frame);
+    ASSERT_EQ(t.pose.position, e.pose.position) << "frame " << e.frame;
+    ASSERT_EQ(t.pose.orientation.coeffs(), e.pose.orientation.coeffs()) << "frame " << e.frame;
+    ASSERT_EQ(t.linear_velocity, e.linear_velocity) << "frame " << e.frame;
+  }
+  // The policy moved the follower (a track standing still would prove nothing).
+  EXPECT_GT((track.back().pose.position - track.front().pose.position).norm(), 0.5);
+  EXPECT_NE(first_action[0], 0.0f);
+}
+
+TEST(PolicyController, APolicyThatDoesNotFitTheSensorsIsRefused) {
+  register_policy_controller();
+  const fs::path dir = test_dir();
+  ConvoyEnvOptions camera;
+  camera.camera = true;
+  const std::string policy_file = write_policy(dir, camera);  // sees an image
+  ConvoyEnvOptions low_dim;  // the vehicle has no camera
+  try {
+    run_with_controller(low_dim, 1, policy_file, 1);
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("convoy_env.yaml: vehicle follower: controller.model " + policy_file),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("the policy observes 4 numbers and a 80 x 45 image, the vehicle's "
+                        "sensors give 4 numbers"),
+              std::string::npos)
+        << what;
+  }
+  // Not a policy file at all.
+  std::ofstream(dir / "junk.pt") << "not a model";
+  EXPECT_THROW(run_with_controller(low_dim, 1, (dir / "junk.pt").string(), 1), ConfigError);
+}

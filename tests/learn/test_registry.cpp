@@ -1,0 +1,66 @@
+// Environments by name (syndds_train --env, syndds.make in Python): the names, the convoy
+// environment's options, and errors that name the environment, the option and the value.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "learn/registry.hpp"
+
+using namespace syndds::learn;
+
+namespace {
+
+std::string error_of(const std::string& name, const EnvOptions& options) {
+  try {
+    env_factory(name, options);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Registry, KnowsEveryEnvironment) {
+  EXPECT_EQ(env_names(), (std::vector<std::string>{"convoy_follow", "double_integrator"}));
+  EXPECT_EQ(make_env("double_integrator")->action_space().size(), 1u);
+  const auto convoy = make_env("convoy_follow");
+  EXPECT_EQ(convoy->action_space().size(), 2u);
+  EXPECT_EQ(convoy->observation_space().vector.size(), 4u);
+  EXPECT_FALSE(convoy->observation_space().image.has_value());
+}
+
+TEST(Registry, ConvoyOptionsReachTheEnvironment) {
+  const auto camera = make_env("convoy_follow", {{"camera", "true"}, {"terrain", "scm_soft"}});
+  ASSERT_TRUE(camera->observation_space().image.has_value());
+  EXPECT_EQ(camera->observation_space().image->width, 80);
+  EXPECT_EQ(camera->observation_space().image->height, 45);
+  // A step limit of 3: the third step truncates.
+  const auto short_env = make_env("convoy_follow", {{"max_steps", "3"}, {"dynamics", "reduced"}});
+  short_env->reset(1);
+  const std::vector<float> brake = {0.0f, -1.0f};
+  EXPECT_FALSE(short_env->step(brake).truncated);
+  EXPECT_FALSE(short_env->step(brake).truncated);
+  EXPECT_TRUE(short_env->step(brake).truncated);
+}
+
+TEST(Registry, MistakesAreNamed) {
+  EXPECT_NE(error_of("cartpole", {}).find("unknown environment cartpole (known: convoy_follow, "
+                                          "double_integrator)"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"terain", "rigid"}})
+                .find("environment convoy_follow has no option terain"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"terrain", "sand"}})
+                .find("option terrain: 'sand' is not one of rigid, scm_hard, scm_soft"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"camera", "yes"}}).find("option camera: 'yes'"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"target_speed", "fast"}})
+                .find("option target_speed: 'fast' is not a number"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"target_speed", "50"}}).find("outside"), std::string::npos);
+  EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
+            std::string::npos);
+}
