@@ -52,6 +52,17 @@ vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brak
   return cmd;
 }
 
+std::vector<float> convoy_heuristic_action(const Observation& o) {
+  const double north = o.vector.at(0), east = o.vector.at(1), heading = o.vector.at(2);
+  const double closing = o.vector.at(3);
+  const double bearing = std::atan2(east, north);    // clockwise from north, as the compass
+  const double off = wrap_angle(bearing - heading);  // > 0: the leader is to the right
+  const double gap = std::hypot(north, east);
+  const double steer = std::clamp(-2.0 * off, -1.0, 1.0);  // steering > 0 turns left
+  const double pedal = std::clamp(0.15 * (gap - 15.0) - 0.3 * closing, -1.0, 1.0);
+  return {static_cast<float>(steer), static_cast<float>(pedal)};
+}
+
 std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,
                                                              const std::string& leader_id) {
   return {{proto::Topic::gps_fix, vehicle_id},

@@ -52,6 +52,11 @@ struct ConvoyEnvOptions {
 /// (straight ahead, coasting).
 vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake);
 
+/// A hand-written follower on the convoy observation (the baseline a learned policy has to
+/// beat): steer toward the leader (2 x its bearing off the nose), pedal by the gap to the
+/// optimal 15 m less the closing speed (0.15 (gap - 15) - 0.3 closing).
+std::vector<float> convoy_heuristic_action(const Observation& observation);
+
 /// The subscriptions of a convoy follower's controller: its own GPS, compass, tachometer and
 /// camera samples and the V2V messages of the vehicle it follows.
 std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,

@@ -96,6 +96,20 @@ ConvoyEnvOptions convoy_options(const EnvOptions& options) {
 
 }  // namespace
 
+EnvOptions parse_env_options(const std::vector<std::string>& key_values) {
+  EnvOptions out;
+  for (const auto& kv : key_values) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      throw std::invalid_argument("'" + kv + "': expected KEY=VALUE");
+    }
+    if (!out.emplace(kv.substr(0, eq), kv.substr(eq + 1)).second) {
+      throw std::invalid_argument("'" + kv + "': " + kv.substr(0, eq) + " given twice");
+    }
+  }
+  return out;
+}
+
 std::vector<std::string> env_names() { return {"convoy_follow", "double_integrator"}; }
 
 EnvFactory env_factory(const std::string& name, const EnvOptions& options) {

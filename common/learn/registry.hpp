@@ -13,6 +13,10 @@ namespace syndds::learn {
 /// Options of an environment, as text (name -> value), e.g. from `--env-option key=value`.
 using EnvOptions = std::map<std::string, std::string>;
 
+/// Options from KEY=VALUE texts (`--env-option`); std::invalid_argument naming a text without
+/// '=' or a key given twice.
+EnvOptions parse_env_options(const std::vector<std::string>& key_values);
+
 /// The names make_env knows, sorted.
 std::vector<std::string> env_names();
 

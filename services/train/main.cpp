@@ -106,13 +106,11 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   learn::EnvOptions env_options;
-  for (const auto& kv : env_option_args) {
-    const auto eq = kv.find('=');
-    if (eq == std::string::npos || eq == 0) {
-      std::cerr << "syndds_train: --env-option " << kv << ": expected KEY=VALUE\n";
-      return 1;
-    }
-    env_options[kv.substr(0, eq)] = kv.substr(eq + 1);
+  try {
+    env_options = learn::parse_env_options(env_option_args);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "syndds_train: --env-option " << e.what() << "\n";
+    return 1;
   }
   try {
     const fs::path dir(output);

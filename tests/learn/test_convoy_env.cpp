@@ -24,17 +24,8 @@ ConvoyEnvOptions test_options() {
   return o;
 }
 
-// Steer toward the leader, throttle by the gap: the baseline a learned policy has to beat.
-std::vector<float> hand_policy(const Observation& o) {
-  const double north = o.vector[0], east = o.vector[1], heading = o.vector[2];
-  const double closing = o.vector[3];
-  const double bearing = std::atan2(east, north);  // clockwise from north, as the compass
-  const double off = wrap_angle(bearing - heading);  // > 0: the leader is to the right
-  const double gap = std::hypot(north, east);
-  const double steer = std::clamp(-2.0 * off, -1.0, 1.0);  // steering > 0 turns left
-  const double pedal = std::clamp(0.15 * (gap - 15.0) - 0.3 * closing, -1.0, 1.0);
-  return {static_cast<float>(steer), static_cast<float>(pedal)};
-}
+// The hand-written follower: the baseline a learned policy has to beat.
+std::vector<float> hand_policy(const Observation& o) { return convoy_heuristic_action(o); }
 
 struct EpisodeResult {
   double total = 0.0;

@@ -3,10 +3,12 @@
 // number of copies and threads (copy i's seeds depend on i only), with automatic resets.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
 #include <vector>
 
 #include "learn/double_integrator.hpp"
+#include "learn/evaluate.hpp"
 #include "learn/vector_env.hpp"
 
 using namespace syndds::learn;
@@ -123,4 +125,40 @@ TEST(DoubleIntegrator, DoingNothingAccumulatesTheQuadraticCost) {
   const std::vector<float> none = {0.0f};
   for (int k = 0; k < 100; ++k) total += env.step(none).reward;
   EXPECT_NEAR(total, expected, 1e-9);
+}
+
+// evaluate(): episodes seeded first_seed, first_seed + 1, ...; the mean and spread of their
+// returns; zero and random baselines.
+TEST(Evaluate, EpisodesWithConsecutiveSeedsAndTheirStatistics) {
+  DoubleIntegrator env;
+  const auto zero = zero_policy(env.action_space());
+  const EvaluationSummary s = evaluate(env, zero, 40, 3);
+  ASSERT_EQ(s.episodes.size(), 3u);
+  double sum = 0.0, sum2 = 0.0;
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(s.episodes[k].seed, 40 + k);
+    EXPECT_EQ(s.episodes[k].steps, 100);
+    EXPECT_FALSE(s.episodes[k].terminated);
+    // The same episode by hand.
+    DoubleIntegrator again;
+    again.reset(40 + k);
+    double total = 0.0;
+    for (int i = 0; i < 100; ++i) total += again.step(std::vector<float>{0.0f}).reward;
+    EXPECT_EQ(s.episodes[k].total_reward, total);
+    sum += total;
+    sum2 += total * total;
+  }
+  EXPECT_NEAR(s.mean_return, sum / 3, 1e-9);
+  EXPECT_NEAR(s.std_return, std::sqrt(sum2 / 3 - (sum / 3) * (sum / 3)), 1e-6);
+  EXPECT_EQ(s.mean_steps, 100.0);
+  EXPECT_EQ(s.terminated, 0);
+  // Random actions stay in the box and depend only on their seed.
+  const auto a = random_policy(env.action_space(), 5), b = random_policy(env.action_space(), 5);
+  for (int i = 0; i < 100; ++i) {
+    const auto x = a({}), y = b({});
+    ASSERT_EQ(x, y);
+    ASSERT_GE(x[0], -1.0f);
+    ASSERT_LT(x[0], 1.0f);
+  }
+  EXPECT_THROW(evaluate(env, zero, 1, 0), std::invalid_argument);
 }

@@ -1,0 +1,65 @@
+#include "learn/evaluate.hpp"
+
+#include <cmath>
+#include <memory>
+#include <random>
+#include <stdexcept>
+
+namespace syndds::learn {
+
+EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t first_seed,
+                           int episodes, int max_steps) {
+  if (episodes < 1) throw std::invalid_argument("evaluate: episodes must be >= 1");
+  EvaluationSummary s;
+  std::map<std::string, double> info_sum;
+  std::int64_t all_steps = 0;
+  for (int k = 0; k < episodes; ++k) {
+    EpisodeSummary e;
+    e.seed = first_seed + static_cast<std::uint64_t>(k);
+    Observation o = env.reset(e.seed);
+    while (e.steps < max_steps) {
+      const StepResult r = env.step(policy(o));
+      ++e.steps;
+      e.total_reward += r.reward;
+      for (const auto& [key, v] : r.info) info_sum[key] += v;
+      e.final_info = r.info;
+      o = r.observation;
+      if (r.terminated || r.truncated) {
+        e.terminated = r.terminated;
+        break;
+      }
+    }
+    all_steps += e.steps;
+    s.terminated += e.terminated ? 1 : 0;
+    s.episodes.push_back(std::move(e));
+  }
+  const double n = static_cast<double>(episodes);
+  for (const auto& e : s.episodes) s.mean_return += e.total_reward / n;
+  for (const auto& e : s.episodes) {
+    s.std_return += (e.total_reward - s.mean_return) * (e.total_reward - s.mean_return) / n;
+  }
+  s.std_return = std::sqrt(s.std_return);
+  s.mean_steps = static_cast<double>(all_steps) / n;
+  for (const auto& [key, sum] : info_sum) {
+    s.mean_info[key] = sum / static_cast<double>(std::max<std::int64_t>(1, all_steps));
+  }
+  return s;
+}
+
+PolicyFunction random_policy(const Box& actions, std::uint64_t seed) {
+  auto rng = std::make_shared<std::mt19937_64>(seed);
+  return [rng, actions](const Observation&) {
+    std::vector<float> a(actions.size());
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const double u = static_cast<double>((*rng)() >> 11) * 0x1.0p-53;  // [0, 1)
+      a[i] = static_cast<float>(actions.low[i] + u * (actions.high[i] - actions.low[i]));
+    }
+    return a;
+  };
+}
+
+PolicyFunction zero_policy(const Box& actions) {
+  return [n = actions.size()](const Observation&) { return std::vector<float>(n, 0.0f); };
+}
+
+}  // namespace syndds::learn

@@ -1,0 +1,44 @@
+#pragma once
+// Evaluating a policy on an environment: episodes with fixed seeds (not those of training:
+// VectorEnv's episode seeds are hashes), the mean return, and the step-mean of every `info`
+// number (distance to the leader, collisions, ...). The same seeds give the same numbers.
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "learn/env.hpp"
+
+namespace syndds::learn {
+
+using PolicyFunction = std::function<std::vector<float>(const Observation&)>;
+
+struct EpisodeSummary {
+  std::uint64_t seed = 0;
+  double total_reward = 0.0;
+  int steps = 0;
+  bool terminated = false;  // ended by the environment (collision, ...), not cut
+  std::map<std::string, double> final_info;  // info of the last step
+};
+
+struct EvaluationSummary {
+  std::vector<EpisodeSummary> episodes;
+  double mean_return = 0.0;
+  double std_return = 0.0;  // population standard deviation over the episodes
+  double mean_steps = 0.0;
+  int terminated = 0;       // episodes the environment ended
+  std::map<std::string, double> mean_info;  // mean over every step of every episode
+};
+
+/// Runs `episodes` episodes seeded first_seed, first_seed + 1, ..., each to its end or
+/// `max_steps`, with `policy` choosing the actions.
+EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t first_seed,
+                           int episodes, int max_steps = 100000);
+
+/// Uniform random actions in the action box, from a generator seeded with `seed`.
+PolicyFunction random_policy(const Box& actions, std::uint64_t seed);
+/// Zero actions (for a convoy follower: straight ahead, coasting).
+PolicyFunction zero_policy(const Box& actions);
+
+}  // namespace syndds::learn

@@ -1,0 +1,128 @@
+// syndds_evaluate: policies side by side on a learning environment (docs/learning.md): learned
+// ones (syndds_train's policy.pt, deterministic actions) and baselines (zero, random, and for
+// convoy_follow the hand-written follower), each over the same episode seeds. Prints one row
+// per policy (mean and spread of the return, episode length, episodes ended by the
+// environment, the step-mean of the environment's info numbers) and optionally writes a CSV.
+#include <ATen/Parallel.h>
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+
+#include "learn/convoy_env.hpp"
+#include "learn/evaluate.hpp"
+#include "learn/ppo/policy.hpp"
+#include "learn/registry.hpp"
+
+using namespace syndds;
+
+int main(int argc, char** argv) {
+  CLI::App app{"syndds evaluate: learned policies and baselines on a learning environment"};
+  std::string env_name;
+  std::vector<std::string> env_option_args, policies, baselines;
+  int episodes = 20;
+  std::uint64_t first_seed = 1000000;
+  std::string csv;
+  app.add_option("--env", env_name, "Environment")->required();
+  app.add_option("--env-option", env_option_args, "Environment option KEY=VALUE (repeatable)");
+  app.add_option("--policy", policies, "A policy file of syndds_train (repeatable)");
+  app.add_option("--baseline", baselines, "zero, random or heuristic (convoy_follow; repeatable)")
+      ->check(CLI::IsMember({"zero", "random", "heuristic"}));
+  app.add_option("--episodes", episodes, "Episodes per policy")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--first-seed", first_seed, "Seed of the first episode (then +1, +2, ...)")
+      ->capture_default_str();
+  app.add_option("--csv", csv, "Also write the rows to this CSV file");
+  CLI11_PARSE(app, argc, argv);
+  if (policies.empty() && baselines.empty()) {
+    std::cerr << "syndds_evaluate: give at least one --policy or --baseline\n";
+    return 1;
+  }
+  at::set_num_threads(1);
+  try {
+    learn::EnvFactory factory;
+    try {
+      factory = learn::env_factory(env_name, learn::parse_env_options(env_option_args));
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "syndds_evaluate: --env / --env-option: " << e.what() << "\n";
+      return 1;
+    }
+    auto env = factory();
+    struct Entry {
+      std::string name;
+      learn::PolicyFunction act;
+    };
+    std::vector<Entry> entries;
+    std::vector<std::shared_ptr<learn::Policy>> loaded;
+    for (const auto& file : policies) {
+      auto p = std::make_shared<learn::Policy>();
+      try {
+        p->load(file);
+      } catch (const std::exception& e) {
+        std::cerr << "syndds_evaluate: --policy " << file << ": not a policy file (" << e.what()
+                  << ")\n";
+        return 1;
+      }
+      if (p->observation_space().vector.size() != env->observation_space().vector.size() ||
+          p->observation_space().image.has_value() != env->observation_space().image.has_value() ||
+          p->action_space().size() != env->action_space().size()) {
+        std::cerr << "syndds_evaluate: --policy " << file << ": its observation or action space "
+                  << "is not " << env_name << "'s with these options\n";
+        return 1;
+      }
+      loaded.push_back(p);
+      entries.push_back({file, [p](const learn::Observation& o) { return p->act(o, true); }});
+    }
+    for (const auto& b : baselines) {
+      if (b == "zero") entries.push_back({"zero", learn::zero_policy(env->action_space())});
+      if (b == "random") entries.push_back({"random", learn::random_policy(env->action_space(), 7)});
+      if (b == "heuristic") {
+        if (env_name != "convoy_follow") {
+          std::cerr << "syndds_evaluate: --baseline heuristic: only for convoy_follow\n";
+          return 1;
+        }
+        entries.push_back({"heuristic", learn::convoy_heuristic_action});
+      }
+    }
+    std::ofstream out;
+    if (!csv.empty()) {
+      out.open(csv);
+      if (!out) {
+        std::cerr << "syndds_evaluate: --csv " << csv << ": cannot write\n";
+        return 1;
+      }
+      out << "policy,episodes,first_seed,mean_return,std_return,mean_steps,terminated";
+    }
+    bool header = false;
+    for (const auto& e : entries) {
+      const auto s = learn::evaluate(*env, e.act, first_seed, episodes);
+      if (!header) {
+        std::printf("%-40s %10s %8s %8s %10s", "policy", "return", "std", "steps", "terminated");
+        for (const auto& [k, v] : s.mean_info) std::printf(" %16s", k.c_str());
+        std::printf("\n");
+        if (out.is_open()) {
+          for (const auto& [k, v] : s.mean_info) out << ",mean_" << k;
+          out << "\n";
+        }
+        header = true;
+      }
+      std::printf("%-40s %10.1f %8.1f %8.1f %10d", e.name.c_str(), s.mean_return, s.std_return,
+                  s.mean_steps, s.terminated);
+      for (const auto& [k, v] : s.mean_info) std::printf(" %16.3f", v);
+      std::printf("\n");
+      std::fflush(stdout);
+      if (out.is_open()) {
+        out << e.name << "," << episodes << "," << first_seed << "," << s.mean_return << ","
+            << s.std_return << "," << s.mean_steps << "," << s.terminated;
+        for (const auto& [k, v] : s.mean_info) out << "," << v;
+        out << "\n";
+      }
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "syndds_evaluate: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
