@@ -3,8 +3,11 @@
 # course on each terrain, the six deviation metrics of every follower, one CSV at the end.
 #
 #   launch_scripts/run_ensemble.sh --courses N --output DIR [--terrains rigid,scm_hard,scm_soft]
-#       [--convoy 1L3F|2L2F|3L1F] [--jobs J] [--distributed] [--first-seed S] [--duration S]
+#       [--convoy 1L3F|2L2F|3L1F] [--follower-policy FILE] [--jobs J] [--distributed]
+#       [--first-seed S] [--duration S]
 #
+# --follower-policy drives the followers with a learned policy (e.g.
+# policies/convoy_follow_lowdim.pt; docs/learning.md) instead of the classical follower.
 # Course k has seed first-seed + k (default 1). Each run goes to DIR/runs/<seed>_<terrain>/, its
 # scenario to DIR/courses/. Runs in one process each (syndds_sim, byte-identical to a distributed
 # run) unless --distributed (run_scenario.sh: one process per member), J at a time (default: the
@@ -20,7 +23,7 @@ BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 die() { echo "run_ensemble: $*" >&2; exit "${2:-1}"; }
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
-JOBS=$(nproc 2>/dev/null || echo 1); DISTRIBUTED=0; FIRST=1; DURATION=()
+JOBS=$(nproc 2>/dev/null || echo 1); DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --courses) [ $# -ge 2 ] || die "--courses needs a number"; COURSES=$2; shift ;;
@@ -30,8 +33,9 @@ while [ $# -gt 0 ]; do
     --jobs) [ $# -ge 2 ] || die "--jobs needs a number"; JOBS=$2; shift ;;
     --first-seed) [ $# -ge 2 ] || die "--first-seed needs a number"; FIRST=$2; shift ;;
     --duration) [ $# -ge 2 ] || die "--duration needs seconds"; DURATION=(--duration "$2"); shift ;;
+    --follower-policy) [ $# -ge 2 ] || die "--follower-policy needs a file"; POLICY=$2; shift ;;
     --distributed) DISTRIBUTED=1 ;;
-    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown option: $1 (see --help)" ;;
   esac
   shift
@@ -50,7 +54,19 @@ for p in syndds_course syndds_sim; do
   [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
 done
 command -v python3 > /dev/null || die "python3 is needed to write the CSV files (apt-get install python3)"
+if [ -n "$POLICY" ] && [ ! -f "$ROOT/config/$POLICY" ] && [ ! -f "$POLICY" ]; then
+  die "--follower-policy: no file $POLICY (looked in config/ and here)"
+fi
+[ -n "$POLICY" ] && [ ! -f "$ROOT/config/$POLICY" ] && POLICY=$(cd "$(dirname "$POLICY")" && pwd)/$(basename "$POLICY")
 mkdir -p "$OUTPUT/courses" "$OUTPUT/runs" || die "cannot create $OUTPUT"
+# The courses are generated once: an ensemble folder belongs to one convoy and one follower.
+setup="convoy=$CONVOY follower_policy=${POLICY:-classical}"
+if [ -f "$OUTPUT/ensemble.setup" ]; then
+  [ "$(cat "$OUTPUT/ensemble.setup")" = "$setup" ] ||
+    die "$OUTPUT was made with $(cat "$OUTPUT/ensemble.setup"), not $setup: use another --output"
+else
+  echo "$setup" > "$OUTPUT/ensemble.setup"
+fi
 
 completed() { grep -q '"status": *"completed"' "$1/summary.json" 2>/dev/null; }
 
@@ -75,7 +91,8 @@ run_one() {
   rm -rf "$dir"
   if [ ! -s "$scenario" ]; then
     "$BIN/syndds_course" --seed "$seed" --terrain "$terrain" --convoy "$CONVOY" \
-        --output "$scenario.tmp" > "$log" 2>&1 && mv "$scenario.tmp" "$scenario" || return 1
+        ${POLICY:+--follower-policy "$POLICY"} --output "$scenario.tmp" > "$log" 2>&1 &&
+      mv "$scenario.tmp" "$scenario" || return 1
   fi
   # exec: the pid the ensemble knows is the run's own, so a stop reaches it (and it aborts
   # cleanly, keeping its complete frames).
@@ -138,16 +155,16 @@ if [ $interrupted = 1 ]; then
 fi
 trap - EXIT
 
-python3 - "$OUTPUT" "$CONVOY" "${ids[@]}" <<'EOF'
+python3 - "$OUTPUT" "$CONVOY" "${POLICY:-classical}" "${ids[@]}" <<'EOF'
 import csv, json, pathlib, sys
-out, convoy, ids = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3:]
+out, convoy, controller, ids = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4:]
 metrics = ["m_p_avg", "m_p_max", "m_as_avg", "m_as_max", "m_rs_avg", "m_rs_max"]
 def cell(v):
     return "" if v is None else f"{v:.9g}" if isinstance(v, float) else str(v)
 with open(out / "ensemble.csv", "w", newline="") as f, \
      open(out / "runs.csv", "w", newline="") as g:
     e, r = csv.writer(f, lineterminator="\n"), csv.writer(g, lineterminator="\n")
-    e.writerow(["seed", "terrain", "convoy", "status", "follower", "position", "leader",
+    e.writerow(["seed", "terrain", "convoy", "controller", "status", "follower", "position", "leader",
                 *metrics, "obstacles_hit", "samples", "segment_length_m",
                 "leader_max_speed_mps", "leader_mean_speed_mps"])
     r.writerow(["seed", "terrain", "status", "sim_time_s", "wall_time_s", "real_time_factor"])
@@ -167,11 +184,11 @@ with open(out / "ensemble.csv", "w", newline="") as f, \
         except (OSError, ValueError, KeyError, TypeError):
             followers, leaders = [], {}
         if status != "completed" or not followers:
-            e.writerow([seed, terrain, convoy, status] + [""] * (3 + len(metrics) + 5))
+            e.writerow([seed, terrain, convoy, controller, status] + [""] * (3 + len(metrics) + 5))
             continue
         for m in sorted(followers, key=lambda m: m["position"]):
             head = leaders.get(m["leader"], {})
-            e.writerow([seed, terrain, convoy, status, m["id"], m["position"], m["leader"],
+            e.writerow([seed, terrain, convoy, controller, status, m["id"], m["position"], m["leader"],
                         *[cell(m[k]) for k in metrics], m["obstacles_hit"], m["samples"],
                         cell(m["segment_length_m"]), cell(head.get("max_speed_mps")),
                         cell(head.get("mean_moving_speed_mps"))])

@@ -239,9 +239,11 @@ def report(out, rows, runs):
     seeds = sorted({int(r["seed"]) for r in runs})
     failed = [f"{r['seed']}_{r['terrain']} ({r['status']})" for r in runs
               if r["status"] != "completed"]
+    controllers = sorted({r["controller"] for r in rows if r.get("controller")})
     lines = [f"# Ensemble report: {len(seeds)} courses x {len(terrains)} terrains",
              "", f"Courses (seeds) {seeds[0]}..{seeds[-1]}; {len(runs)} runs, "
-             f"{len(runs) - len(failed)} completed. Definitions: docs/ensemble.md, docs/convoy.md.",
+             f"{len(runs) - len(failed)} completed; followers: {', '.join(controllers) or '-'}. "
+             "Definitions: docs/ensemble.md, docs/convoy.md.",
              "", "Median over the courses (terrain, follower position):", "",
              "| terrain | follower | " + " | ".join(k for k, _ in METRICS) + " | obstacles hit |",
              "|---|---|" + "---|" * (len(METRICS) + 1)]

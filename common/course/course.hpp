@@ -126,6 +126,9 @@ struct CourseOptions {
   Terrain terrain = Terrain::rigid;
   std::string convoy = "1L3F";  // 1L3F, 2L2F or 3L1F
   double target_speed_mps = 5.0;  // cap of the leader's 0.47 m/s2 ramp
+  // The followers' controller: empty for the classical follower, else a learned policy file
+  // (`controller: {type: policy, model: ...}`, docs/learning.md).
+  std::string follower_policy;
 };
 
 struct Course {

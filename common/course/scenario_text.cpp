@@ -167,8 +167,13 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
       y << "      speed: {profile: ramp, target_mps: " << num(o.target_speed_mps) << "}\n";
     } else {
       const std::string ahead = vehicle_id(k - 1, leaders);
-      y << "      type: follower\n      follow: " << ahead
-        << "\n      gap: {time_s: 1.0, standstill_m: 10}\n";
+      if (o.follower_policy.empty()) {
+        y << "      type: follower\n      follow: " << ahead
+          << "\n      gap: {time_s: 1.0, standstill_m: 10}\n";
+      } else {
+        y << "      type: policy\n      follow: " << ahead << "\n      model: "
+          << o.follower_policy << "\n";
+      }
     }
   }
   return y.str();

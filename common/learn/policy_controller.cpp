@@ -23,21 +23,38 @@ std::string describe(const ObservationSpace& s) {
 
 }  // namespace
 
+namespace {
+
+Policy load_policy(const std::string& file, const std::string& where) {
+  // One thread: the same action in every process, whatever its thread pool would do.
+  at::set_num_threads(1);
+  Policy p;
+  try {
+    p.load(file);
+  } catch (const std::exception& e) {
+    throw ConfigError(where + "not a policy file (" + e.what() + ")");
+  }
+  return p;
+}
+
+// The vehicle's observation, with the camera only if the policy looks at one.
+ConvoyObservationConfig observation_for(const scenario::VehicleConfig& v, const Policy& policy) {
+  ConvoyObservationConfig c = convoy_observation_config(v, v.controller.convoy.leader);
+  if (!policy.observation_space().image) c.image.reset();
+  return c;
+}
+
+}  // namespace
+
 PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
                                              const scenario::VehicleConfig& v)
     : vehicle_id_(v.id),
       leader_id_(v.controller.convoy.leader),
       member_id_(scenario::controller_member(v.id)),
-      builder_(convoy_observation_config(v, v.controller.convoy.leader)) {
-  const std::string where = s.file + ": vehicle " + v.id + ": controller.model " +
-                            v.controller.policy_file + ": ";
-  // One thread: the same action in every process, whatever its thread pool would do.
-  at::set_num_threads(1);
-  try {
-    policy_.load(v.controller.policy_file);
-  } catch (const std::exception& e) {
-    throw ConfigError(where + "not a policy file (" + e.what() + ")");
-  }
+      where_(s.file + ": vehicle " + v.id + ": controller.model " + v.controller.policy_file +
+             ": "),
+      policy_(load_policy(v.controller.policy_file, where_)),
+      builder_(observation_for(v, policy_)) {
   const ObservationSpace expected = builder_.space();
   const ObservationSpace& got = policy_.observation_space();
   const bool same_image = expected.image.has_value() == got.image.has_value() &&
@@ -45,12 +62,12 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
                                           got.image->height == expected.image->height &&
                                           got.image->channels == expected.image->channels));
   if (got.vector.size() != expected.vector.size() || !same_image) {
-    throw ConfigError(where + "the policy observes " + describe(got) +
+    throw ConfigError(where_ + "the policy observes " + describe(got) +
                       ", the vehicle's sensors give " + describe(expected) +
-                      " (a camera policy needs the vehicle's camera, a low-dimensional one none)");
+                      " (a camera policy needs the vehicle's first camera at its image size)");
   }
   if (policy_.action_space().size() != 2) {
-    throw ConfigError(where + "the policy has " + std::to_string(policy_.action_space().size()) +
+    throw ConfigError(where_ + "the policy has " + std::to_string(policy_.action_space().size()) +
                       " actions; a convoy follower's are 2 (steering, throttle/brake)");
   }
   period_frames_ = std::llround(v.controller.policy_period_s / s.time.heartbeat_s);

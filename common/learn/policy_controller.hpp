@@ -20,7 +20,9 @@ namespace syndds::learn {
 class PolicyControllerAgent final : public proto::Agent {
  public:
   /// Loads the policy file and checks it against the vehicle's sensors; ConfigError naming the
-  /// scenario file, the vehicle and the policy file if it does not fit.
+  /// scenario file, the vehicle and the policy file if it does not fit. A low-dimensional
+  /// policy ignores the vehicle's cameras (e.g. a chase camera for the video); a camera policy
+  /// observes the vehicle's first camera, which must have the policy's image size.
   PolicyControllerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);
 
   const std::string& member_id() const override { return member_id_; }
@@ -38,8 +40,9 @@ class PolicyControllerAgent final : public proto::Agent {
   std::string vehicle_id_;
   std::string leader_id_;
   std::string member_id_;
+  std::string where_;  // "<scenario>: vehicle <id>: controller.model <file>: " for errors
+  Policy policy_;      // loaded before the builder: it says whether the camera is observed
   ConvoyObservationBuilder builder_;
-  Policy policy_;
   std::int64_t period_frames_ = 10;
   std::int64_t since_action_ = 0;
   std::uint64_t actions_ = 0;

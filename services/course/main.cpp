@@ -27,6 +27,11 @@ int main(int argc, char** argv) {
   app.add_option("--target-speed", target_mps, "Cap of the leaders' speed ramp (m/s)")
       ->check(CLI::Range(0.5, 20.0))
       ->capture_default_str();
+  std::string follower_policy;
+  app.add_option("--follower-policy", follower_policy,
+                 "Followers driven by this learned policy (e.g. "
+                 "policies/convoy_follow_lowdim.pt, under config/ or next to the scenario) "
+                 "instead of the classical follower");
   app.add_option("--output", output, "Scenario file to write (.yaml)")->required();
   CLI11_PARSE(app, argc, argv);
   try {
@@ -36,6 +41,7 @@ int main(int argc, char** argv) {
     options.terrain = course::parse_terrain(terrain);
     options.convoy = convoy;
     options.target_speed_mps = target_mps;
+    options.follower_policy = follower_policy;
     const std::string text = course::scenario_yaml(c, options);
     std::ofstream out(output, std::ios::binary);
     if (!out || !(out << text) || !out.flush()) {

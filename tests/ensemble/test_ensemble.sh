@@ -14,11 +14,11 @@ fail() { echo "FAIL: $*" >&2; for f in "$work"/*.log; do echo "---- $f"; cat "$f
 args=(--courses 2 --terrains rigid,scm_hard --duration 30)
 
 "$E" "${args[@]}" --jobs 2 --output "$work/a" > "$work/a.log" 2>&1 || fail "ensemble a failed"
-header="seed,terrain,convoy,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m,leader_max_speed_mps,leader_mean_speed_mps"
+header="seed,terrain,convoy,controller,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m,leader_max_speed_mps,leader_mean_speed_mps"
 [ "$(head -n1 "$work/a/ensemble.csv")" = "$header" ] || fail "ensemble.csv header: $(head -n1 "$work/a/ensemble.csv")"
 [ "$(tail -n +2 "$work/a/ensemble.csv" | wc -l)" = 12 ] || fail "ensemble.csv: not 2 courses x 2 terrains x 3 followers rows"
 # Every row: a completed run with all six metrics (after 30 s every follower has driven past the first 10 m of the leader's track).
-awk -F, 'NR > 1 && ($4 != "completed" || $8 == "" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "" || $17 <= 0 || $18 <= 0 || $18 > $17) {exit 1}' \
+awk -F, 'NR > 1 && ($4 != "classical" || $5 != "completed" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "" || $14 == "" || $18 <= 0 || $19 <= 0 || $19 > $18) {exit 1}' \
     "$work/a/ensemble.csv" || fail "ensemble.csv has an incomplete row: $(cat "$work/a/ensemble.csv")"
 [ "$(head -n1 "$work/a/runs.csv")" = "seed,terrain,status,sim_time_s,wall_time_s,real_time_factor" ] || fail "runs.csv header"
 [ "$(grep -c ',completed,' "$work/a/runs.csv")" = 4 ] || fail "runs.csv: not 4 completed runs"
@@ -59,10 +59,17 @@ code=0
 "$E" --courses 2 --terrains rigid --duration 30 --output "$work/c" > "$work/c.log" 2>&1 || code=$?
 [ "$code" = 2 ] || fail "ensemble with a broken run exited $code, not 2"
 grep -q "1 runs failed: 2_rigid" "$work/c.log" || fail "the failed run is not named"
-grep -q "^1,rigid,1L3F,completed,f1," "$work/c/ensemble.csv" || fail "course 1 missing: $(cat "$work/c/ensemble.csv")"
-grep -q "^2,rigid,1L3F,no summary,,,,,,,,,,,,,,$" "$work/c/ensemble.csv" || fail "the failed run's row: $(cat "$work/c/ensemble.csv")"
+grep -q "^1,rigid,1L3F,classical,completed,f1," "$work/c/ensemble.csv" || fail "course 1 missing: $(cat "$work/c/ensemble.csv")"
+grep -q "^2,rigid,1L3F,classical,no summary,,,,,,,,,,,,,,$" "$work/c/ensemble.csv" || fail "the failed run's row: $(cat "$work/c/ensemble.csv")"
 grep -q "^2,rigid,no summary,,,$" "$work/c/runs.csv" || fail "runs.csv: $(cat "$work/c/runs.csv")"
 grep -q "Runs that did not complete: 2_rigid (no summary)" "$work/c/report.md" || fail "report.md does not list the failed run"
 grep -q "2_rigid.yaml" "$work/c/runs/2_rigid.log" || fail "the failed run's log does not name its scenario"
 [ -s "$work/c/figures/along_path.png" ] || fail "no figures after a failed run"
+# An ensemble folder belongs to one convoy and one follower: another --follower-policy on it
+# is refused (its courses were generated for the classical follower).
+code=0
+"$E" --courses 2 --terrains rigid --duration 30 --output "$work/c" \
+    --follower-policy policies/convoy_follow_lowdim.pt > "$work/c2.log" 2>&1 || code=$?
+[ "$code" = 1 ] || fail "a changed follower on an existing ensemble exited $code, not 1"
+grep -q "was made with convoy=1L3F follower_policy=classical" "$work/c2.log" || fail "no reason given: $(cat "$work/c2.log")"
 echo "ok"

@@ -41,6 +41,7 @@ fs::path test_dir() {
 // actions are arbitrary but deterministic, which is all the comparison needs; the mean head's
 // bias makes it drive (a little left, some throttle) rather than stand.
 std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
+  fs::create_directories(dir);
   ppo::TrainerOptions t;
   t.seed = 3;
   ppo::Trainer trainer([options] { return make_convoy_env(options); }, t);
@@ -151,6 +152,10 @@ TEST(PolicyController, APolicyThatDoesNotFitTheSensorsIsRefused) {
               std::string::npos)
         << what;
   }
+  // The other way round is fine: a low-dimensional policy ignores the vehicle's cameras (a
+  // chase camera filming the convoy, say).
+  const std::string low_dim_file = write_policy(dir / "low", low_dim);
+  EXPECT_NO_THROW(run_with_controller(camera, 1, low_dim_file, 5));
   // Not a policy file at all.
   std::ofstream(dir / "junk.pt") << "not a model";
   EXPECT_THROW(run_with_controller(low_dim, 1, (dir / "junk.pt").string(), 1), ConfigError);
