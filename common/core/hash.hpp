@@ -28,6 +28,15 @@ class Fnv1a64 {
   std::uint64_t state_ = 14695981039346656037ULL;
 };
 
+/// SplitMix64's finaliser (Steele, Lea and Flood 2014): a well-mixed 64-bit hash of a 64-bit
+/// value, for deriving independent seeds from (seed, index) pairs.
+inline std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
+
 inline std::uint64_t fnv1a64(std::string_view text) {
   Fnv1a64 h;
   h.add_bytes(text.data(), text.size());

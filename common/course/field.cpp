@@ -2,18 +2,12 @@
 #include <cmath>
 #include <sstream>
 
+#include "core/hash.hpp"
 #include "course/course.hpp"
 
 namespace syndds::course {
 
 namespace {
-
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
 
 bool overlap_ok(const Circle& a, const Circle& b, double fraction) {
   const double min_distance =

@@ -4,18 +4,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/hash.hpp"
+
 namespace syndds::learn {
-namespace {
-
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
-}  // namespace
-
 std::uint64_t episode_seed(std::uint64_t seed, std::uint64_t copy, std::uint64_t episode) {
   return splitmix64(splitmix64(splitmix64(seed) ^ copy) ^ episode);
 }

@@ -14,6 +14,8 @@
 #include <random>
 #include <string_view>
 
+#include "core/hash.hpp"
+
 namespace syndds::sensors {
 
 /// Seed of the random stream `stream` in a scenario seeded with `scenario_seed`
@@ -21,12 +23,7 @@ namespace syndds::sensors {
 std::uint64_t derive_seed(std::uint64_t scenario_seed, std::string_view stream);
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash of a 64-bit value.
-inline std::uint64_t mix64(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
+inline std::uint64_t mix64(std::uint64_t x) { return splitmix64(x); }
 
 /// Sequential generator of uniform and standard normal variates.
 class NormalRng {
