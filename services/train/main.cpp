@@ -103,6 +103,11 @@ int main(int argc, char** argv) {
   app.add_option("--output", output, "Directory of training.csv, checkpoint.pt, policy.pt")
       ->capture_default_str();
   app.add_flag("--resume", resume, "Continue from OUTPUT/checkpoint.pt");
+  std::string init_from;
+  app.add_option("--init-from", init_from,
+                 "Start from this policy.pt of an earlier stage (curriculum, e.g. the reduced "
+                 "model's policy for training on the full model)")
+      ->excludes("--resume");
   CLI11_PARSE(app, argc, argv);
 
   learn::EnvOptions env_options;
@@ -155,6 +160,15 @@ int main(int argc, char** argv) {
       std::cerr << "syndds_train: " << checkpoint.string()
                 << " exists: pass --resume to continue it or choose another --output\n";
       return 1;
+    }
+    if (!init_from.empty()) {
+      try {
+        trainer.initialize_from_policy(init_from);
+      } catch (const std::exception& e) {
+        std::cerr << "syndds_train: --init-from " << init_from << ": " << e.what() << "\n";
+        return 1;
+      }
+      std::printf("starting from the network of %s\n", init_from.c_str());
     }
     std::ofstream out(csv, std::ios::binary | std::ios::trunc);
     if (!out || !(out << rows) || !out.flush()) {

@@ -208,17 +208,6 @@ TEST(Networks, MlpAndSensorFusionShapes) {
   EXPECT_THROW(make_actor_critic("transformer", vec_only, actions), std::invalid_argument);
 }
 
-TEST(Registry, KnowsTheDoubleIntegratorAndNamesWhatIsWrong) {
-  EXPECT_NE(dynamic_cast<DoubleIntegrator*>(make_env("double_integrator").get()), nullptr);
-  try {
-    make_env("moon_buggy");
-    FAIL() << "no exception";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("moon_buggy"), std::string::npos);
-  }
-  EXPECT_THROW(make_env("double_integrator", {{"mass", "2"}}), std::invalid_argument);
-}
-
 namespace {
 
 /// The trainer's defaults on the double integrator with `copies` copies on `threads` threads.
@@ -313,6 +302,31 @@ TEST(Ppo, ResumingFromACheckpointGivesTheStraightRunBitForBit) {
   // A checkpoint of another configuration is refused.
   Trainer other(double_integrator(), small_options(3, 1, 150));
   EXPECT_THROW(other.load_checkpoint(checkpoint), std::invalid_argument);
+  fs::remove_all(dir);
+}
+
+// The curriculum's switch: a new stage (another environment option, another seed) starts
+// from the network and observation normaliser of the last stage's policy file.
+TEST(Ppo, AStageStartsFromTheNetworkOfTheLastOne) {
+  const fs::path dir = temp_dir();
+  const std::string file = (dir / "stage1.pt").string();
+  Trainer first(double_integrator(), small_options(2, 1, 150));
+  first.update();
+  first.update();
+  first.save_policy(file);
+  TrainerOptions o = small_options(1, 1, 150);
+  o.seed = 12;  // another initialisation: equal only if the file's network was taken
+  Trainer second(double_integrator(), o);
+  second.initialize_from_policy(file);
+  expect_identical(parameters(first), parameters(second));
+  EXPECT_EQ(first.normalizer().mean(), second.normalizer().mean());
+  EXPECT_EQ(second.updates(), 0);
+  second.update();  // and it trains on
+  // A policy of another environment (4 numbers, 2 actions) does not fit.
+  const std::string convoy = (dir / "convoy.pt").string();
+  Trainer(env_factory("convoy_follow"), small_options(1, 1, 150)).save_policy(convoy);
+  Trainer third(double_integrator(), small_options(1, 1, 150));
+  EXPECT_THROW(third.initialize_from_policy(convoy), std::invalid_argument);
   fs::remove_all(dir);
 }
 

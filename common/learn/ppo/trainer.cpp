@@ -11,6 +11,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "learn/ppo/policy.hpp"
+
 namespace syndds::learn::ppo {
 namespace {
 
@@ -352,6 +354,33 @@ void Trainer::save_checkpoint(const std::string& path) const {
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     throw std::runtime_error("cannot rename " + tmp + " to " + path);
   }
+}
+
+void Trainer::initialize_from_policy(const std::string& path) {
+  Policy earlier;
+  earlier.load(path);
+  const ObservationSpace& o = earlier.observation_space();
+  const bool same_image = o.image.has_value() == observation_space_.image.has_value() &&
+                          (!o.image || (o.image->width == observation_space_.image->width &&
+                                        o.image->height == observation_space_.image->height));
+  if (o.vector.size() != observation_space_.vector.size() || !same_image ||
+      earlier.action_space().size() != action_space_.size()) {
+    throw std::invalid_argument(path + ": its observation or action space is not this "
+                                "environment's");
+  }
+  torch::serialize::InputArchive archive;
+  archive.load_from(path);
+  c10::IValue network;
+  archive.read("network", network);
+  if (network.toStringRef() != model_->kind()) {
+    throw std::invalid_argument(path + " holds a " + network.toStringRef() +
+                                " network, this run has " + model_->kind());
+  }
+  torch::serialize::InputArchive model, normalizer;
+  archive.read("model", model);
+  archive.read("normalizer", normalizer);
+  model_->load(model);
+  normalizer_.load(normalizer);
 }
 
 void Trainer::load_checkpoint(const std::string& path) {

@@ -108,6 +108,11 @@ class Trainer {
   void load_checkpoint(const std::string& path);
   /// The inference file Policy::load reads: network, normaliser, spaces.
   void save_policy(const std::string& path) const;
+  /// Starts this (fresh) run from the network and observation normaliser of a policy file of
+  /// an earlier stage (the curriculum: reduced model first, then the full one); the optimiser,
+  /// counters and return statistics start anew. std::invalid_argument if the network kind or
+  /// the spaces differ, naming the file.
+  void initialize_from_policy(const std::string& path);
 
  private:
   torch::Tensor vector_tensor(const std::vector<const Observation*>& obs) const;
