@@ -3,7 +3,10 @@
 # 1L3F, 2L2F, 3L1F on rigid, SCM hard and SCM soft ground) and writes one table of results.
 #
 #   launch_scripts/run_convoy_suite.sh [--output DIR] [--mode distributed|single-process|both]
-#       [--only PATTERN] [--domain D]
+#       [--only PATTERN] [--domain D] [--learned]
+#
+# --learned: the same nine with the shipped learned policy as followers
+# (config/scenarios/learned/, docs/learning.md).
 #
 # Each run goes to DIR/<scenario>-<mode>/ (default DIR: runs/convoy-suite-<date>); the table,
 # DIR/convoy_suite.md, is printed at the end. Columns: real-time factor, the first leader's
@@ -13,7 +16,7 @@
 # completed, 2 otherwise (the table says which).
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-OUTPUT=""; MODE=distributed; ONLY=""; PASS=()
+OUTPUT=""; MODE=distributed; ONLY=""; PASS=(); SET=convoy
 die() { echo "run_convoy_suite: $*" >&2; exit 1; }
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -21,7 +24,8 @@ while [ $# -gt 0 ]; do
     --mode) [ $# -ge 2 ] || die "--mode needs a value"; MODE=$2; shift ;;
     --only) [ $# -ge 2 ] || die "--only needs a pattern"; ONLY=$2; shift ;;
     --domain) [ $# -ge 2 ] || die "--domain needs a value"; PASS+=(--domain "$2"); shift ;;
-    -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --learned) SET=learned ;;
+    -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) die "unknown option: $1 (see --help)" ;;
   esac
   shift
@@ -34,7 +38,7 @@ command -v python3 > /dev/null || die "python3 is needed to write the table (apt
 mkdir -p "$OUTPUT" || die "cannot create $OUTPUT"
 
 failed=0
-for scenario in "$ROOT"/config/scenarios/convoy/*.yaml; do
+for scenario in "$ROOT"/config/scenarios/$SET/{1L3F,2L2F,3L1F}_*.yaml; do
   name=$(basename "$scenario" .yaml)
   [ -n "$ONLY" ] && [[ "$name" != *$ONLY* ]] && continue
   for mode in "${modes[@]}"; do

@@ -42,6 +42,17 @@ ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario&,
       member_id_(scenario::external_member(follower.id)),
       builder_(convoy_observation_config(follower, leader_id)) {}
 
+ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, std::uint64_t seed) {
+  ConvoyScenarioOptions so;
+  so.terrain = options.terrain;
+  so.dynamics = options.dynamics;
+  so.camera = options.camera;
+  so.target_speed_mps = options.target_speed_mps;
+  so.end_time_s = 0.01 * options.frames_per_step * (options.max_steps + 100);
+  so.seed = seed;
+  return so;
+}
+
 vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake) {
   const double s = std::isnan(steering) ? 0.0 : std::clamp(steering, -1.0, 1.0);
   const double p = std::isnan(throttle_brake) ? 0.0 : std::clamp(throttle_brake, -1.0, 1.0);
@@ -131,14 +142,7 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
   driver_ = nullptr;
   stepper_.reset();
   episode_ = make_convoy_episode(seed, options_.episode);
-  ConvoyScenarioOptions so;
-  so.terrain = options_.terrain;
-  so.dynamics = options_.dynamics;
-  so.camera = options_.camera;
-  so.target_speed_mps = options_.target_speed_mps;
-  so.end_time_s = 0.01 * options_.frames_per_step * (options_.max_steps + 100);
-  so.seed = seed;
-  const std::string yaml = convoy_scenario_yaml(episode_, so);
+  const std::string yaml = convoy_scenario_yaml(episode_, convoy_scenario_options(options_, seed));
   const std::string name = options_.config_dir + "/scenarios/convoy_env.yaml";
   scenario_.emplace(scenario::parse_scenario(YamlNode::load_string(yaml, name), yaml, {},
                                              options_.config_dir));

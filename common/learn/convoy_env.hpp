@@ -47,6 +47,10 @@ struct ConvoyEnvOptions {
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
 };
 
+/// The scenario options of the environment's episode `seed` (its run is a little longer than
+/// max_steps control periods).
+ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, std::uint64_t seed);
+
 /// The driver inputs of a convoy action: steering in [-1, 1] (positive left) and one
 /// throttle/brake value in [-1, 1] (positive throttle, negative brake), clamped; NaN is 0
 /// (straight ahead, coasting).

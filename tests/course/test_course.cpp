@@ -191,7 +191,10 @@ TEST(CourseScenario, LoadsWithTheConvoyAndTheObstacles) {
   const Course c = make_course(5);
   for (Terrain t : {Terrain::rigid, Terrain::scm_hard, Terrain::scm_soft}) {
     for (const char* mix : {"1L3F", "2L2F", "3L1F"}) {
-      CourseOptions o{.seed = 5, .terrain = t, .convoy = mix};
+      CourseOptions o;
+      o.seed = 5;
+      o.terrain = t;
+      o.convoy = mix;
       const std::string text = scenario_yaml(c, o);
       EXPECT_EQ(text, scenario_yaml(c, o));
       const scenario::Scenario s = load_text(text);
@@ -208,6 +211,23 @@ TEST(CourseScenario, LoadsWithTheConvoyAndTheObstacles) {
       EXPECT_EQ(s.vehicles[0].start.position.x(), 0.0);
       EXPECT_LT(s.vehicles[3].start.position.x(), -25.0);
     }
+  }
+}
+
+// With a follower policy every follower is that learned policy, following the vehicle ahead.
+TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
+  const Course c = make_course(5);
+  CourseOptions o;
+  o.seed = 5;
+  o.convoy = "2L2F";
+  o.follower_policy = "policies/convoy_follow_lowdim.pt";
+  const scenario::Scenario s = load_text(scenario_yaml(c, o));
+  ASSERT_EQ(s.vehicles.size(), 4u);
+  EXPECT_EQ(s.vehicles[1].controller.type, "path_follower");
+  for (const int k : {2, 3}) {
+    EXPECT_EQ(s.vehicles[k].controller.type, "policy");
+    EXPECT_EQ(s.vehicles[k].controller.convoy.leader, s.vehicles[k - 1].id);
+    EXPECT_TRUE(s.vehicles[k].controller.policy_file.ends_with("policies/convoy_follow_lowdim.pt"));
   }
 }
 

@@ -67,14 +67,8 @@ std::vector<proto::VehicleStateMsg> run_with_controller(const ConvoyEnvOptions& 
                                                          std::uint64_t seed,
                                                          const std::string& policy,
                                                          std::int64_t frames) {
-  ConvoyScenarioOptions so;
-  so.terrain = options.terrain;
-  so.dynamics = options.dynamics;
-  so.camera = options.camera;
-  so.target_speed_mps = options.target_speed_mps;
-  so.end_time_s = 0.01 * options.frames_per_step * (options.max_steps + 100);
-  so.seed = seed;
-  std::string yaml = convoy_scenario_yaml(make_convoy_episode(seed, options.episode), so);
+  std::string yaml = convoy_scenario_yaml(make_convoy_episode(seed, options.episode),
+                                          convoy_scenario_options(options, seed));
   const std::string external = "    controller: {type: external}\n";
   yaml.replace(yaml.find(external), external.size(),
                "    controller: {type: policy, follow: leader, model: " + policy + "}\n");
