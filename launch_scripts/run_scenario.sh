@@ -23,7 +23,7 @@ usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; }
 case "$1" in -h|--help) usage; exit 0 ;; esac
 SCENARIO=$1; shift
 [ -f "$SCENARIO" ] || die "scenario file not found: $SCENARIO"
-for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_recorder syndds_sensor syndds_sim; do
+for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_policy_controller syndds_recorder syndds_sensor syndds_sim; do
   [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
 done
 

@@ -39,8 +39,8 @@ proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& membe
       const auto f = controller_types().find(v.controller.type);
       if (f == controller_types().end()) {
         throw ConfigError(s.file + ": vehicle " + v.id + ": controller type '" + v.controller.type +
-                          "' runs in syndds_controller or syndds_sim (this program does not "
-                          "load learned policies)");
+                          "' runs in syndds_policy_controller or syndds_sim (this program does "
+                          "not load learned policies)");
       }
       return f->second(s, v);
     }

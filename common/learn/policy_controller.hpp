@@ -50,8 +50,9 @@ class PolicyControllerAgent final : public proto::Agent {
   double throttle_brake_ = -1.0;  // the brake until the first action
 };
 
-/// Lets this process's agent factory build `controller: {type: policy}` members (the programs
-/// that run controllers call it at start; others leave libtorch unloaded).
+/// Lets this process's agent factory build `controller: {type: policy}` members
+/// (syndds_policy_controller and syndds_sim call it at start; the other programs do not link
+/// libtorch).
 void register_policy_controller();
 
 }  // namespace syndds::learn

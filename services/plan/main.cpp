@@ -73,8 +73,11 @@ int main(int argc, char** argv) {
     }
     for (const auto& v : s.vehicles) {
       if (!v.controller.is_builtin()) continue;
+      // Learned policies run in a program of their own: only it loads libtorch.
+      const char* controller =
+          v.controller.type == "policy" ? "syndds_policy_controller" : "syndds_controller";
       processes.emplace_back(scenario::controller_member(v.id),
-                             program("syndds_controller") + shared + " --vehicle " + quote(v.id));
+                             program(controller) + shared + " --vehicle " + quote(v.id));
     }
     for (const auto& v : s.vehicles) {
       if (!v.has_rendered_sensors()) continue;

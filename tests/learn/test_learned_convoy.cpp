@@ -1,7 +1,7 @@
 // The shipped learned follower (config/policies/convoy_follow_lowdim.pt) in a 1L+1F convoy on
-// rigid ground with the real programs: the policy runs in its own controller process over DDS,
-// follows the leader over the whole path without hitting an obstacle or losing it, and the
-// run equals the single-process run byte for byte.
+// rigid ground with the real programs: the policy runs in its own process
+// (syndds_policy_controller) over DDS, follows the leader over the whole path without hitting
+// an obstacle or losing it, and the run equals the single-process run byte for byte.
 #include <nlohmann/json.hpp>
 
 #include "harness.hpp"
@@ -18,6 +18,10 @@ TEST(LearnedConvoy, ShippedPolicyFollowsOverTheWholePathDistributed) {
   ASSERT_EQ(*code, 0) << launcher->log();
   const fs::path out = run.dir / "out";
   EXPECT_EQ(read_file(out / "vehicles.csv"), single);
+  // The policy ran in the program that loads libtorch; the leader's path follower did not.
+  EXPECT_NE(read_file(out / "logs" / "controller_f1.log").find("[policy_controller]"),
+            std::string::npos);
+  EXPECT_NE(read_file(out / "logs" / "controller_l1.log").find("[controller]"), std::string::npos);
 
   const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
   ASSERT_EQ(summary["status"], "completed");

@@ -1,0 +1,168 @@
+#!/usr/bin/env bash
+# Scaling benchmark: real-time factor against the number of full-dynamics vehicles, each with
+# its own path-follower process, plus the recorder and the coordinator (the launcher, a private
+# network namespace when allowed), and the same scenario in one process (syndds_sim); with the
+# CPU time each kind of process used, sampled from /proc, so the cost per frame can be split.
+#
+#   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft] [--n "8 16 24 32"]
+#       [--modes "distributed single"] [--duration S] [--output DIR]
+#
+# rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
+# on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
+# lanes only). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
+# time, RTF, CPU seconds per process kind and in all), DIR/scaling.md (the same as a table)
+# and, with Debian's matplotlib, DIR/scaling.png (RTF against N). DIR defaults to a new folder
+# under runs/. Numbers go to docs/performance.md with the command and the machine's load.
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
+TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed single"; DURATION=10; OUT=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --terrain) TERRAIN=$2; shift ;;
+    --n) NS=$2; shift ;;
+    --modes) MODES=$2; shift ;;
+    --duration) DURATION=$2; shift ;;
+    --output) OUT=$2; shift ;;
+    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
+  esac
+  shift
+done
+case "$TERRAIN" in rigid|soft) ;; *) echo "bench_scaling: --terrain rigid or soft" >&2; exit 1 ;; esac
+[ -n "$OUT" ] || OUT="runs/scaling-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
+mkdir -p "$OUT"
+WORK=$(mktemp -d)
+trap 'rm -rf "$WORK"' EXIT
+
+scenario() {  # $1 = N; prints the file
+  local n=$1 f=$WORK/scaling_$1.yaml
+  {
+    echo "name: scaling_${TERRAIN}_$n"
+    echo "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: $DURATION}"
+    echo "coordinator: {join_timeout_s: 120, frame_timeout_s: 60}"
+    if [ "$TERRAIN" = soft ]; then
+      echo "terrain:"
+      echo "  type: scm"
+      echo "  preset: soft"
+      echo "  spacing_m: 0.05"
+      echo "  area: {x_min_m: -10, x_max_m: 70, y_min_m: -5, y_max_m: $((5 * n + 5))}"
+    fi
+    echo "vehicles:"
+    for i in $(seq 1 "$n"); do
+      echo "  - id: v$i"
+      echo "    model: hmmwv"
+      echo "    dynamics: full"
+      echo "    controller:"
+      echo "      type: path_follower"
+      if [ "$TERRAIN" = soft ]; then
+        local y=$((5 * i))
+        echo "      path: {waypoints: [[0, $y], [60, $y]]}"
+        echo "      speed: {profile: ramp, accel_mps2: 1.0, target_mps: 5}"
+      else
+        local y=$((10 * i))
+        echo "      path: {waypoints: [[0, $y], [200, $y], [200, $((y + 200))]], closed: true}"
+        echo "      speed: {target_mps: 8}"
+      fi
+    done
+  } > "$f"
+  echo "$f"
+}
+
+# CPU seconds (user + system) of every syndds_* process, sampled every 0.5 s while $1 runs;
+# the last sample of each process counts. Prints "kind seconds" lines.
+cpu_by_kind() {
+  local pid=$1 tick
+  tick=$(getconf CLK_TCK)
+  declare -A last=() kind=()
+  while kill -0 "$pid" 2>/dev/null; do
+    for stat in /proc/[0-9]*/stat; do
+      local line
+      line=$(cat "$stat" 2>/dev/null) || continue
+      local comm=${line#*(}; comm=${comm%%)*}
+      [[ "$comm" == syndds_* ]] || continue
+      local rest=${line##*) }
+      read -r -a f <<< "$rest"
+      local p=${stat#/proc/}; p=${p%/stat}
+      last[$p]=$((f[11] + f[12]))
+      kind[$p]=$comm
+    done
+    sleep 0.5
+  done
+  for p in "${!last[@]}"; do echo "${kind[$p]} ${last[$p]}"; done |
+    awk -v tick="$tick" '{s[$1] += $2} END {for (k in s) printf "%s %.2f\n", k, s[k] / tick}'
+}
+
+echo "terrain,n,mode,processes,frames,wall_s,rtf,cpu_coordinator_s,cpu_vehicles_s,cpu_controllers_s,cpu_recorder_s,cpu_sim_s,cpu_total_s,load_start" > "$OUT/scaling.csv"
+for n in $NS; do
+  file=$(scenario "$n")
+  for mode in $MODES; do
+    load=$(cut -d' ' -f1 /proc/loadavg)
+    out=$WORK/out_${n}_$mode
+    rm -rf "$out"
+    if [ "$mode" = distributed ]; then
+      "$ROOT/tests/netns_exec.sh" "$ROOT/launch_scripts/run_scenario.sh" "$file" --output "$out" \
+          > "$WORK/launch.log" 2>&1 &
+      processes=$((2 * n + 2))
+    else
+      "$BIN/syndds_sim" "$file" --output "$out" --quiet --config-dir "$ROOT/config" \
+          > "$WORK/launch.log" 2>&1 &
+      processes=1
+    fi
+    runner=$!
+    cpu_by_kind "$runner" > "$WORK/cpu.txt"
+    if ! wait "$runner"; then
+      echo "bench_scaling: $TERRAIN N=$n $mode failed:" >&2
+      tail -5 "$WORK/launch.log" >&2
+      echo "$TERRAIN,$n,$mode,$processes,,,,,,,,,,$load" >> "$OUT/scaling.csv"
+      continue
+    fi
+    /usr/bin/python3 - "$out/summary.json" "$WORK/cpu.txt" "$TERRAIN" "$n" "$mode" "$processes" "$load" \
+        >> "$OUT/scaling.csv" <<'EOF'
+import json, sys
+summary, cpu_file, terrain, n, mode, processes, load = sys.argv[1:]
+s = json.load(open(summary))
+cpu = dict((k, float(v)) for k, v in (line.split() for line in open(cpu_file) if line.strip()))
+kinds = ["syndds_coordina", "syndds_vehicle", "syndds_controll", "syndds_recorder", "syndds_sim"]
+cells = [f"{cpu.get(k, 0.0):.2f}" for k in kinds] + [f"{sum(cpu.values()):.2f}"]
+print(",".join([terrain, n, mode, processes, str(s["frames"]), f"{s['wall_time_s']:.2f}",
+                f"{s['real_time_factor']:.3f}"] + cells + [load]))
+EOF
+    tail -n 1 "$OUT/scaling.csv"
+  done
+done
+
+/usr/bin/python3 - "$OUT" <<'EOF'
+import csv, pathlib, sys
+out = pathlib.Path(sys.argv[1])
+rows = list(csv.DictReader(open(out / "scaling.csv")))
+lines = ["| terrain | vehicles | mode | processes | RTF | wall (s) | CPU s: coordinator / vehicles / "
+         "controllers / recorder / sim / all | load at start |", "|---|---|---|---|---|---|---|---|"]
+for r in rows:
+    cpu = " / ".join(r[k] or "-" for k in ["cpu_coordinator_s", "cpu_vehicles_s",
+                                            "cpu_controllers_s", "cpu_recorder_s", "cpu_sim_s",
+                                            "cpu_total_s"])
+    lines.append(f"| {r['terrain']} | {r['n']} | {r['mode']} | {r['processes']} | "
+                 f"{r['rtf'] or 'failed'} | {r['wall_s'] or '-'} | {cpu} | {r['load_start']} |")
+(out / "scaling.md").write_text("\n".join(lines) + "\n")
+print("\n".join(lines))
+try:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+except ImportError:
+    sys.exit(0)
+fig, ax = plt.subplots(figsize=(6, 4))
+for mode in sorted({r["mode"] for r in rows}):
+    pts = [(int(r["n"]), float(r["rtf"])) for r in rows if r["mode"] == mode and r["rtf"]]
+    if pts:
+        ax.plot(*zip(*sorted(pts)), "o-", label=mode)
+ax.axhline(1.0, color="k", lw=0.8, ls="--")
+ax.set_xlabel("vehicles (full dynamics, each with its controller)")
+ax.set_ylabel("real-time factor (wall / simulated)")
+ax.set_title(f"{rows[0]['terrain'] if rows else ''}: RTF against vehicles")
+ax.legend()
+fig.tight_layout()
+fig.savefig(out / "scaling.png", dpi=100)
+EOF
+echo "bench_scaling: $OUT/scaling.csv, scaling.md, scaling.png"
