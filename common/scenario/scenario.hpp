@@ -32,9 +32,11 @@ inline constexpr double kMaxEndTimeS = 1e6;
 /// Dynamics steps per frame (heartbeat_s / step_s).
 inline constexpr std::int64_t kMaxStepsPerFrame = 10000;
 /// Vehicles of one run, and its barrier members (processes besides the coordinator): every
-/// member joins one coordinator within coordinator.join_timeout_s.
-inline constexpr std::size_t kMaxVehicles = 32;
-inline constexpr std::size_t kMaxMembers = 64;
+/// member joins one coordinator within coordinator.join_timeout_s, and Fast DDS gives a host
+/// about 120 participants per domain (unicast ports 7410 + 250 d + 2 p stay inside the
+/// domain's 250 ports): 48 vehicles with their controllers and the recorder are 97 members.
+inline constexpr std::size_t kMaxVehicles = 48;
+inline constexpr std::size_t kMaxMembers = 100;
 /// World box (`world:`): positions beyond float precision of the renderers (1e5 m: 8 mm) or a
 /// side longer than 2 km (a flat ground is rendered over it at 2 m) are refused.
 inline constexpr double kMaxWorldCoordinateM = 1e5;

@@ -112,8 +112,10 @@ for n in $NS; do
     runner=$!
     cpu_by_kind "$runner" > "$WORK/cpu.txt"
     if ! wait "$runner"; then
-      echo "bench_scaling: $TERRAIN N=$n $mode failed:" >&2
+      echo "bench_scaling: $TERRAIN N=$n $mode failed (logs kept in $OUT/failed_${n}_$mode):" >&2
       tail -5 "$WORK/launch.log" >&2
+      mkdir -p "$OUT/failed_${n}_$mode"
+      cp -r "$WORK/launch.log" "$out/logs" "$out/summary.json" "$OUT/failed_${n}_$mode/" 2>/dev/null || true
       echo "$TERRAIN,$n,$mode,$processes,,,,,,,,,,$load" >> "$OUT/scaling.csv"
       continue
     fi

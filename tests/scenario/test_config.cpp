@@ -160,14 +160,14 @@ TEST(ConfigBounds, CoordinatesMustLieInTheWorld) {
 // 500 vehicles aborted on the join timeout after 30 s while processes kept starting.
 TEST(ConfigBounds, NumberOfVehiclesIsBounded) {
   std::string text = "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}\nvehicles:\n";
-  for (int i = 0; i < 40; ++i) {
+  for (int i = 0; i < 50; ++i) {
     text += "  - {id: v" + std::to_string(i) + ", model: hmmwv, start: {x: " +
             std::to_string(i * 10) + ", y: 0}}\n";
   }
   const auto err = error_of(text);
   EXPECT_NE(err.find("test.yaml:3:"), std::string::npos) << err;
-  EXPECT_NE(err.find("vehicles: 40 vehicles"), std::string::npos) << err;
-  EXPECT_NE(err.find("at most 32"), std::string::npos) << err;
+  EXPECT_NE(err.find("vehicles: 50 vehicles"), std::string::npos) << err;
+  EXPECT_NE(err.find("at most 48"), std::string::npos) << err;
 }
 
 // Rigs: budgets on the rays of a lidar and the pixels of a camera (per frame), checked in
@@ -257,7 +257,7 @@ TEST(ConfigLayer, BuildsNoTerrainAndLinksNothingHeavy) {
 // run are bounded as well as the vehicles.
 TEST(ConfigBounds, NumberOfProcessesIsBounded) {
   std::string text = "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}\nvehicles:\n";
-  for (int i = 0; i < 22; ++i) {
+  for (int i = 0; i < 34; ++i) {
     const std::string y = std::to_string(i * 10);
     text += "  - {id: v" + std::to_string(i) + ", model: hmmwv, sensors: default, controller: " +
             "{type: path_follower, path: {waypoints: [[0, " + y + "], [50, " + y + "]]}, " +
@@ -265,8 +265,8 @@ TEST(ConfigBounds, NumberOfProcessesIsBounded) {
   }
   const auto err = error_of(text);
   EXPECT_NE(err.find("test.yaml:3:"), std::string::npos) << err;
-  EXPECT_NE(err.find("67 processes"), std::string::npos) << err;
-  EXPECT_NE(err.find("at most 64"), std::string::npos) << err;
+  EXPECT_NE(err.find("103 processes"), std::string::npos) << err;
+  EXPECT_NE(err.find("at most 100"), std::string::npos) << err;
 }
 
 // The world box may be declared elsewhere, never larger than its maximum.
