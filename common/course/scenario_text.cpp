@@ -1,7 +1,7 @@
 #include <cmath>
-#include <cstdio>
 #include <sstream>
 
+#include "core/text.hpp"
 #include "course/course.hpp"
 
 namespace syndds::course {
@@ -13,14 +13,7 @@ constexpr double kRampMps2 = 0.47;     // the leader's acceleration (paper)
 constexpr double kScmMinM = -32.0;     // SCM patch and world box: the course and the column
 constexpr double kScmMaxM = 105.0;     // of four vehicles behind the start (7.5 M vertices)
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", v);
-  std::string s = buf;
-  while (s.back() == '0') s.pop_back();
-  if (s.back() == '.') s.pop_back();
-  return s == "-0" ? "0" : s;
-}
+std::string num(double v) { return trimmed_decimal(v, 3); }
 
 std::string points(const std::vector<Vec2>& pts) {
   std::string s = "[";

@@ -2,11 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <random>
 #include <sstream>
 #include <stdexcept>
+
+#include "core/text.hpp"
 
 namespace syndds::learn {
 namespace {
@@ -78,14 +79,7 @@ void at_arc(const std::vector<Vec2>& p, double s, Vec2& point, Vec2& tangent) {
   throw std::logic_error("at_arc: a path of fewer than two points");
 }
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4f", v);
-  std::string s = buf;
-  while (s.back() == '0') s.pop_back();
-  if (s.back() == '.') s.pop_back();
-  return s == "-0" ? "0" : s;
-}
+std::string num(double v) { return trimmed_decimal(v, 4); }
 
 }  // namespace
 

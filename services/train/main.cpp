@@ -78,10 +78,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1 << 30))
       ->capture_default_str();
   app.add_option("--copies", options.copies, "Environment copies")
-      ->check(CLI::Range(1, 1 << 30))
+      ->check(CLI::Range(1, 1024))
       ->capture_default_str();
   app.add_option("--threads", options.threads, "Threads stepping the copies")
-      ->check(CLI::Range(1, 1 << 30))
+      ->check(CLI::Range(1, 256))
       ->capture_default_str();
   app.add_option("--seed", options.seed, "Seed of the networks, sampling and episodes")
       ->capture_default_str();

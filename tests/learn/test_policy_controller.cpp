@@ -21,21 +21,13 @@
 #include "learn/ppo/trainer.hpp"
 #include "protocol/local_runner.hpp"
 #include "scenario/scenario.hpp"
+#include "learn_test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace syndds;
 using namespace syndds::learn;
 
 namespace {
-
-fs::path test_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() /
-                       (std::string("syndds-") + info->test_suite_name() + "-" + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 // An untrained (randomly initialised) policy for the environment `options` describe: its
 // actions are arbitrary but deterministic, which is all the comparison needs; the mean head's
@@ -91,7 +83,7 @@ std::vector<proto::VehicleStateMsg> run_with_controller(const ConvoyEnvOptions& 
 TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
   register_policy_controller();
   at::set_num_threads(1);
-  const fs::path dir = test_dir();
+  const fs::path dir = syndds::test::learn_test_dir();
   ConvoyEnvOptions options;
   const std::string policy_file = write_policy(dir, options);
   Policy policy;
@@ -128,7 +120,7 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
 
 TEST(PolicyController, APolicyThatDoesNotFitTheSensorsIsRefused) {
   register_policy_controller();
-  const fs::path dir = test_dir();
+  const fs::path dir = syndds::test::learn_test_dir();
   ConvoyEnvOptions camera;
   camera.camera = true;
   const std::string policy_file = write_policy(dir, camera);  // sees an image

@@ -20,22 +20,13 @@
 #include "learn/ppo/policy.hpp"
 #include "learn/ppo/trainer.hpp"
 #include "learn/registry.hpp"
+#include "learn_test_util.hpp"
 
 using namespace syndds::learn;
 using namespace syndds::learn::ppo;
 namespace fs = std::filesystem;
 
 namespace {
-
-/// A fresh directory for one test case (ctest runs cases in parallel).
-fs::path temp_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() /
-                       (std::string("syndds_ppo_") + info->test_suite_name() + "_" + info->name());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
 
 EnvFactory double_integrator() {
   return [] { return std::make_unique<DoubleIntegrator>(); };
@@ -242,7 +233,7 @@ TEST(Ppo, SolvesTheDoubleIntegratorNearTheRegulator) {
   constexpr int kUpdates = 100;
   UpdateStats last;
   for (int u = 0; u < kUpdates; ++u) last = trainer.update();
-  const fs::path dir = temp_dir();
+  const fs::path dir = syndds::test::learn_test_dir();
   trainer.save_policy((dir / "policy.pt").string());
   Policy policy;
   policy.load((dir / "policy.pt").string());
@@ -274,7 +265,7 @@ TEST(Ppo, SameParametersWhateverTheThreadsStepping) {
 }
 
 TEST(Ppo, ResumingFromACheckpointGivesTheStraightRunBitForBit) {
-  const fs::path dir = temp_dir();
+  const fs::path dir = syndds::test::learn_test_dir();
   const std::string checkpoint = (dir / "checkpoint.pt").string();
   // 150 interactions per update on 2 copies: the checkpoint falls inside episodes, which the
   // resumed run replays.
@@ -308,7 +299,7 @@ TEST(Ppo, ResumingFromACheckpointGivesTheStraightRunBitForBit) {
 // The curriculum's switch: a new stage (another environment option, another seed) starts
 // from the network and observation normaliser of the last stage's policy file.
 TEST(Ppo, AStageStartsFromTheNetworkOfTheLastOne) {
-  const fs::path dir = temp_dir();
+  const fs::path dir = syndds::test::learn_test_dir();
   const std::string file = (dir / "stage1.pt").string();
   Trainer first(double_integrator(), small_options(2, 1, 150));
   first.update();
@@ -331,7 +322,7 @@ TEST(Ppo, AStageStartsFromTheNetworkOfTheLastOne) {
 }
 
 TEST(Policy, DeterministicActionIsRepeatableAndInTheBox) {
-  const fs::path dir = temp_dir();
+  const fs::path dir = syndds::test::learn_test_dir();
   TrainerOptions o = small_options(1, 1, 200);
   o.network = "mlp";
   Trainer trainer(double_integrator(), o);
