@@ -3,8 +3,13 @@
 # watched until the run ends; prints a short summary, or a one-line reason on failure.
 #
 #   launch_scripts/run_scenario.sh SCENARIO.yaml [--output DIR] [--duration S] [--realtime]
-#       [--single-process] [--print-commands] [--domain D] [--run-id ID]
-#       [--transport default|udp] [--discovery-server ADDR:PORT] [--log-level LEVEL]
+#       [--single-process] [--processes per_member|per_vehicle|N] [--print-commands]
+#       [--domain D] [--run-id ID] [--transport default|udp] [--discovery-server ADDR:PORT]
+#       [--log-level LEVEL]
+#
+# --processes overrides the scenario's process layout (docs/deployment.md, "Processes"): one
+# process per member (default), a vehicle with its controller and sensors in one process, or
+# the vehicles spread over N processes. The results are byte-identical whatever the layout.
 #
 # Exit status: 0 completed, 1 bad scenario or command line or more than this host can start,
 # 2 run aborted, a process failed, or the run completed without its recorder, 130 interrupted.
@@ -17,23 +22,24 @@ GRACE_S=${SYNDDS_LAUNCH_GRACE_S:-20}   # after a failure: time for the others to
 PROCESS_MB=${SYNDDS_PROCESS_MB:-100}   # memory one process of a run needs (docs/deployment.md)
 
 die() { echo "run_scenario: $*" >&2; exit "${2:-1}"; }
-usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; }
 
 [ $# -ge 1 ] || { usage >&2; exit 1; }
 case "$1" in -h|--help) usage; exit 0 ;; esac
 SCENARIO=$1; shift
 [ -f "$SCENARIO" ] || die "scenario file not found: $SCENARIO"
-for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_policy_controller syndds_recorder syndds_sensor syndds_sim; do
+for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_policy_controller syndds_recorder syndds_sensor syndds_group syndds_sim; do
   [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
 done
 
-OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=()
+OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=(); LAYOUT=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
     --run-id) [ $# -ge 2 ] || die "--run-id needs a value"; RUN_ID=$2; shift ;;
     --duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir)
       [ $# -ge 2 ] || die "$1 needs a value"; PASS+=("$1" "$2"); shift ;;
+    --processes) [ $# -ge 2 ] || die "--processes needs a value"; LAYOUT=(--processes "$2"); shift ;;
     --realtime) PASS+=("$1") ;;
     --single-process) SINGLE=1 ;;
     --print-commands) PRINT=1 ;;
@@ -64,11 +70,11 @@ if [ "$SINGLE" = 1 ]; then
 fi
 
 if [ "$PRINT" = 1 ]; then
-  exec "$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" "${PASS[@]}"
+  exec "$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" "${LAYOUT[@]}" "${PASS[@]}"
 fi
 
 plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" \
-       --format launcher "${PASS[@]}") || exit 1
+       --format launcher "${LAYOUT[@]}" "${PASS[@]}") || exit 1
 
 # Refuse what this machine cannot start, before starting anything: every process of a run
 # holds about PROCESS_MB of memory (Fast DDS participant, shared-memory transport; measured in

@@ -506,6 +506,70 @@ bool Scenario::is_late_member(const std::string& member_id) const {
   return false;
 }
 
+std::optional<ProcessLayout> ProcessLayout::parse(const std::string& text) {
+  ProcessLayout l;
+  if (text == "per_member") return l;
+  if (text == "per_vehicle") {
+    l.kind = Kind::per_vehicle;
+    return l;
+  }
+  if (!text.empty() && text.size() <= 3 &&
+      text.find_first_not_of("0123456789") == std::string::npos && std::stoi(text) >= 1) {
+    l.kind = Kind::groups;
+    l.groups = std::stoi(text);
+    return l;
+  }
+  return std::nullopt;
+}
+
+std::string ProcessLayout::to_string() const {
+  switch (kind) {
+    case Kind::per_member: return "per_member";
+    case Kind::per_vehicle: return "per_vehicle";
+    case Kind::groups: break;
+  }
+  return std::to_string(groups);
+}
+
+std::vector<std::vector<std::string>> Scenario::process_members(
+    const ProcessLayout& layout) const {
+  using Kind = ProcessLayout::Kind;
+  std::vector<std::vector<std::string>> out;
+  if (layout.kind == Kind::per_member) {
+    for (const auto& m : member_ids()) {
+      if (m.rfind("external/", 0) != 0) out.push_back({m});
+    }
+    return out;
+  }
+  // A vehicle's own members; late-joining sensors keep a process of their own (started later).
+  std::vector<std::string> late;
+  auto members_of = [&](const VehicleConfig& v) {
+    std::vector<std::string> m = {vehicle_member(v.id)};
+    if (v.controller.is_builtin()) m.push_back(controller_member(v.id));
+    if (v.has_rendered_sensors()) {
+      (is_late_member(sensor_member(v.id)) ? late : m).push_back(sensor_member(v.id));
+    }
+    return m;
+  };
+  const std::size_t n = vehicles.size();
+  const std::size_t groups =
+      layout.kind == Kind::per_vehicle ? n : std::min(n, static_cast<std::size_t>(layout.groups));
+  // Vehicles in scenario order, split into `groups` runs of consecutive vehicles whose sizes
+  // differ by at most one.
+  for (std::size_t g = 0, next = 0; g < groups; ++g) {
+    const std::size_t count = n / groups + (g < n % groups ? 1 : 0);
+    std::vector<std::string> members;
+    for (std::size_t i = 0; i < count; ++i, ++next) {
+      const auto m = members_of(vehicles[next]);
+      members.insert(members.end(), m.begin(), m.end());
+    }
+    out.push_back(std::move(members));
+  }
+  for (const auto& m : late) out.push_back({m});
+  if (recorder.enabled) out.push_back({kRecorderMember});
+  return out;
+}
+
 std::string vehicle_member(const std::string& id) { return "vehicle/" + id; }
 std::string controller_member(const std::string& id) { return "controller/" + id; }
 std::string external_member(const std::string& id) { return "external/" + id; }
@@ -583,6 +647,11 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
         }
       }
     }
+  }
+  if (auto n = m.optional("processes")) {
+    const auto layout = ProcessLayout::parse(n->as_string());
+    if (!layout) n->fail("'" + n->as_string() + "': " + ProcessLayout::kExpected);
+    s.processes = *layout;
   }
   if (auto n = m.optional("recorder")) {
     MapReader r(*n);

@@ -130,6 +130,25 @@ struct RecorderConfig {
   bool enabled = true;
 };
 
+/// How the launcher places the members of a run in processes (`processes:`, or syndds_plan
+/// --processes; docs/deployment.md, "Processes"). The recorded results are byte-identical
+/// whatever the layout; only the cost differs. The coordinator and the recorder always have a
+/// process of their own, and so has a late-joining sensor (it may be started later).
+struct ProcessLayout {
+  enum class Kind {
+    per_member,   // one process per member (default)
+    per_vehicle,  // a vehicle, its controller and its sensors in one process
+    groups,       // the vehicles, each with its members, spread over `groups` processes
+  };
+  Kind kind = Kind::per_member;
+  int groups = 0;
+  /// "per_member", "per_vehicle" or a whole number 1..999; nullopt otherwise.
+  static std::optional<ProcessLayout> parse(const std::string& text);
+  static constexpr const char* kExpected =
+      "expected per_member, per_vehicle or a number of processes (1..999)";
+  std::string to_string() const;
+};
+
 struct Scenario {
   std::string name;
   std::string file;
@@ -144,6 +163,7 @@ struct Scenario {
   world::Obstacles obstacles;
   std::vector<VehicleConfig> vehicles;
   RecorderConfig recorder;
+  ProcessLayout processes;
   /// Every file the scenario was read from (the scenario, vehicle files, rigs, soil presets,
   /// height-map images), in read order with its role and content hash.
   std::vector<ConfigFile> files;
@@ -155,6 +175,9 @@ struct Scenario {
   std::vector<std::string> member_ids() const;
   /// Members the run does not wait for at the start: they may join later (late_join).
   bool is_late_member(const std::string& member_id) const;
+  /// The members each process of the run hosts under `layout` (besides the coordinator; the
+  /// external controllers are the user's): vehicles' processes first, the recorder last.
+  std::vector<std::vector<std::string>> process_members(const ProcessLayout& layout) const;
 };
 
 /// Command-line overrides applied on top of the file (they change the fingerprint too).

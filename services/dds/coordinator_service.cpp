@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 
 #include "dds/convert.hpp"
@@ -24,7 +25,7 @@ CoordinatorService::~CoordinatorService() { close(); }
 
 void CoordinatorService::close() {
   // Stop every DDS callback into this object before its members go (see MemberRuntime).
-  if (participant_) participant_->set_lost_callback(nullptr);
+  if (participant_) participant_->remove_lost_callback(lost_callback_);
   announce_reader_.reset();
   done_reader_.reset();
   announce_writer_.reset();
@@ -37,7 +38,7 @@ double CoordinatorService::now() const { return seconds_since(t0_); }
 
 void CoordinatorService::setup() {
   participant_ = std::make_unique<Participant>(options_.dds);
-  participant_->set_lost_callback(
+  lost_callback_ = participant_->add_lost_callback(
       [this](const std::string& guid, bool graceful) { on_lost(guid, graceful); });
   // Writers before readers: a reader's callback may decide a grant at once (members that
   // announced themselves before the coordinator started are delivered as soon as it matches).
@@ -107,7 +108,10 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
     const std::string refused = barrier_->on_config_mismatch(a.member_id, mismatch, now());
     if (!refused.empty()) spdlog::error("coordinator: {}", refused);
   } else {
-    member_of_guid_[a.participant_guid] = a.member_id;
+    auto& members = members_of_guid_[a.participant_guid];
+    if (std::find(members.begin(), members.end(), a.member_id) == members.end()) {
+      members.push_back(a.member_id);
+    }
     const std::string warning = barrier_->on_join(a.member_id, now());
     if (!warning.empty()) spdlog::warn("coordinator: {}", warning);
   }
@@ -123,12 +127,15 @@ void CoordinatorService::on_done(const proto::FrameDoneMsg& d) {
 
 void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
   std::lock_guard lock(mutex_);
-  auto it = member_of_guid_.find(guid);
-  if (it == member_of_guid_.end()) return;
-  barrier_->on_member_lost(it->second,
-                           graceful ? "its DDS participant left (process ended)"
-                                    : "liveliness lost (no DDS announcement within the lease)",
-                           now());
+  auto it = members_of_guid_.find(guid);
+  if (it == members_of_guid_.end()) return;
+  // Members grouped in one process share its participant: they are lost together.
+  for (const auto& member : it->second) {
+    barrier_->on_member_lost(member,
+                             graceful ? "its DDS participant left (process ended)"
+                                      : "liveliness lost (no DDS announcement within the lease)",
+                             now());
+  }
   advance_locked();
 }
 
@@ -205,6 +212,10 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   } else {
     spdlog::error("coordinator: run aborted: {}", end.control.reason);
   }
+  const int code = end.kind == proto::Barrier::Action::Kind::stop ? kExitCompleted
+                   : interrupted                                  ? kExitInterrupted
+                                                                  : kExitAborted;
+  if (options_.on_verdict) options_.on_verdict(code);
   wait_for_finished(lock);
   lock.unlock();
   control_writer_->wait_for_acknowledgments(1.0);
@@ -216,9 +227,8 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
     for (const auto& [member, why] : failed_after_end_) {
       spdlog::error("coordinator: {} failed after the run completed: {}", member, why);
     }
-    return kExitCompleted;
   }
-  return interrupted ? kExitInterrupted : kExitAborted;
+  return code;
 }
 
 }  // namespace syndds::dds

@@ -4,10 +4,12 @@
 // Barrier's decisions (grants, stop, abort).
 #include <atomic>
 #include <condition_variable>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <vector>
 
 #include "dds/participant.hpp"
 #include "protocol/barrier.hpp"
@@ -20,6 +22,11 @@ struct CoordinatorOptions {
   std::uint64_t config_fingerprint = 0;
   double finish_timeout_s = 10.0;  // after stop/abort: waiting for members to confirm
   std::string scenario_name;
+  /// Called once the run's verdict is sent, with the exit code run() will return (unless a
+  /// member fails after the end): from then on nothing can change the run's outcome, and the
+  /// main program may treat a Fast DDS abort while the members leave as teardown
+  /// (service::DdsTeardownGuard).
+  std::function<void(int)> on_verdict;
 };
 
 class CoordinatorService {
@@ -57,7 +64,9 @@ class CoordinatorService {
   std::optional<proto::Barrier::Action> end_;  // stop or abort, once decided
   double next_wake_s_ = 0.0;
   std::int64_t progress_every_ = 1;
-  std::map<std::string, std::string> member_of_guid_;  // participant GUID prefix -> member id
+  // Participant GUID prefix -> the members it announced (several when a process hosts a group).
+  std::map<std::string, std::vector<std::string>> members_of_guid_;
+  int lost_callback_ = -1;
   proto::RunControlMsg result_;
   std::map<std::string, std::string> failed_after_end_;
 

@@ -48,8 +48,9 @@ const char* writer_profile(proto::Topic t) {
 
 }  // namespace
 
-MemberRuntime::MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options)
-    : agent_(agent), options_(std::move(options)) {}
+MemberRuntime::MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options,
+                             std::shared_ptr<Participant> shared)
+    : agent_(agent), options_(std::move(options)), participant_(std::move(shared)) {}
 
 MemberRuntime::~MemberRuntime() { close(); }
 
@@ -77,7 +78,8 @@ void MemberRuntime::close() {
   // Frames run in the thread of run(), so none runs any more. Stop every DDS callback into this
   // object before its members go: the lost-participant callback, then the readers, then the
   // writers, and the participant last.
-  if (participant_) participant_->set_lost_callback(nullptr);
+  if (participant_ && lost_callback_ >= 0) participant_->remove_lost_callback(lost_callback_);
+  lost_callback_ = -1;
   announce_reader_.reset();
   grant_reader_.reset();
   control_reader_.reset();
@@ -89,8 +91,8 @@ void MemberRuntime::close() {
 }
 
 void MemberRuntime::setup() {
-  participant_ = std::make_unique<Participant>(options_.dds);
-  participant_->set_lost_callback([this](const std::string& guid, bool graceful) {
+  if (!participant_) participant_ = std::make_shared<Participant>(options_.dds);
+  lost_callback_ = participant_->add_lost_callback([this](const std::string& guid, bool graceful) {
     std::lock_guard lock(mutex_);
     const auto& c = session_->coordinator();
     if (c && c->participant_guid == guid) {
@@ -342,6 +344,7 @@ int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
     end_reason_ = failed;
     code = kExitFailed;
   }
+  if (options_.on_outcome) options_.on_outcome(code);
   if (!end.confirm) return code;
   try {
     // Whatever this member wrote must reach its readers before the process (and its shared

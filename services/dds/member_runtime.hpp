@@ -31,6 +31,10 @@ struct MemberRuntimeOptions {
   double final_timeout_s = 5.0;   // gathering the final frame's samples after the run ended
   double interrupt_grace_s = 2.0; // after a signal: waiting for the coordinator's verdict
   bool late_join = false;         // may join a run under way: starts after the grant naming it
+  /// Called once the agent finished the run, with the exit code run() will return, before the
+  /// last DDS exchanges (flushing, confirming): nothing after it changes this member's outcome
+  /// (see service::DdsTeardownGuard).
+  std::function<void(int)> on_outcome;
 
   // Test knobs (never set by the launcher):
   int debug_frame_delay_ms = 0;    // sleep this long in every frame: a slow process
@@ -50,7 +54,11 @@ enum ExitCode : int {
 
 class MemberRuntime {
  public:
-  MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options);
+  /// With `shared` the member uses that participant (several members hosted by one process,
+  /// syndds_group: one participant, one discovery, samples between them stay in the process);
+  /// without, it creates its own from options.dds.
+  MemberRuntime(proto::Agent& agent, MemberRuntimeOptions options,
+                std::shared_ptr<Participant> shared = nullptr);
   ~MemberRuntime();
 
   /// Runs until the run ends; returns an ExitCode. `interrupt` is polled (signals).
@@ -82,7 +90,8 @@ class MemberRuntime {
 
   proto::Agent& agent_;
   MemberRuntimeOptions options_;
-  std::unique_ptr<Participant> participant_;
+  std::shared_ptr<Participant> participant_;
+  int lost_callback_ = -1;
 
   // DDS callbacks only store what arrives in the session and wake the thread in run(), which
   // runs the frames: a long frame must not block a DDS thread (it would hold Fast DDS's

@@ -94,9 +94,16 @@ std::string Participant::guid_prefix() const {
   return out.str();
 }
 
-void Participant::set_lost_callback(LostCallback cb) {
+int Participant::add_lost_callback(LostCallback cb) {
   std::lock_guard lock(callback_mutex_);
-  lost_ = std::move(cb);
+  const int id = next_callback_id_++;
+  lost_.emplace(id, std::move(cb));
+  return id;
+}
+
+void Participant::remove_lost_callback(int id) {
+  std::lock_guard lock(callback_mutex_);
+  lost_.erase(id);
 }
 
 void Participant::on_participant_discovery(
@@ -106,7 +113,7 @@ void Participant::on_participant_discovery(
   std::ostringstream out;
   out << info.info.m_guid.guidPrefix;
   std::lock_guard lock(callback_mutex_);
-  if (lost_) lost_(out.str(), info.status == Info::REMOVED_PARTICIPANT);
+  for (const auto& [id, lost] : lost_) lost(out.str(), info.status == Info::REMOVED_PARTICIPANT);
 }
 
 // Partitions of data topics: writers of vehicle V publish in "<run>/all" and "<run>/vehicle/V";

@@ -215,9 +215,12 @@ class Participant : private fdds::DomainParticipantListener {
 
   const DdsOptions& options() const { return options_; }
   std::string guid_prefix() const;
-  /// Sets (or with nullptr clears) the lost-participant callback. Clearing waits until a call
-  /// in progress has returned, so the owner may then be destroyed safely.
-  void set_lost_callback(LostCallback cb);
+  /// Adds a lost-participant callback (several members may share one participant, each with
+  /// its own); returns the id that removes it.
+  int add_lost_callback(LostCallback cb);
+  /// Removes a callback added before. Waits until a call in progress has returned, so its owner
+  /// may then be destroyed safely. Unknown ids are ignored.
+  void remove_lost_callback(int id);
 
   /// A writer of a protocol topic (`vehicle_id` empty) or of a data topic carrying the samples
   /// of one vehicle: they reach the readers of every key and the readers of that key only.
@@ -312,8 +315,9 @@ class Participant : private fdds::DomainParticipantListener {
   std::map<std::string, fdds::Subscriber*> data_subscribers_;  // by vehicle id, "" = all
   std::map<std::string, fdds::Topic*> topics_;
   mutable std::mutex mutex_;
-  std::mutex callback_mutex_;  // held while lost_ runs: clearing it waits for a call in flight
-  LostCallback lost_;
+  std::mutex callback_mutex_;  // held while a callback runs: removing waits for a call in flight
+  std::map<int, LostCallback> lost_;
+  int next_callback_id_ = 0;
 };
 
 template <typename T>

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "common/service_cli.hpp"
+#include "core/error.hpp"
 
 using namespace syndds;
 namespace sdds = syndds::dds;
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   std::string output = "runs/latest";
   std::string bin_dir;
   std::string format = "shell";
+  std::string layout_option;
   app.add_option("--output", output, "Run directory (recorder)")->capture_default_str();
   app.add_option("--bin-dir", bin_dir, "Folder holding the syndds_* programs");
   app.add_option("--format", format,
@@ -38,6 +40,9 @@ int main(int argc, char** argv) {
                  "the scenario loads (role, hash, bytes, path), to compare hosts")
       ->check(CLI::IsMember({"shell", "launcher", "files"}))
       ->capture_default_str();
+  app.add_option("--processes", layout_option,
+                 "Process layout: per_member, per_vehicle or a number of processes for the "
+                 "vehicles (overrides the scenario's processes:; results are the same)");
   return service::run_service("plan", app, argc, argv, common, [&] {
     const auto s = service::load_scenario_config(common);
     if (format == "files") {
@@ -65,30 +70,48 @@ int main(int argc, char** argv) {
     if (!common.dds_profiles.empty()) shared += " --dds-profiles " + quote(common.dds_profiles);
     if (common.log_level != "info") shared += " --log-level " + common.log_level;
 
+    scenario::ProcessLayout layout = s.processes;
+    if (!layout_option.empty()) {
+      const auto l = scenario::ProcessLayout::parse(layout_option);
+      if (!l) {
+        throw ConfigError("--processes '" + layout_option + "': " +
+                          scenario::ProcessLayout::kExpected);
+      }
+      layout = *l;
+    }
+    // The command of a process hosting `members`: a member alone gets its own program (only
+    // the learned-policy controller loads libtorch); several share one syndds_group process.
+    const std::string run_dir = quote(fs::absolute(output).string());
+    auto command_of = [&](const std::vector<std::string>& members) {
+      if (members.size() > 1) {
+        std::string c = program("syndds_group") + shared;
+        for (const auto& m : members) c += " --member " + quote(m);
+        return c + " --output " + run_dir;
+      }
+      const std::string& m = members.front();
+      if (m == scenario::kRecorderMember) {
+        return program("syndds_recorder") + shared + " --output " + run_dir;
+      }
+      const auto slash = m.find('/');
+      const std::string kind = m.substr(0, slash);
+      const std::string id = m.substr(slash + 1);
+      if (kind == "vehicle") return program("syndds_vehicle") + shared + " --vehicle " + quote(id);
+      if (kind == "sensor") {
+        return program("syndds_sensor") + shared + " --vehicle " + quote(id) + " --output " +
+               run_dir;
+      }
+      const bool policy = s.find_vehicle(id)->controller.type == "policy";
+      return program(policy ? "syndds_policy_controller" : "syndds_controller") + shared +
+             " --vehicle " + quote(id);
+    };
     std::vector<std::pair<std::string, std::string>> processes;
     processes.emplace_back("coordinator", program("syndds_coordinator") + shared);
-    for (const auto& v : s.vehicles) {
-      processes.emplace_back(scenario::vehicle_member(v.id),
-                             program("syndds_vehicle") + shared + " --vehicle " + quote(v.id));
-    }
-    for (const auto& v : s.vehicles) {
-      if (!v.controller.is_builtin()) continue;
-      // Learned policies run in a program of their own: only it loads libtorch.
-      const char* controller =
-          v.controller.type == "policy" ? "syndds_policy_controller" : "syndds_controller";
-      processes.emplace_back(scenario::controller_member(v.id),
-                             program(controller) + shared + " --vehicle " + quote(v.id));
-    }
-    for (const auto& v : s.vehicles) {
-      if (!v.has_rendered_sensors()) continue;
-      processes.emplace_back(scenario::sensor_member(v.id),
-                             program("syndds_sensor") + shared + " --vehicle " + quote(v.id) +
-                                 " --output " + quote(fs::absolute(output).string()));
-    }
-    if (s.recorder.enabled) {
-      processes.emplace_back(scenario::kRecorderMember,
-                             program("syndds_recorder") + shared + " --output " +
-                                 quote(fs::absolute(output).string()));
+    for (const auto& members : s.process_members(layout)) {
+      // A process of several members is named after its first vehicle: group/<id>.
+      const std::string& first = members.front();
+      const std::string name =
+          members.size() == 1 ? first : "group/" + first.substr(first.find('/') + 1);
+      processes.emplace_back(name, command_of(members));
     }
     if (format == "shell") {
       std::cout << "# run '" << run_id << "' of " << s.file << " on DDS domain " << s.dds.domain_id

@@ -5,8 +5,11 @@
 # CPU time each kind of process used, sampled from /proc, so the cost per frame can be split.
 #
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft] [--n "8 16 24 32"]
-#       [--modes "distributed single"] [--duration S] [--output DIR]
+#       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
 #
+# Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
+# its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
+# single = every agent in one process (syndds_sim, no DDS). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
 # lanes only). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
@@ -16,7 +19,7 @@
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
-TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed single"; DURATION=10; OUT=""
+TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -24,12 +27,20 @@ while [ $# -gt 0 ]; do
     --modes) MODES=$2; shift ;;
     --duration) DURATION=$2; shift ;;
     --output) OUT=$2; shift ;;
-    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
 done
 case "$TERRAIN" in rigid|soft) ;; *) echo "bench_scaling: --terrain rigid or soft" >&2; exit 1 ;; esac
+for mode in $MODES; do
+  case "$mode" in
+    distributed|per_vehicle|single) ;;
+    groups[1-9]|groups[1-9][0-9]) ;;
+    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, single)" >&2
+       exit 1 ;;
+  esac
+done
 [ -n "$OUT" ] || OUT="runs/scaling-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$OUT"
 WORK=$(mktemp -d)
@@ -78,7 +89,9 @@ cpu_by_kind() {
   while kill -0 "$pid" 2>/dev/null; do
     for stat in /proc/[0-9]*/stat; do
       local line
-      line=$(cat "$stat" 2>/dev/null) || continue
+      # The read builtin, not cat: a fork per process twice a second cost 7 % of the CPU at
+      # 50 processes (perf), which the benchmark would then measure as the run's.
+      read -r line 2>/dev/null < "$stat" || continue
       local comm=${line#*(}; comm=${comm%%)*}
       [[ "$comm" == syndds_* ]] || continue
       local rest=${line##*) }
@@ -93,17 +106,21 @@ cpu_by_kind() {
     awk -v tick="$tick" '{s[$1] += $2} END {for (k in s) printf "%s %.2f\n", k, s[k] / tick}'
 }
 
-echo "terrain,n,mode,processes,frames,wall_s,rtf,cpu_coordinator_s,cpu_vehicles_s,cpu_controllers_s,cpu_recorder_s,cpu_sim_s,cpu_total_s,load_start" > "$OUT/scaling.csv"
+echo "terrain,n,mode,processes,frames,wall_s,rtf,cpu_coordinator_s,cpu_vehicles_s,cpu_controllers_s,cpu_groups_s,cpu_recorder_s,cpu_sim_s,cpu_total_s,load_start" > "$OUT/scaling.csv"
 for n in $NS; do
   file=$(scenario "$n")
   for mode in $MODES; do
     load=$(cut -d' ' -f1 /proc/loadavg)
     out=$WORK/out_${n}_$mode
     rm -rf "$out"
-    if [ "$mode" = distributed ]; then
+    if [ "$mode" != single ]; then
+      case "$mode" in
+        distributed) layout=per_member; processes=$((2 * n + 2)) ;;
+        per_vehicle) layout=per_vehicle; processes=$((n + 2)) ;;
+        groups*) layout=${mode#groups}; processes=$((layout + 2)) ;;
+      esac
       "$ROOT/tests/netns_exec.sh" "$ROOT/launch_scripts/run_scenario.sh" "$file" --output "$out" \
-          > "$WORK/launch.log" 2>&1 &
-      processes=$((2 * n + 2))
+          --processes "$layout" > "$WORK/launch.log" 2>&1 &
     else
       "$BIN/syndds_sim" "$file" --output "$out" --quiet --config-dir "$ROOT/config" \
           > "$WORK/launch.log" 2>&1 &
@@ -116,7 +133,7 @@ for n in $NS; do
       tail -5 "$WORK/launch.log" >&2
       mkdir -p "$OUT/failed_${n}_$mode"
       cp -r "$WORK/launch.log" "$out/logs" "$out/summary.json" "$OUT/failed_${n}_$mode/" 2>/dev/null || true
-      echo "$TERRAIN,$n,$mode,$processes,,,,,,,,,,$load" >> "$OUT/scaling.csv"
+      echo "$TERRAIN,$n,$mode,$processes,,,,,,,,,,,$load" >> "$OUT/scaling.csv"
       continue
     fi
     /usr/bin/python3 - "$out/summary.json" "$WORK/cpu.txt" "$TERRAIN" "$n" "$mode" "$processes" "$load" \
@@ -125,7 +142,8 @@ import json, sys
 summary, cpu_file, terrain, n, mode, processes, load = sys.argv[1:]
 s = json.load(open(summary))
 cpu = dict((k, float(v)) for k, v in (line.split() for line in open(cpu_file) if line.strip()))
-kinds = ["syndds_coordina", "syndds_vehicle", "syndds_controll", "syndds_recorder", "syndds_sim"]
+kinds = ["syndds_coordina", "syndds_vehicle", "syndds_controll", "syndds_group", "syndds_recorder",
+         "syndds_sim"]
 cells = [f"{cpu.get(k, 0.0):.2f}" for k in kinds] + [f"{sum(cpu.values()):.2f}"]
 print(",".join([terrain, n, mode, processes, str(s["frames"]), f"{s['wall_time_s']:.2f}",
                 f"{s['real_time_factor']:.3f}"] + cells + [load]))
@@ -139,11 +157,12 @@ import csv, pathlib, sys
 out = pathlib.Path(sys.argv[1])
 rows = list(csv.DictReader(open(out / "scaling.csv")))
 lines = ["| terrain | vehicles | mode | processes | RTF | wall (s) | CPU s: coordinator / vehicles / "
-         "controllers / recorder / sim / all | load at start |", "|---|---|---|---|---|---|---|---|"]
+         "controllers / groups / recorder / sim / all | load at start |",
+         "|---|---|---|---|---|---|---|---|"]
 for r in rows:
     cpu = " / ".join(r[k] or "-" for k in ["cpu_coordinator_s", "cpu_vehicles_s",
-                                            "cpu_controllers_s", "cpu_recorder_s", "cpu_sim_s",
-                                            "cpu_total_s"])
+                                            "cpu_controllers_s", "cpu_groups_s", "cpu_recorder_s",
+                                            "cpu_sim_s", "cpu_total_s"])
     lines.append(f"| {r['terrain']} | {r['n']} | {r['mode']} | {r['processes']} | "
                  f"{r['rtf'] or 'failed'} | {r['wall_s'] or '-'} | {cpu} | {r['load_start']} |")
 (out / "scaling.md").write_text("\n".join(lines) + "\n")

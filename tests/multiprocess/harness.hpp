@@ -194,12 +194,13 @@ inline int launched_pid(const fs::path& output, const std::string& member) {
 }
 
 /// A launcher run of `scenario` in the background (its output in run.dir / "out").
-inline std::unique_ptr<Process> start_launcher(const TestRun& run, const std::string& scenario) {
+inline std::unique_ptr<Process> start_launcher(const TestRun& run, const std::string& scenario,
+                                               const std::string& extra = "") {
   // The launcher runs the programs of the build under test, wherever that build is.
   return std::make_unique<Process>("env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
                                        "/launch_scripts/run_scenario.sh " + scenario +
                                        " --output " + (run.dir / "out").string() +
-                                       run.common_args(),
+                                       run.common_args() + " " + extra,
                                    run.dir / "launcher.log");
 }
 

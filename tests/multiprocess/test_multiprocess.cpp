@@ -449,6 +449,69 @@ TEST(DeformableTerrain, CopiesAgreeEveryFrameAndTheRutJoltsTheOtherVehicle) {
   EXPECT_GT(with_rut, 10.0 * without);
 }
 
+// Members grouped in processes (processes: per_vehicle, or all vehicles in one process) share a
+// DDS participant; the soil copies, the rut b crosses and every recorded file stay the same as
+// in the single-process run, byte for byte, and so does the recorder's grid hash.
+TEST(ProcessLayout, GroupedMembersGiveByteIdenticalResultsOnSoil) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/scm_rut.yaml";
+  single_process_csv(run, scenario, "");
+  const auto files = byte_identical_files(run.dir / "single");
+  ASSERT_TRUE(files.contains("vehicles.csv"));
+  auto grid_hash = [](const fs::path& dir) {
+    return nlohmann::json::parse(read_file(dir / "summary.json"))["terrain"]["grid_hash"]
+        .get<std::string>();
+  };
+  const std::string single_hash = grid_hash(run.dir / "single");
+  for (const std::string layout : {"per_vehicle", "1"}) {
+    const fs::path out = run.dir / ("layout_" + layout);
+    auto processes = plan(run, scenario, out.string(), "--processes " + layout);
+    // Coordinator, the vehicles' processes, recorder.
+    ASSERT_EQ(processes.size(), layout == "1" ? 3u : 4u) << layout;
+    for (const auto& p : processes) {
+      if (p.member.rfind("group/", 0) == 0) {
+        EXPECT_NE(p.command.find("syndds_group"), std::string::npos) << p.command;
+      }
+    }
+    auto procs = start_all(run, processes);
+    const auto codes = wait_all(procs, 120.0);
+    for (std::size_t i = 0; i < codes.size(); ++i) {
+      EXPECT_EQ(codes[i], 0) << layout << " " << processes[i].member << "\n"
+                             << describe_logs(procs);
+    }
+    EXPECT_EQ(byte_identical_files(out), files) << layout;
+    for (const auto& f : files) {
+      EXPECT_EQ(read_file(out / f), read_file(run.dir / "single" / f)) << layout << " " << f;
+    }
+    EXPECT_EQ(grid_hash(out), single_hash) << layout;
+  }
+}
+
+// A killed process that hosts two members (vehicle b and its controller) loses both: under
+// on_member_loss: continue both leave the barrier and the run completes (a member not seen as
+// lost would stall every frame until the deadline aborted the run).
+TEST(ProcessLayout, AKilledGroupLosesAllItsMembers) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kSource + "/tests/multiprocess/scenarios/continue_run.yaml",
+                                 "--processes per_vehicle");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
+  const int pid = launched_pid(out, "group/b");
+  ASSERT_NE(pid, 0) << read_file(out / "logs" / "pids");
+  ASSERT_EQ(::kill(pid, SIGKILL), 0);
+  const auto code = launcher->wait(40);
+  ASSERT_TRUE(code.has_value()) << "launcher still running\n" << launcher->log();
+  EXPECT_EQ(*code, 0) << launcher->log();
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  EXPECT_EQ(summary["status"], "completed");
+  std::set<std::string> lost;
+  for (const auto& m : summary["members"]) {
+    if (m["lost"].get<bool>()) lost.insert(m["member"].get<std::string>());
+  }
+  EXPECT_EQ(lost, (std::set<std::string>{"vehicle/b", "controller/b"}));
+}
+
 // A sensor process renders its vehicle's camera from the synced world: vehicle b, simulated in
 // another process, appears in vehicle a's images where its recorded pose projects; the images
 // equal the single-process ones byte for byte; interoceptive sensors reach the recorder.

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -289,4 +290,58 @@ TEST(Scenario, VehicleProcessBuildsNoRenderer) {
   EXPECT_EQ(threads(), before);
   const auto sensor = agents::make_agent(s, sensor_member("a"), {});
   EXPECT_GE(threads(), before + 15);  // the sensor process renders
+}
+
+// `processes:` places the members in processes; the members themselves never change.
+TEST(Scenario, ProcessLayoutsGroupEachVehicleWithItsMembers) {
+  const std::string text = R"(time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}
+vehicles:
+  - {id: a, model: hmmwv, sensors: default,
+     controller: {type: path_follower, path: {waypoints: [[0, 0], [10, 0]]}, speed: {target_mps: 3}}}
+  - {id: b, model: hmmwv, start: {x: 0, y: 5}, controller: {type: external}}
+  - {id: c, model: hmmwv, sensors: {rig: default, late_join: true},
+     controller: {type: path_follower, path: {waypoints: [[0, 9], [10, 9]]}, speed: {target_mps: 3}}}
+)";
+  using Groups = std::vector<std::vector<std::string>>;
+  const auto s = parse(text);
+  EXPECT_EQ(s.processes.kind, ProcessLayout::Kind::per_member);  // default
+  // One process per member; the external controller is the user's own program.
+  EXPECT_EQ(s.process_members(s.processes),
+            (Groups{{"vehicle/a"}, {"vehicle/b"}, {"vehicle/c"}, {"controller/a"},
+                    {"controller/c"}, {"sensor/a"}, {"sensor/c"}, {"recorder"}}));
+  // A late-joining sensor keeps its own process (it may be started later).
+  EXPECT_EQ(s.process_members(*ProcessLayout::parse("per_vehicle")),
+            (Groups{{"vehicle/a", "controller/a", "sensor/a"}, {"vehicle/b"},
+                    {"vehicle/c", "controller/c"}, {"sensor/c"}, {"recorder"}}));
+  // N processes: consecutive vehicles, sizes differing by at most one; N above the number of
+  // vehicles gives one process per vehicle.
+  EXPECT_EQ(s.process_members(*ProcessLayout::parse("2")),
+            (Groups{{"vehicle/a", "controller/a", "sensor/a", "vehicle/b"},
+                    {"vehicle/c", "controller/c"}, {"sensor/c"}, {"recorder"}}));
+  EXPECT_EQ(s.process_members(*ProcessLayout::parse("7")),
+            s.process_members(*ProcessLayout::parse("per_vehicle")));
+  // Every member the coordinator waits for is hosted exactly once, whatever the layout.
+  for (const std::string l : {"per_member", "per_vehicle", "1", "2", "3"}) {
+    std::vector<std::string> hosted;
+    for (const auto& g : s.process_members(*ProcessLayout::parse(l))) {
+      hosted.insert(hosted.end(), g.begin(), g.end());
+    }
+    std::sort(hosted.begin(), hosted.end());
+    auto expected = s.member_ids();
+    expected.erase(std::remove(expected.begin(), expected.end(), "external/b"), expected.end());
+    std::sort(expected.begin(), expected.end());
+    EXPECT_EQ(hosted, expected) << l;
+  }
+}
+
+TEST(Scenario, ProcessLayoutErrorsNameTheKey) {
+  for (const std::string bad : {"per_host", "0", "-2", "1.5", "1000"}) {
+    EXPECT_FALSE(ProcessLayout::parse(bad).has_value()) << bad;
+  }
+  EXPECT_EQ(ProcessLayout::parse("12")->groups, 12);
+  const auto err = error_of("processes: per_host\n" + kMinimal);
+  EXPECT_NE(err.find("test.yaml:1:12: processes: 'per_host': expected per_member, per_vehicle or "
+                     "a number of processes"),
+            std::string::npos)
+      << err;
 }
