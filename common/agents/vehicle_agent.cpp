@@ -106,6 +106,14 @@ void VehicleAgent::note_departed(const proto::FrameContext& ctx, proto::FrameSam
                                     controller_ + " was lost; braking to a stop, steering held"});
 }
 
+void VehicleAgent::finish(const proto::RunEnd&, const proto::FrameSamples&) {
+  if (max_deferred_ > 0) {
+    spdlog::info("{}: interest management held up to {} vertices of other vehicles' ruts aside "
+                 "(merged when this vehicle came within {:g} m)",
+                 member_id_, max_deferred_, soil_->params().interest_radius_m);
+  }
+}
+
 void VehicleAgent::note_rejected(const std::vector<proto::RejectedSample>& rejected) {
   for (const auto& r : rejected) {
     if (r.topic == proto::Topic::driver_command && r.key == vehicle_id_) intrusions_.push_back(r);
@@ -125,12 +133,21 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
   }
   intrusions_.clear();
   if (soil_) {
+    // Interest management: only the soil around this vehicle is merged now (it cannot reach
+    // farther within a frame); the rest waits, exactly, until the vehicle comes near.
+    const double radius = soil_->params().interest_radius_m;
+    if (radius > 0.0) {
+      const Vec3& p = model_->snapshot().pose.position;
+      soil_->set_interest_region(p.x(), p.y(), radius);
+    }
     // The other vehicles' deformations of frame k-1, merged by the SCM rule (order-free).
     for (const auto& d : inputs.terrain_deformations) {
       if (d.vehicle_id == vehicle_id_) continue;  // our own, applied in place already
       soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
     }
+    max_deferred_ = std::max(max_deferred_, soil_->deferred_vertices());
     if (hash_log_ && ctx.frame > 0) {
+      soil_->flush_deferred();  // the hash covers the whole grid
       hash_log_->write(fmt::format("{} {:016x}\n", ctx.frame - 1, soil_->grid_hash()));
     }
   }
@@ -183,6 +200,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     if (snapshot_provider_ && !ctx.joiners.empty()) {
       // Late joiners start from this copy as it is now (own changes of this frame included;
       // they apply the others' changes of this frame themselves, like everyone else).
+      soil_->flush_deferred();  // a late joiner gets the whole soil
       const scm::ScmSnapshot snap = soil_->snapshot();
       proto::TerrainSnapshotMsg m;
       m.vehicle_id = vehicle_id_;

@@ -41,6 +41,7 @@ class VehicleAgent final : public proto::Agent {
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
   void note_rejected(const std::vector<proto::RejectedSample>& rejected) override;
+  void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
 
   const vehicle::VehicleModel& model() const { return *model_; }
   std::uint64_t rejected_commands() const { return rejected_; }
@@ -68,6 +69,7 @@ class VehicleAgent final : public proto::Agent {
   bool snapshot_provider_ = false;  // writes the terrain snapshot late joiners start from
   std::unique_ptr<vehicle::VehicleModel> model_;
   std::uint64_t rejected_ = 0;
+  std::size_t max_deferred_ = 0;  // most soil vertices held aside by interest management
   std::vector<proto::RejectedSample> intrusions_;  // refused by the transport, not yet reported
   std::string controller_;  // the member that writes our driver commands (empty: none)
   bool controller_lost_ = false;

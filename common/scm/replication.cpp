@@ -26,6 +26,7 @@ bool beats(const VertexChange& a, std::uint32_t sa, const VertexChange& b, std::
 }
 
 std::vector<VertexChange> Replication::take_local_changes(VertexGrid& grid) {
+  ++window_;
   claims_.clear();
   claim_source_.clear();
   std::vector<VertexChange> out;
@@ -50,6 +51,10 @@ void Replication::apply_remote_changes(VertexGrid& grid, std::uint32_t source_id
     }
   }
   for (const VertexChange& c : changes) {
+    if (outside_interest(c.i, c.j)) {
+      defer(grid, source_id, c);
+      continue;
+    }
     const std::uint64_t key = vertex_key(c.i, c.j);
     const auto next = static_cast<std::int32_t>(claim_source_.size());
     const std::int32_t claim = claims_.insert(key, next);
@@ -65,6 +70,74 @@ void Replication::apply_remote_changes(VertexGrid& grid, std::uint32_t source_id
       holder = source_id;
     }
   }
+}
+
+// The same decisions as the merge above makes for a vertex, on the vertex's slot instead of
+// its grid record: the first record of a window replaces what an older window left, a later
+// record of the same window replaces it if it beats it. The level bound is raised exactly when
+// the merge would have assigned, so every culling decision near the vehicle stays the same.
+void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexChange& c) {
+  const std::uint64_t tile_key = vertex_key(c.i >> kTileShift, c.j >> kTileShift);
+  DeferredTile& tile = deferred_[tile_key];
+  if (tile.slots.empty()) tile.slots.resize(static_cast<std::size_t>(kTileSize * kTileSize));
+  DeferredSlot& slot = tile.slots[static_cast<std::size_t>(((c.i & (kTileSize - 1)) << kTileShift) |
+                                                           (c.j & (kTileSize - 1)))];
+  if (slot.window == 0) ++tile.used;
+  if (slot.window != window_ || beats(c, source_id, slot.change, slot.source)) {
+    slot.change = c;
+    slot.source = source_id;
+    slot.window = window_;
+    grid.note_level(c.level_m);
+    grid.note_level(c.level_initial_m - c.sinkage_plastic_m);
+  }
+}
+
+void Replication::merge_tile(VertexGrid& grid, DeferredTile& tile) {
+  for (const DeferredSlot& slot : tile.slots) {
+    if (slot.window == 0) continue;
+    grid.assign(grid.record(grid.get_or_insert_blank(slot.change.i, slot.change.j)), slot.change);
+  }
+}
+
+void Replication::set_interest(VertexGrid& grid, const IndexBox& box) {
+  has_interest_ = true;
+  interest_ = box;
+  // Tiles meeting the box, in key order so the grid's insertion order does not depend on the
+  // hash map's.
+  std::vector<std::uint64_t> due;
+  for (const auto& [key, tile] : deferred_) {
+    const std::int32_t ti = key_i(key);
+    const std::int32_t tj = key_j(key);
+    if (ti * kTileSize + kTileSize - 1 >= box.i_lo && ti * kTileSize <= box.i_hi &&
+        tj * kTileSize + kTileSize - 1 >= box.j_lo && tj * kTileSize <= box.j_hi) {
+      due.push_back(key);
+    }
+  }
+  std::sort(due.begin(), due.end());
+  for (const std::uint64_t key : due) {
+    merge_tile(grid, deferred_.at(key));
+    deferred_.erase(key);
+  }
+}
+
+void Replication::clear_interest(VertexGrid& grid) {
+  flush_deferred(grid);
+  has_interest_ = false;
+}
+
+void Replication::flush_deferred(VertexGrid& grid) {
+  std::vector<std::uint64_t> keys;
+  keys.reserve(deferred_.size());
+  for (const auto& [key, tile] : deferred_) keys.push_back(key);
+  std::sort(keys.begin(), keys.end());
+  for (const std::uint64_t key : keys) merge_tile(grid, deferred_.at(key));
+  deferred_.clear();
+}
+
+std::size_t Replication::deferred_vertices() const {
+  std::size_t n = 0;
+  for (const auto& [key, tile] : deferred_) n += tile.used;
+  return n;
 }
 
 ScmSnapshot Replication::snapshot(const VertexGrid& grid) {
@@ -90,6 +163,7 @@ void Replication::load_snapshot(VertexGrid& grid, const ScmSnapshot& snap) {
   grid.clear();
   claims_.clear();
   claim_source_.clear();
+  deferred_.clear();
   for (const VertexChange& c : snap.vertices) {
     grid.assign(grid.record(grid.get_or_insert_blank(c.i, c.j)), c);
   }

@@ -6,6 +6,7 @@
 // vertices themselves are in the VertexGrid.
 #include <cstdint>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "scm/vertex_grid.hpp"
@@ -33,9 +34,30 @@ class Replication {
   /// with them as this process's claims.
   std::vector<VertexChange> take_local_changes(VertexGrid& grid);
   /// Merges another process's list for the same frame (throws ProtocolError on a vertex
-  /// outside the area or a value that is not finite).
+  /// outside the area or a value that is not finite). Records outside the interest box (when
+  /// one is set) are deferred instead: see set_interest.
   void apply_remote_changes(VertexGrid& grid, std::uint32_t source_id,
                             std::span<const VertexChange> changes);
+
+  /// Interest management. Vertex index box [i_lo, i_hi] x [j_lo, j_hi]: remote records outside
+  /// it are kept aside per tile of kTileSize x kTileSize vertices, one slot per vertex holding
+  /// what the merge would have left there (a newer frame's first record replaces it, a record
+  /// of the same frame replaces it if it beats it), and the level bound is raised as the merge
+  /// would have raised it. Tiles that meet the box are merged into the grid now, before this
+  /// frame's lists. The caller guarantees that this process changes no vertex outside the box
+  /// until the next call; then the grid inside the box equals the grid of a full merge.
+  struct IndexBox {
+    std::int32_t i_lo = 0, i_hi = -1, j_lo = 0, j_hi = -1;
+  };
+  void set_interest(VertexGrid& grid, const IndexBox& box);
+  /// No box any more: every deferred tile is merged now and nothing is deferred from now on.
+  void clear_interest(VertexGrid& grid);
+  /// Merges every deferred tile (the grid then equals a full merge everywhere).
+  void flush_deferred(VertexGrid& grid);
+  std::size_t deferred_tiles() const { return deferred_.size(); }
+  std::size_t deferred_vertices() const;
+  static constexpr std::int32_t kTileShift = 5;  // tiles of 32 x 32 vertices
+  static constexpr std::int32_t kTileSize = 1 << kTileShift;
   static ScmSnapshot snapshot(const VertexGrid& grid);
   /// Replaces the whole grid (throws std::invalid_argument on a spacing mismatch or a vertex
   /// outside the area) and closes the merge window.
@@ -44,9 +66,29 @@ class Replication {
   static std::uint64_t grid_hash(const VertexGrid& grid);
 
  private:
+  struct DeferredSlot {
+    VertexChange change;
+    std::uint32_t source = 0;
+    std::uint64_t window = 0;  // merge window (frame) of the record; 0: empty slot
+  };
+  struct DeferredTile {
+    std::vector<DeferredSlot> slots;  // kTileSize^2, row i-major
+    std::size_t used = 0;
+  };
+  bool outside_interest(std::int32_t i, std::int32_t j) const {
+    return has_interest_ && (i < interest_.i_lo || i > interest_.i_hi || j < interest_.j_lo ||
+                             j > interest_.j_hi);
+  }
+  void defer(VertexGrid& grid, std::uint32_t source_id, const VertexChange& c);
+  void merge_tile(VertexGrid& grid, DeferredTile& tile);
+
   std::uint32_t source_id_ = 0;
   KeyIndexMap claims_;                       // vertex key -> claim_source_ index (frame winners)
   std::vector<std::uint32_t> claim_source_;  // indexed by claims_ values
+  std::uint64_t window_ = 1;                 // merge windows opened so far (+1)
+  bool has_interest_ = false;
+  IndexBox interest_;
+  std::unordered_map<std::uint64_t, DeferredTile> deferred_;  // by tile key
 };
 
 }  // namespace syndds::scm

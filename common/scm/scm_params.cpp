@@ -135,6 +135,12 @@ ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_conf
   }
   p.grid.base_height_m = m.number("base_height_m", 0.0, -1e5, 1e5);
   p.threads = integer(m, "threads", 1, 1, 64);
+  p.interest_radius_m = m.number("interest_radius_m", p.interest_radius_m, 0.0, 1e4);
+  if (p.interest_radius_m > 0.0 && p.interest_radius_m < 5.0) {
+    m.required("interest_radius_m")
+        .fail("0 (off) or at least 5 m: a vehicle touches the soil up to about 3 m from its "
+              "chassis, plus a frame's travel and the bulldozing rim");
+  }
   p.patch_test_height_m = m.number("patch_test_height_m", p.patch_test_height_m, 0.0, 10.0);
   p.shear_damping_time_s = m.number("shear_damping_time_s", p.shear_damping_time_s, 0.0, 1.0);
   m.finish();

@@ -59,6 +59,11 @@ struct ScmParams {
   /// rocking of a body at rest on soft soil; 0 gives the plain law (docs/scm.md, Deviations).
   double shear_damping_time_s = 0.005;
   int threads = 1;  // ray-casting threads (results are bit-identical for any count)
+  /// Interest management (docs/scm.md, "Interest management"): a vehicle process merges the
+  /// other vehicles' deformations only within this distance of its chassis; records beyond it
+  /// wait, per tile, exactly as the merge would leave them, and are merged when the vehicle
+  /// comes near. 0 merges everything at once. Results are the same either way.
+  double interest_radius_m = 12.0;
   /// Footprint vertices per thread below which a step runs on the calling thread only (waking
   /// workers costs tens of microseconds). Does not change results.
   int thread_min_vertices = 4096;
@@ -89,6 +94,7 @@ SoilPreset load_soil_preset_file(const std::string& file, ConfigFiles* files = n
 ///   area: {x_min_m: -50, x_max_m: 50, y_min_m: -50, y_max_m: 50}
 ///   base_height_m: 0       # optional
 ///   threads: 1             # optional
+///   interest_radius_m: 12  # optional; 0 = merge every deformation at once
 ///   patch_test_height_m: 0.1  # optional
 ///   shear_damping_time_s: 0.005  # optional
 ///   bulldozing: {...}      # optional, overrides the preset's

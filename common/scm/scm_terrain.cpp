@@ -376,11 +376,37 @@ void ScmTerrain::apply_remote_changes(std::uint32_t source_id,
   replication_.apply_remote_changes(grid_, source_id, changes);
 }
 
-ScmSnapshot ScmTerrain::snapshot() const { return Replication::snapshot(grid_); }
+void ScmTerrain::set_interest_region(double x_m, double y_m, double radius_m) {
+  const double d = grid_.spacing();
+  Replication::IndexBox box;
+  box.i_lo = static_cast<std::int32_t>(std::floor((x_m - radius_m) / d));
+  box.i_hi = static_cast<std::int32_t>(std::ceil((x_m + radius_m) / d));
+  box.j_lo = static_cast<std::int32_t>(std::floor((y_m - radius_m) / d));
+  box.j_hi = static_cast<std::int32_t>(std::ceil((y_m + radius_m) / d));
+  replication_.set_interest(grid_, box);
+}
+
+namespace {
+void require_merged(const Replication& r, const char* what) {
+  if (r.deferred_tiles() > 0) {
+    throw std::logic_error(std::string("ScmTerrain::") + what +
+                           ": deformations are deferred (interest management); flush_deferred() "
+                           "first");
+  }
+}
+}  // namespace
+
+ScmSnapshot ScmTerrain::snapshot() const {
+  require_merged(replication_, "snapshot");
+  return Replication::snapshot(grid_);
+}
 
 void ScmTerrain::load_snapshot(const ScmSnapshot& snap) { replication_.load_snapshot(grid_, snap); }
 
-std::uint64_t ScmTerrain::grid_hash() const { return Replication::grid_hash(grid_); }
+std::uint64_t ScmTerrain::grid_hash() const {
+  require_merged(replication_, "grid_hash");
+  return Replication::grid_hash(grid_);
+}
 
 double ScmTerrain::plastic_volume_change_m3() const {
   // Summed in (i, j) order so the result does not depend on insertion order.

@@ -106,10 +106,20 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   /// frame (own and remote) the lowest level wins (ties: larger plastic sinkage, larger yield,
   /// lower level_initial, then lower source id), so the result does not depend on arrival order.
   void apply_remote_changes(std::uint32_t source_id, std::span<const VertexChange> changes);
+  /// Interest management (docs/scm.md): from now on remote records farther than `radius_m`
+  /// (in x or y) from (x, y) wait aside and the deferred ones within it are merged. Call at the
+  /// start of a frame, before apply_remote_changes; this process's bodies must stay within the
+  /// box until the next call.
+  void set_interest_region(double x_m, double y_m, double radius_m);
+  /// Merges everything deferred (the grid then equals a full merge everywhere).
+  void flush_deferred() { replication_.flush_deferred(grid_); }
+  std::size_t deferred_vertices() const { return replication_.deferred_vertices(); }
+  /// Whole-grid state (throws std::logic_error while records are deferred: flush first).
   ScmSnapshot snapshot() const;
   /// Replaces the whole grid (throws std::invalid_argument on a spacing mismatch).
   void load_snapshot(const ScmSnapshot& snapshot);
-  /// FNV-1a over the shared state of all stored vertices in (i, j) order.
+  /// FNV-1a over the shared state of all stored vertices in (i, j) order (throws
+  /// std::logic_error while records are deferred: flush first).
   std::uint64_t grid_hash() const;
 
   // ---- Queries ----
@@ -128,6 +138,8 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   /// Stored shared state of vertex (i, j), if it ever deformed.
   std::optional<VertexChange> vertex(std::int32_t i, std::int32_t j) const;
   std::size_t stored_vertices() const { return grid_.size(); }
+  /// No stored level or unloaded surface is above this (bodies above it touch no soil).
+  double level_bound() const { return grid_.level_bound(); }
   /// Normal stress at vertex (i, j) in the last step (0 if not in contact then).
   double vertex_pressure(std::int32_t i, std::int32_t j) const;
   /// Sum over stored vertices of (level_initial - sinkage_plastic - base) * cell area (m^3):

@@ -449,6 +449,44 @@ TEST(DeformableTerrain, CopiesAgreeEveryFrameAndTheRutJoltsTheOtherVehicle) {
   EXPECT_GT(with_rut, 10.0 * without);
 }
 
+// Interest management (terrain interest_radius_m, default 12 m) changes nothing: vehicle b
+// crosses the rut a laid while b was more than 12 m away (held aside in b's copy, merged when b
+// came near) and every recorded file equals the run that merges every deformation at once.
+TEST(DeformableTerrain, InterestManagementGivesTheSameResultAsFullExchange) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/scm_rut.yaml";
+  std::string text = read_file(scenario);
+  const std::string anchor = "  spacing_m: 0.05\n";
+  ASSERT_NE(text.find(anchor), std::string::npos);
+  text.replace(text.find(anchor), anchor.size(), anchor + "  interest_radius_m: 0\n");
+  const fs::path full_scenario = run.dir / "scm_rut.yaml";
+  std::ofstream(full_scenario) << text;
+  auto sim = [&](const std::string& file, const std::string& name) {
+    const std::string cmd = kBin + "/syndds_sim " + file + " --quiet --output " +
+                            (run.dir / name).string() + " --config-dir " + kConfig + " > " +
+                            (run.dir / (name + ".log")).string() + " 2>&1";
+    EXPECT_EQ(std::system(cmd.c_str()), 0) << read_file(run.dir / (name + ".log"));
+    return read_file(run.dir / (name + ".log"));
+  };
+  const std::string with_interest = sim(scenario, "interest");
+  const std::string without = sim(full_scenario.string(), "full");
+  // b held a's rut aside for a while; with radius 0 nothing was.
+  EXPECT_NE(with_interest.find("vehicle/b: interest management held up to"), std::string::npos)
+      << with_interest;
+  EXPECT_EQ(without.find("interest management held"), std::string::npos) << without;
+  const auto files = byte_identical_files(run.dir / "full");
+  ASSERT_TRUE(files.contains("vehicles.csv"));
+  EXPECT_EQ(byte_identical_files(run.dir / "interest"), files);
+  for (const auto& f : files) {
+    EXPECT_EQ(read_file(run.dir / "interest" / f), read_file(run.dir / "full" / f)) << f;
+  }
+  auto grid_hash = [](const fs::path& dir) {
+    return nlohmann::json::parse(read_file(dir / "summary.json"))["terrain"]["grid_hash"]
+        .get<std::string>();
+  };
+  EXPECT_EQ(grid_hash(run.dir / "interest"), grid_hash(run.dir / "full"));
+}
+
 // Members grouped in processes (processes: per_vehicle, or all vehicles in one process) share a
 // DDS participant; the soil copies, the rut b crosses and every recorded file stay the same as
 // in the single-process run, byte for byte, and so does the recorder's grid hash.

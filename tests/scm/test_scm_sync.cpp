@@ -158,6 +158,101 @@ TEST(ScmSync, CopiesExchangingChangesStayIdenticalWithConflicts) {
   EXPECT_GT(t1.stored_vertices(), 500u);
 }
 
+// Interest management: a copy that holds the records outside its interest box aside (per tile,
+// resolved by the same conflict rule) and merges them when the box moves over them, or at the
+// end, ends bit-identical to a copy that merged everything at once, with the same level bound
+// (it decides which bodies may touch the soil). The two wheels cross, so the deferred slots see
+// same-frame conflicts between sources.
+TEST(ScmSync, DeferredRecordsMergeToTheSameGridAsAFullMerge) {
+  ScmTerrain t1(sync_params()), t2(sync_params()), full(sync_params()), lazy(sync_params());
+  t1.set_source_id(1);
+  t2.set_source_id(2);
+  full.set_source_id(3);
+  lazy.set_source_id(4);
+  const double dt = 2e-3, v = 2.0;
+  double t = 0.0;
+  std::size_t most_deferred = 0;
+  for (int frame = 0; frame < 100; ++frame) {
+    for (int s = 0; s < 5; ++s) {
+      const auto w1 = kinematic_wheel(Vec3(-1.0, 0.0, 0.0), Vec3::UnitX(), v, 0.2, t);
+      const auto w2 = kinematic_wheel(Vec3(0.0, -1.0, 0.0), Vec3::UnitY(), v, 0.2, t);
+      terrain::WheelLoad l;
+      t1.compute_wheel_loads(std::span(&w1, 1), dt, std::span(&l, 1));
+      t2.compute_wheel_loads(std::span(&w2, 1), dt, std::span(&l, 1));
+      t += dt;
+    }
+    const auto c1 = t1.take_local_changes();
+    const auto c2 = t2.take_local_changes();
+    full.take_local_changes();
+    lazy.take_local_changes();
+    // The lazy copy looks far away, then at a small box on the crossing (merging the tiles it
+    // meets), then far away again.
+    if (frame < 40 || frame >= 70) {
+      lazy.set_interest_region(50.0, 50.0, 5.0);
+    } else {
+      lazy.set_interest_region(0.3, 0.3, 0.2);
+    }
+    // Opposite orders: the conflict rule, not the arrival order, must decide.
+    full.apply_remote_changes(2, c2);
+    full.apply_remote_changes(1, c1);
+    lazy.apply_remote_changes(1, c1);
+    lazy.apply_remote_changes(2, c2);
+    most_deferred = std::max(most_deferred, lazy.deferred_vertices());
+    if (frame >= 40 && frame < 70) {
+      // Inside the current box the copies agree vertex for vertex.
+      for (int i = 2; i <= 10; ++i) {
+        for (int j = 2; j <= 10; ++j) {
+          ASSERT_EQ(lazy.vertex(i, j), full.vertex(i, j)) << i << "," << j;
+        }
+      }
+    }
+  }
+  EXPECT_GT(most_deferred, 500u);
+  EXPECT_GT(lazy.deferred_vertices(), 0u);
+  EXPECT_THROW(lazy.grid_hash(), std::logic_error);
+  lazy.flush_deferred();
+  EXPECT_EQ(lazy.deferred_vertices(), 0u);
+  EXPECT_EQ(lazy.grid_hash(), full.grid_hash());
+  EXPECT_EQ(lazy.stored_vertices(), full.stored_vertices());
+  EXPECT_EQ(lazy.level_bound(), full.level_bound());
+}
+
+// The slot rule on hand-made records of one far vertex: within a frame the conflict rule picks
+// the winner whatever the arrival order; a later frame's record replaces an earlier one even
+// when the earlier one would have won a conflict.
+TEST(ScmSync, DeferredSlotsFollowTheConflictRuleAndFrameOrder) {
+  auto record = [](double level) {
+    VertexChange c;
+    c.i = 100;
+    c.j = 100;
+    c.level_m = level;
+    c.level_initial_m = 0.0;
+    c.sinkage_plastic_m = -level;
+    c.sigma_yield_pa = 1e4;
+    return c;
+  };
+  const VertexChange deep = record(-0.2), shallow = record(-0.1), later = record(-0.05);
+  for (bool deep_first : {true, false}) {
+    ScmTerrain lazy(sync_params());
+    lazy.take_local_changes();
+    lazy.set_interest_region(-5.0, -5.0, 0.5);  // far from vertex (100, 100) = (5 m, 5 m)
+    lazy.apply_remote_changes(deep_first ? 1 : 2, std::vector{deep_first ? deep : shallow});
+    lazy.apply_remote_changes(deep_first ? 2 : 1, std::vector{deep_first ? shallow : deep});
+    ASSERT_EQ(lazy.deferred_vertices(), 1u);
+    EXPECT_FALSE(lazy.vertex(100, 100).has_value());  // not merged yet
+    lazy.flush_deferred();
+    EXPECT_EQ(lazy.vertex(100, 100), deep) << deep_first;
+
+    lazy.take_local_changes();  // frame 1: the deep record, then frame 2: a shallower one
+    lazy.apply_remote_changes(1, std::vector{deep});
+    lazy.take_local_changes();
+    lazy.apply_remote_changes(2, std::vector{later});
+    lazy.set_interest_region(5.0, 5.0, 0.5);  // the vehicle arrives: merged now
+    EXPECT_EQ(lazy.deferred_vertices(), 0u);
+    EXPECT_EQ(lazy.vertex(100, 100), later) << deep_first;
+  }
+}
+
 TEST(ScmSync, ConflictRuleKeepsTheDeeperRecordInAnyOrder) {
   ScmParams p = sync_params();
   ScmTerrain own(p), other(p);
