@@ -361,8 +361,8 @@ int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
   return code;
 }
 
-int MemberRuntime::run(const std::atomic<bool>& interrupt) {
-  using Kind = proto::MemberSession::Action::Kind;
+void MemberRuntime::prepare() {
+  if (prepared_) return;
   {
     std::lock_guard lock(mutex_);
     t0_ = Clock::now();
@@ -370,8 +370,14 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
   }
   setup();
   announce();
+  prepared_ = true;
   spdlog::info("{}: announced; waiting for the coordinator of run '{}' on domain {}",
                agent_.member_id(), options_.dds.run_id, options_.dds.domain_id);
+}
+
+int MemberRuntime::run(const std::atomic<bool>& interrupt) {
+  using Kind = proto::MemberSession::Action::Kind;
+  prepare();
 
   // This thread runs the frames and carries out the session's decisions; DDS callbacks only
   // feed the session and wake it.

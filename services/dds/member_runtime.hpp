@@ -61,6 +61,11 @@ class MemberRuntime {
                 std::shared_ptr<Participant> shared = nullptr);
   ~MemberRuntime();
 
+  /// Creates the DDS entities and announces the member (run() does it when not done before).
+  /// A process hosting many members prepares them one after another: creating every member's
+  /// readers and writers at once from many threads starved the participant's own
+  /// announcements at startup (32 members in one process).
+  void prepare();
   /// Runs until the run ends; returns an ExitCode. `interrupt` is polled (signals).
   int run(const std::atomic<bool>& interrupt);
   /// Tears the DDS entities down (also done by the destructor); idempotent.
@@ -127,6 +132,7 @@ class MemberRuntime {
   typename PerTopic<DataReaderPtr, AllTopics>::type data_readers_;
 
   std::string end_reason_;
+  bool prepared_ = false;
 };
 
 }  // namespace syndds::dds

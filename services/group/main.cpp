@@ -76,6 +76,8 @@ int main(int argc, char** argv) {
       runtimes.push_back(
           std::make_unique<sdds::MemberRuntime>(*agents[i], std::move(options), participant));
     }
+    // One member's DDS entities after another (see MemberRuntime::prepare), then the frames.
+    for (auto& r : runtimes) r->prepare();
     std::vector<int> codes(runtimes.size(), sdds::kExitFailed);
     {
       std::vector<std::thread> threads;
