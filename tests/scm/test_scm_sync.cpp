@@ -69,6 +69,20 @@ bool bit_equal(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
+/// One frame of the crossing: in t1 a wheel drives east along y = 0, in t2 one north along
+/// x = 0 (2 m/s, 20 % slip, 2 ms steps); they pass the origin in the same frames.
+void drive_crossing_frame(ScmTerrain& t1, ScmTerrain& t2, int steps, double& t) {
+  const double dt = 2e-3, v = 2.0;
+  for (int s = 0; s < steps; ++s) {
+    const auto w1 = kinematic_wheel(Vec3(-1.0, 0.0, 0.0), Vec3::UnitX(), v, 0.2, t);
+    const auto w2 = kinematic_wheel(Vec3(0.0, -1.0, 0.0), Vec3::UnitY(), v, 0.2, t);
+    terrain::WheelLoad l;
+    t1.compute_wheel_loads(std::span(&w1, 1), dt, std::span(&l, 1));
+    t2.compute_wheel_loads(std::span(&w2, 1), dt, std::span(&l, 1));
+    t += dt;
+  }
+}
+
 ScmParams sync_params(int threads = 1) {
   ScmParams p = params("mid", 0.05, 6.0, threads);
   p.bulldozing.enabled = true;
@@ -115,19 +129,11 @@ TEST(ScmSync, CopiesExchangingChangesStayIdenticalWithConflicts) {
   t2.set_source_id(2);
   t3.set_source_id(3);
   t4.set_source_id(4);
-  const double dt = 2e-3, v = 2.0;
   const int steps_per_frame = 5;
   int conflicts = 0, differing_conflicts = 0;
   double t = 0.0;
   for (int frame = 0; frame < 100; ++frame) {
-    for (int s = 0; s < steps_per_frame; ++s) {
-      const auto w1 = kinematic_wheel(Vec3(-1.0, 0.0, 0.0), Vec3::UnitX(), v, 0.2, t);
-      const auto w2 = kinematic_wheel(Vec3(0.0, -1.0, 0.0), Vec3::UnitY(), v, 0.2, t);
-      terrain::WheelLoad l;
-      t1.compute_wheel_loads(std::span(&w1, 1), dt, std::span(&l, 1));
-      t2.compute_wheel_loads(std::span(&w2, 1), dt, std::span(&l, 1));
-      t += dt;
-    }
+    drive_crossing_frame(t1, t2, steps_per_frame, t);
     const auto c1 = t1.take_local_changes();
     const auto c2 = t2.take_local_changes();
     EXPECT_TRUE(t3.take_local_changes().empty());
@@ -169,18 +175,10 @@ TEST(ScmSync, DeferredRecordsMergeToTheSameGridAsAFullMerge) {
   t2.set_source_id(2);
   full.set_source_id(3);
   lazy.set_source_id(4);
-  const double dt = 2e-3, v = 2.0;
   double t = 0.0;
   std::size_t most_deferred = 0;
   for (int frame = 0; frame < 100; ++frame) {
-    for (int s = 0; s < 5; ++s) {
-      const auto w1 = kinematic_wheel(Vec3(-1.0, 0.0, 0.0), Vec3::UnitX(), v, 0.2, t);
-      const auto w2 = kinematic_wheel(Vec3(0.0, -1.0, 0.0), Vec3::UnitY(), v, 0.2, t);
-      terrain::WheelLoad l;
-      t1.compute_wheel_loads(std::span(&w1, 1), dt, std::span(&l, 1));
-      t2.compute_wheel_loads(std::span(&w2, 1), dt, std::span(&l, 1));
-      t += dt;
-    }
+    drive_crossing_frame(t1, t2, 5, t);
     const auto c1 = t1.take_local_changes();
     const auto c2 = t2.take_local_changes();
     full.take_local_changes();
