@@ -291,6 +291,27 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
+// A member that ends before the coordinator's readers were matched with its writers (e.g.
+// one that refuses the coordinator's scenario as soon as it hears it) would go unnoticed:
+// its announcement and its failure must be matched and acknowledged before it leaves.
+void MemberRuntime::reach_coordinator() {
+  std::string guid;
+  {
+    std::lock_guard lock(mutex_);
+    if (session_->coordinator()) guid = session_->coordinator()->participant_guid;
+  }
+  GuidPrefix prefix;
+  if (guid.empty() || !parse_guid_prefix(guid, prefix)) return;
+  constexpr double kMatchTimeoutS = 5.0;
+  if (!announce_writer_->wait_matched_by(prefix, kMatchTimeoutS) ||
+      !done_writer_->wait_matched_by(prefix, kMatchTimeoutS)) {
+    spdlog::warn("{}: the coordinator's readers did not match within {:g} s; it may not learn "
+                 "why this member ends",
+                 agent_.member_id(), kMatchTimeoutS);
+  }
+  announce_writer_->wait_for_acknowledgments(2.0);
+}
+
 void MemberRuntime::run_frame(const proto::FrameContext& ctx,
                               const proto::FrameSamples& inputs) {
   const auto t0 = Clock::now();
@@ -318,6 +339,7 @@ int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
   if (!end.error.empty() && done_writer_) {
     // Tell the coordinator why, so the run's one-line reason names the cause.
     try {
+      reach_coordinator();
       send_done(end.error_frame, {}, 0.0, false, end.error);
       done_writer_->wait_for_acknowledgments(1.0);
     } catch (const std::exception&) {

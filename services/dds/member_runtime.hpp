@@ -90,6 +90,9 @@ class MemberRuntime {
   bool flush_writers(double timeout_s);  // true when every reader acknowledged everything
   void send_done(std::int64_t frame, const proto::Manifest& published, double compute_s,
                  bool finished, const std::string& error = "");
+  /// Before reporting a failure: waits (bounded) until the coordinator's readers are matched
+  /// with this member's announcement and done writers and the announcement is acknowledged.
+  void reach_coordinator();
   /// Carries out the session's finish decision; returns the exit code.
   int end_run(const proto::MemberSession::Action& end);
 

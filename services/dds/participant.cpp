@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
@@ -74,6 +75,25 @@ Participant::~Participant() {
   participant_->set_listener(nullptr);
   participant_->delete_contained_entities();
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+void MatchedReaders::on_publication_matched(fdds::DataWriter*,
+                                            const fdds::PublicationMatchedStatus& status) {
+  const GuidPrefix prefix =
+      eprosima::fastrtps::rtps::iHandle2GUID(status.last_subscription_handle).guidPrefix;
+  {
+    std::lock_guard lock(mutex_);
+    int& n = matched_[prefix];
+    n += status.current_count_change;
+    if (n <= 0) matched_.erase(prefix);
+  }
+  cv_.notify_all();
+}
+
+bool MatchedReaders::wait_for(const GuidPrefix& prefix, double timeout_s) {
+  std::unique_lock lock(mutex_);
+  return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                      [&] { return matched_.count(prefix) > 0; });
 }
 
 std::string to_string(const GuidPrefix& prefix) {

@@ -5,6 +5,7 @@
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
@@ -16,6 +17,7 @@
 #include <synddsPubSubTypes.h>
 
 #include <algorithm>
+#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -118,11 +120,30 @@ void deepen_history(fdds::HistoryQosPolicy& history) {
 
 class Participant;
 
+using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
+
+/// Which participants' readers a writer is matched with (Fast DDS 2.9 does not implement
+/// DataWriter::get_matched_subscriptions; the matched-status callback names the reader).
+class MatchedReaders : public fdds::DataWriterListener {
+ public:
+  void on_publication_matched(fdds::DataWriter* writer,
+                              const fdds::PublicationMatchedStatus& status) override;
+  /// Blocks until a reader of participant `prefix` is matched, at most `timeout_s`.
+  bool wait_for(const GuidPrefix& prefix, double timeout_s);
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::map<GuidPrefix, int> matched_;  // readers per participant
+};
+
 template <typename T>
 class Writer {
  public:
-  Writer(fdds::Publisher* publisher, fdds::DataWriter* writer)
-      : publisher_(publisher), writer_(writer) {}
+  /// `matched` is the listener `writer` was created with.
+  Writer(fdds::Publisher* publisher, fdds::DataWriter* writer,
+         std::unique_ptr<MatchedReaders> matched)
+      : publisher_(publisher), writer_(writer), matched_(std::move(matched)) {}
   ~Writer() { publisher_->delete_datawriter(writer_); }
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
@@ -136,6 +157,12 @@ class Writer {
   fdds::DataWriter* raw() { return writer_; }
   /// Blocks until every matched reader acknowledged everything written (bounded).
   bool wait_for_acknowledgments(double timeout_s);
+  /// Blocks until a reader of participant `prefix` is matched (bounded). A writer is matched
+  /// with a remote reader some time after the remote participant's own writers were: a sample
+  /// written before is never seen by that reader, whatever wait_for_acknowledgments says.
+  bool wait_matched_by(const GuidPrefix& prefix, double timeout_s) {
+    return matched_->wait_for(prefix, timeout_s);
+  }
 
  private:
   void count_in_frame(const T& sample) {
@@ -155,10 +182,9 @@ class Writer {
 
   fdds::Publisher* publisher_;
   fdds::DataWriter* writer_;
+  std::unique_ptr<MatchedReaders> matched_;  // outlives writer_ (deleted in the destructor)
   std::map<std::string, std::pair<std::int64_t, std::uint32_t>> per_key_;  // frame, count
 };
-
-using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
 
 /// The GUID prefix of a sample's writer: the prefix of the participant that wrote it.
 inline const GuidPrefix& writer_prefix(const fdds::SampleInfo& info) {
@@ -234,9 +260,11 @@ class Participant : private fdds::DomainParticipantListener {
       fail(std::string("no data writer QoS profile ") + profile);
     }
     deepen_history<T>(qos.history());
-    fdds::DataWriter* w = publisher->create_datawriter(t, qos);
+    auto matched = std::make_unique<MatchedReaders>();
+    fdds::DataWriter* w = publisher->create_datawriter(t, qos, matched.get(),
+                                                       fdds::StatusMask::publication_matched());
     if (!w) fail("cannot create writer for " + topic_name + " with profile " + profile);
-    return std::make_unique<Writer<T>>(publisher, w);
+    return std::make_unique<Writer<T>>(publisher, w, std::move(matched));
   }
 
   enum class Scope {

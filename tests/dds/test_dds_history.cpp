@@ -260,3 +260,31 @@ TEST(DdsHistory, WritersKeepTwoFramesAndRefuseMoreSamplesPerFrame) {
   s.frame = 4;
   EXPECT_TRUE(states->write(sdds::to_dds(s)));
 }
+
+// A member that leaves right after hearing the coordinator must first be matched with the
+// coordinator's readers, or its announcement and failure are lost: a writer knows which
+// participants' readers it is matched with (Fast DDS 2.9 leaves get_matched_subscriptions
+// unimplemented, so this comes from the matched-status callback).
+TEST(DdsMatching, WriterWaitsUntilAGivenParticipantsReaderIsMatched) {
+  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
+  sdds::Participant writer_side(options("matching"));
+  sdds::Participant reader_side(options("matching"));
+  sdds::Participant bystander(options("matching"));
+  auto writer =
+      writer_side.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, "a");
+  sdds::GuidPrefix reader_prefix;
+  sdds::GuidPrefix bystander_prefix;
+  ASSERT_TRUE(sdds::parse_guid_prefix(reader_side.guid_prefix(), reader_prefix));
+  ASSERT_TRUE(sdds::parse_guid_prefix(bystander.guid_prefix(), bystander_prefix));
+  // Nobody reads yet: a bounded wait says so.
+  EXPECT_FALSE(writer->wait_matched_by(reader_prefix, 0.2));
+  auto reader = reader_side.make_reader<msg::TerrainDeformation>(
+      topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
+      sdds::Participant::Scope::all_vehicles);
+  EXPECT_TRUE(writer->wait_matched_by(reader_prefix, 30.0));
+  // Another participant (with no reader of this topic) is not taken for the reader's.
+  EXPECT_FALSE(writer->wait_matched_by(bystander_prefix, 0.2));
+  // The reader goes away: no longer matched.
+  reader.reset();
+  EXPECT_TRUE(wait_until([&] { return !writer->wait_matched_by(reader_prefix, 0.0); }, 30.0));
+}
