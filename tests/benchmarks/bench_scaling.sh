@@ -6,6 +6,7 @@
 #
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
+#       [--dds-profiles FILE]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -20,6 +21,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
+PROFILES=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -27,7 +29,8 @@ while [ $# -gt 0 ]; do
     --modes) MODES=$2; shift ;;
     --duration) DURATION=$2; shift ;;
     --output) OUT=$2; shift ;;
-    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --dds-profiles) PROFILES=(--dds-profiles "$2"); shift ;;
+    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
@@ -120,7 +123,7 @@ for n in $NS; do
         groups*) layout=${mode#groups}; processes=$((layout + 2)) ;;
       esac
       "$ROOT/tests/netns_exec.sh" "$ROOT/launch_scripts/run_scenario.sh" "$file" --output "$out" \
-          --processes "$layout" > "$WORK/launch.log" 2>&1 &
+          --processes "$layout" "${PROFILES[@]}" > "$WORK/launch.log" 2>&1 &
     else
       "$BIN/syndds_sim" "$file" --output "$out" --quiet --config-dir "$ROOT/config" \
           > "$WORK/launch.log" 2>&1 &
