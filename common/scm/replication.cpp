@@ -78,11 +78,18 @@ void Replication::apply_remote_changes(VertexGrid& grid, std::uint32_t source_id
 // the merge would have assigned, so every culling decision near the vehicle stays the same.
 void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexChange& c) {
   const std::uint64_t tile_key = vertex_key(c.i >> kTileShift, c.j >> kTileShift);
-  DeferredTile& tile = deferred_[tile_key];
+  if (!last_tile_ || last_tile_key_ != tile_key) {
+    last_tile_ = &deferred_[tile_key];
+    last_tile_key_ = tile_key;
+  }
+  DeferredTile& tile = *last_tile_;
   if (tile.slots.empty()) tile.slots.resize(static_cast<std::size_t>(kTileSize * kTileSize));
   DeferredSlot& slot = tile.slots[static_cast<std::size_t>(((c.i & (kTileSize - 1)) << kTileShift) |
                                                            (c.j & (kTileSize - 1)))];
-  if (slot.window == 0) ++tile.used;
+  if (slot.window == 0) {
+    ++tile.used;
+    ++deferred_vertices_;
+  }
   if (slot.window != window_ || beats(c, source_id, slot.change, slot.source)) {
     slot.change = c;
     slot.source = source_id;
@@ -102,22 +109,47 @@ void Replication::merge_tile(VertexGrid& grid, DeferredTile& tile) {
 void Replication::set_interest(VertexGrid& grid, const IndexBox& box) {
   has_interest_ = true;
   interest_ = box;
+  if (deferred_.empty() || box.i_hi < box.i_lo || box.j_hi < box.j_lo) return;
   // Tiles meeting the box, in key order so the grid's insertion order does not depend on the
-  // hash map's.
+  // hash map's. The box spans few tiles and the map may hold thousands (every rut far away):
+  // look the box's tiles up rather than walk the map, whichever is fewer.
+  const std::int32_t ti_lo = box.i_lo >> kTileShift, ti_hi = box.i_hi >> kTileShift;
+  const std::int32_t tj_lo = box.j_lo >> kTileShift, tj_hi = box.j_hi >> kTileShift;
+  const auto box_tiles = static_cast<std::size_t>(ti_hi - ti_lo + 1) *
+                         static_cast<std::size_t>(tj_hi - tj_lo + 1);
   std::vector<std::uint64_t> due;
-  for (const auto& [key, tile] : deferred_) {
-    const std::int32_t ti = key_i(key);
-    const std::int32_t tj = key_j(key);
-    if (ti * kTileSize + kTileSize - 1 >= box.i_lo && ti * kTileSize <= box.i_hi &&
-        tj * kTileSize + kTileSize - 1 >= box.j_lo && tj * kTileSize <= box.j_hi) {
-      due.push_back(key);
+  if (box_tiles < deferred_.size()) {
+    for (std::int32_t ti = ti_lo; ti <= ti_hi; ++ti) {
+      for (std::int32_t tj = tj_lo; tj <= tj_hi; ++tj) {
+        const std::uint64_t key = vertex_key(ti, tj);
+        if (deferred_.count(key) > 0) due.push_back(key);
+      }
+    }
+  } else {
+    for (const auto& [key, tile] : deferred_) {
+      const std::int32_t ti = key_i(key);
+      const std::int32_t tj = key_j(key);
+      if (ti >= ti_lo && ti <= ti_hi && tj >= tj_lo && tj <= tj_hi) due.push_back(key);
     }
   }
   std::sort(due.begin(), due.end());
   for (const std::uint64_t key : due) {
     merge_tile(grid, deferred_.at(key));
-    deferred_.erase(key);
+    erase_tile(key);
   }
+}
+
+void Replication::erase_tile(std::uint64_t key) {
+  auto it = deferred_.find(key);
+  deferred_vertices_ -= it->second.used;
+  if (last_tile_ == &it->second) last_tile_ = nullptr;
+  deferred_.erase(it);
+}
+
+void Replication::forget_deferred() {
+  deferred_.clear();
+  deferred_vertices_ = 0;
+  last_tile_ = nullptr;
 }
 
 void Replication::clear_interest(VertexGrid& grid) {
@@ -131,13 +163,7 @@ void Replication::flush_deferred(VertexGrid& grid) {
   for (const auto& [key, tile] : deferred_) keys.push_back(key);
   std::sort(keys.begin(), keys.end());
   for (const std::uint64_t key : keys) merge_tile(grid, deferred_.at(key));
-  deferred_.clear();
-}
-
-std::size_t Replication::deferred_vertices() const {
-  std::size_t n = 0;
-  for (const auto& [key, tile] : deferred_) n += tile.used;
-  return n;
+  forget_deferred();
 }
 
 ScmSnapshot Replication::snapshot(const VertexGrid& grid) {
@@ -163,7 +189,7 @@ void Replication::load_snapshot(VertexGrid& grid, const ScmSnapshot& snap) {
   grid.clear();
   claims_.clear();
   claim_source_.clear();
-  deferred_.clear();
+  forget_deferred();
   for (const VertexChange& c : snap.vertices) {
     grid.assign(grid.record(grid.get_or_insert_blank(c.i, c.j)), c);
   }

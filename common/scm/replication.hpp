@@ -55,7 +55,7 @@ class Replication {
   /// Merges every deferred tile (the grid then equals a full merge everywhere).
   void flush_deferred(VertexGrid& grid);
   std::size_t deferred_tiles() const { return deferred_.size(); }
-  std::size_t deferred_vertices() const;
+  std::size_t deferred_vertices() const { return deferred_vertices_; }
   static constexpr std::int32_t kTileShift = 5;  // tiles of 32 x 32 vertices
   static constexpr std::int32_t kTileSize = 1 << kTileShift;
   static ScmSnapshot snapshot(const VertexGrid& grid);
@@ -88,7 +88,15 @@ class Replication {
   std::uint64_t window_ = 1;                 // merge windows opened so far (+1)
   bool has_interest_ = false;
   IndexBox interest_;
+  void erase_tile(std::uint64_t key);
+  void forget_deferred();
+
   std::unordered_map<std::uint64_t, DeferredTile> deferred_;  // by tile key
+  std::size_t deferred_vertices_ = 0;                          // slots used in all tiles
+  // The tile the last deferred record went to (records come sorted by (i, j), so runs of
+  // them fall into one tile); map nodes stay put until erased.
+  std::uint64_t last_tile_key_ = 0;
+  DeferredTile* last_tile_ = nullptr;
 };
 
 }  // namespace syndds::scm

@@ -251,6 +251,44 @@ TEST(ScmSync, DeferredSlotsFollowTheConflictRuleAndFrameOrder) {
   }
 }
 
+// Many deferred tiles (every far rut) and a small box: the box's own tiles are looked up, and
+// exactly the tiles it meets are merged, whichever of its corners a tile holds.
+TEST(ScmSync, ASmallBoxOverManyDeferredTilesMergesExactlyTheTilesItMeets) {
+  constexpr std::int32_t kTile = Replication::kTileSize;
+  ScmTerrain lazy(sync_params()), full(sync_params());
+  lazy.take_local_changes();
+  full.take_local_changes();
+  lazy.set_interest_region(100.0, 100.0, 0.5);  // outside the area: everything is deferred
+  std::vector<VertexChange> records;
+  for (std::int32_t ti = -3; ti <= 3; ++ti) {
+    for (std::int32_t tj = -3; tj <= 3; ++tj) {
+      records.push_back({ti * kTile + 5, tj * kTile + 5, -0.02, 0.0, 0.02, 1e4});
+    }
+  }
+  lazy.apply_remote_changes(1, records);
+  full.apply_remote_changes(1, records);
+  ASSERT_EQ(lazy.deferred_vertices(), 49u);
+  const double d = sync_params().grid.spacing_m;
+  auto merged = [&](std::int32_t ti, std::int32_t tj) {
+    return lazy.vertex(ti * kTile + 5, tj * kTile + 5).has_value();
+  };
+  // Inside tile (1, 2) only.
+  lazy.set_interest_region((kTile + 16) * d, (2 * kTile + 16) * d, 0.3);
+  EXPECT_EQ(lazy.deferred_vertices(), 48u);
+  EXPECT_TRUE(merged(1, 2));
+  EXPECT_FALSE(merged(2, 2));
+  EXPECT_FALSE(merged(1, 1));
+  // Over the corner shared by tiles (1, 1), (1, 2), (2, 1) and (2, 2).
+  lazy.set_interest_region(2 * kTile * d, 2 * kTile * d, 0.3);
+  EXPECT_EQ(lazy.deferred_vertices(), 45u);
+  for (auto [ti, tj] : {std::pair{1, 1}, {2, 1}, {2, 2}}) EXPECT_TRUE(merged(ti, tj));
+  EXPECT_FALSE(merged(0, 0));
+  EXPECT_FALSE(merged(3, 3));
+  lazy.flush_deferred();
+  EXPECT_EQ(lazy.deferred_vertices(), 0u);
+  EXPECT_EQ(lazy.grid_hash(), full.grid_hash());
+}
+
 TEST(ScmSync, ConflictRuleKeepsTheDeeperRecordInAnyOrder) {
   ScmParams p = sync_params();
   ScmTerrain own(p), other(p);
