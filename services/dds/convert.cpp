@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "protocol/vertex_codec.hpp"
 
 namespace syndds::dds {
 namespace {
@@ -34,6 +35,9 @@ void put(msg::RunStatus& o, proto::RunStatus status) {
   o = status == proto::RunStatus::completed ? msg::RUN_COMPLETED : msg::RUN_ABORTED;
 }
 void put(std::string& o, proto::Topic topic) { o = std::string(proto::to_string(topic)); }
+void put(std::vector<std::uint8_t>& o, const std::vector<proto::TerrainVertexMsg>& v) {
+  o = proto::pack_vertices(v);
+}
 template <typename I, typename P>
 void put(std::vector<I>& o, const std::vector<P>& v);
 template <typename I, typename P>
@@ -79,6 +83,11 @@ void get(proto::Topic& o, const std::string& name) {
   if (!proto::topic_from_string(name, o)) throw ProtocolError("unknown topic '" + name + "'");
 }
 void get(proto::TopicCount& o, const msg::TopicCount& c);
+void get(std::vector<proto::TerrainVertexMsg>& o, const std::vector<std::uint8_t>& bytes) {
+  o = proto::unpack_vertices(bytes);
+}
+void get(proto::TerrainDeformationMsg& o, const msg::TerrainDeformation& m);
+void get(proto::TerrainSnapshotMsg& o, const msg::TerrainSnapshot& m);
 template <typename P, typename I>
 void get(std::vector<P>& o, const std::vector<I>& v);
 template <typename P, typename I>
@@ -109,6 +118,23 @@ void get(P& o, const I& v) {
     static_assert(std::is_same_v<I, P>, "a plain field and its IDL member differ in type");
     o = v;
   }
+}
+
+// A list that does not unpack is named with its topic and writer, as a non-finite value is.
+template <typename P, typename I>
+void get_vertex_message(P& o, const I& m) {
+  try {
+    get_fields(o, m);
+  } catch (const ProtocolError& e) {
+    throw ProtocolError(std::string(proto::TopicTraits<proto::TopicOf<P>::value>::name) +
+                        " from " + m.source() + ": " + e.what());
+  }
+}
+void get(proto::TerrainDeformationMsg& o, const msg::TerrainDeformation& m) {
+  get_vertex_message(o, m);
+}
+void get(proto::TerrainSnapshotMsg& o, const msg::TerrainSnapshot& m) {
+  get_vertex_message(o, m);
 }
 
 void get(proto::TopicCount& o, const msg::TopicCount& c) {

@@ -1,7 +1,8 @@
 // SCM benchmark: cost of one compute_wheel_loads call for the four wheels of an HMMWV-sized
 // vehicle (radius 0.467 m, width 0.254 m, about 6 kN each, driven at 3 m/s with 10 % slip,
 // 2 ms steps) against grid spacing and thread count, and the size of the per-frame change
-// lists (0.01 s frames) that deformation sync would publish.
+// lists (0.01 s frames) that deformation sync publishes: as 40-byte records (B/frame) and
+// packed as they travel (packB/frm, bytes per vertex B/vtx; protocol/vertex_codec.hpp).
 //
 //   bench_scm [--steps N] [--repeat R] [--preset soft|mid|hard|all] [--quick]
 //
@@ -16,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "protocol/vertex_codec.hpp"
 #include "scm/scm_params.hpp"
 #include "scm/scm_terrain.hpp"
 
@@ -34,6 +36,7 @@ struct Row {
   double rtf = 0.0;  // wall time of the terrain calls / simulated time
   double footprint = 0.0, covered = 0.0, contacts = 0.0, patch_vertices = 0.0, domain = 0.0;
   double bytes_per_frame = 0.0, max_bytes_per_frame = 0.0;
+  double packed_bytes_per_frame = 0.0, packed_bytes_per_vertex = 0.0;
   double sinkage_mm = 0.0;
   std::size_t stored = 0;
 };
@@ -90,7 +93,7 @@ Row run(const std::string& preset, double spacing, int threads, bool forced, boo
   row.forced = forced;
   row.bulldozing = bulldozing;
   double seconds = 0.0;
-  double bytes = 0.0;
+  double bytes = 0.0, packed = 0.0, vertices = 0.0;
   int frames = 0;
   for (int n = 0; n < steps; ++n) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -114,6 +117,14 @@ Row run(const std::string& preset, double spacing, int threads, bool forced, boo
       const auto changes = terrain.take_local_changes();
       const double b = static_cast<double>(changes.size() * sizeof(VertexChange));
       bytes += b;
+      std::vector<proto::TerrainVertexMsg> records;
+      records.reserve(changes.size());
+      for (const VertexChange& c : changes) {
+        records.push_back({c.i, c.j, c.level_m, c.level_initial_m, c.sinkage_plastic_m,
+                           c.sigma_yield_pa});
+      }
+      packed += static_cast<double>(proto::pack_vertices(records).size());
+      vertices += static_cast<double>(changes.size());
       row.max_bytes_per_frame = std::max(row.max_bytes_per_frame, b);
       ++frames;
     }
@@ -127,6 +138,8 @@ Row run(const std::string& preset, double spacing, int threads, bool forced, boo
   row.domain /= steps;
   row.sinkage_mm /= steps;
   row.bytes_per_frame = bytes / std::max(frames, 1);
+  row.packed_bytes_per_frame = packed / std::max(frames, 1);
+  row.packed_bytes_per_vertex = packed / std::max(vertices, 1.0);
   row.stored = terrain.stored_vertices();
   return row;
 }
@@ -167,9 +180,9 @@ int main(int argc, char** argv) {
       "dt 2 ms, %d timed steps after 500 warm-up steps, best of %d\n",
       steps, repeat);
   std::printf("thr: worker threads (f: forced to split even small steps, thread_min_vertices 1)\n");
-  std::printf("%-5s %7s %4s %5s %10s %9s %9s %8s %8s %8s %8s %10s %10s %8s\n", "soil", "spacing",
+  std::printf("%-5s %7s %4s %5s %10s %9s %9s %8s %8s %8s %8s %10s %10s %8s %10s %6s\n", "soil", "spacing",
               "thr", "bulld", "us/call", "RTF", "footprnt", "covered", "contact", "patchv",
-              "domain", "B/frame", "maxB/frm", "sink_mm");
+              "domain", "B/frame", "maxB/frm", "sink_mm", "packB/frm", "B/vtx");
   for (const auto& preset : presets) {
     for (double spacing : spacings) {
       struct Config {
@@ -186,10 +199,11 @@ int main(int argc, char** argv) {
         }
         std::printf(
             "%-5s %7.3f %3d%1s %5s %10.2f %9.4f %9.0f %8.0f %8.0f %8.0f %8.0f %10.0f %10.0f "
-            "%8.1f\n",
+            "%8.1f %10.0f %6.1f\n",
             r.preset.c_str(), r.spacing, r.threads, r.forced ? "f" : "",
             r.bulldozing ? "on" : "off", r.us_per_call, r.rtf, r.footprint, r.covered, r.contacts,
-            r.patch_vertices, r.domain, r.bytes_per_frame, r.max_bytes_per_frame, r.sinkage_mm);
+            r.patch_vertices, r.domain, r.bytes_per_frame, r.max_bytes_per_frame, r.sinkage_mm,
+            r.packed_bytes_per_frame, r.packed_bytes_per_vertex);
         std::fflush(stdout);
       }
     }
