@@ -9,6 +9,7 @@
 
 #include "agents/scm_messages.hpp"
 #include "core/error.hpp"
+#include "protocol/vertex_codec.hpp"
 #include "scm/scm_images.hpp"
 
 namespace syndds::record {
@@ -368,7 +369,9 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     std::uint64_t frame_bytes = 0;
     for (const auto& d : samples.terrain_deformations) {
       soil_->apply_remote_changes(d.source_index, agents::from_messages(d.vertices));
-      frame_bytes += d.vertices.size() * sizeof(proto::TerrainVertexMsg);
+      // The vertex lists as they travel (packed), and how many records they hold.
+      frame_bytes += proto::pack_vertices(d.vertices).size();
+      terrain_vertices_ += d.vertices.size();
     }
     terrain_bytes_ += frame_bytes;
     terrain_max_frame_bytes_ = std::max(terrain_max_frame_bytes_, frame_bytes);
@@ -534,7 +537,8 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
   j["vehicles"] = vehicles;
   if (soil_) {
     const double frames = static_cast<double>(std::max<std::int64_t>(1, last_frame_ + 1));
-    j["terrain"] = {{"deformation_bytes_total", terrain_bytes_},
+    j["terrain"] = {{"deformation_vertices_total", terrain_vertices_},
+                    {"deformation_bytes_total", terrain_bytes_},
                     {"deformation_bytes_per_frame_mean", static_cast<double>(terrain_bytes_) / frames},
                     {"deformation_bytes_per_frame_max", terrain_max_frame_bytes_},
                     {"grid_hash", fmt::format("{:016x}", soil_->grid_hash())}};

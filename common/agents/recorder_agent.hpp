@@ -125,7 +125,8 @@ class RecorderAgent final : public proto::Agent {
   std::map<std::string, metrics::SpeedSummary> leaders_;  // heads of the follow chains
   std::map<std::string, VehicleTotals> totals_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
-  std::uint64_t terrain_bytes_ = 0;        // vertex records received (bytes on the wire, approx.)
+  std::uint64_t terrain_bytes_ = 0;        // vertex lists received, packed as they travel
+  std::uint64_t terrain_vertices_ = 0;     // vertex records received
   std::uint64_t terrain_max_frame_bytes_ = 0;
   std::int64_t last_frame_ = -1;     // on disk, complete
   std::int64_t pending_frame_ = -1;  // gathered, not yet committed
