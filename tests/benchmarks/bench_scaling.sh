@@ -10,7 +10,10 @@
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
-# single = every agent in one process (syndds_sim, no DDS). See docs/deployment.md, "Processes".
+# single = every agent in one process (syndds_sim, no DDS); hostsK = one process per member on K
+# "hosts" (network namespaces on a bridge, each with its own address and /dev/shm, host k pinned
+# to CPU (k-1) mod the CPU count; coordinator and recorder on host 1, vehicle vI and its
+# controller on host (I-1) mod K + 1; needs root). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
 # lanes only). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
@@ -30,7 +33,7 @@ while [ $# -gt 0 ]; do
     --duration) DURATION=$2; shift ;;
     --output) OUT=$2; shift ;;
     --dds-profiles) PROFILES=(--dds-profiles "$2"); shift ;;
-    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
@@ -40,14 +43,19 @@ for mode in $MODES; do
   case "$mode" in
     distributed|per_vehicle|single) ;;
     groups[1-9]|groups[1-9][0-9]) ;;
-    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, single)" >&2
+    hosts[1-9])
+      [ "$(id -u)" -eq 0 ] || { echo "bench_scaling: mode $mode needs root (ip netns)" >&2; exit 1; } ;;
+    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, hostsK, single)" >&2
        exit 1 ;;
   esac
 done
 [ -n "$OUT" ] || OUT="runs/scaling-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$OUT"
 WORK=$(mktemp -d)
-trap 'rm -rf "$WORK"' EXIT
+# shellcheck source=../netns_hosts.sh
+source "$ROOT/tests/netns_hosts.sh"
+trap 'hosts_down; rm -rf "$WORK"' EXIT
+NCPU=$(nproc)
 
 scenario() {  # $1 = N; prints the file
   local n=$1 f=$WORK/scaling_$1.yaml
@@ -109,6 +117,33 @@ cpu_by_kind() {
     awk -v tick="$tick" '{s[$1] += $2} END {for (k in s) printf "%s %.2f\n", k, s[k] / tick}'
 }
 
+# Mode hostsK: every planned process in the network namespace of its host (see the header),
+# waited for; fails if any process fails. Logs in OUT/logs/.
+run_on_hosts() {  # scenario out K
+  local file=$1 out=$2 k_hosts=$3 k member cmd h failed=0
+  local hosts=() pids=()
+  for k in $(seq 1 "$k_hosts"); do
+    hosts+=("h$k")
+    HOST_CPUS[h$k]=$(( (k - 1) % NCPU ))
+  done
+  hosts_up "sb$$" "$WORK/hosts" on "${hosts[@]}"
+  trap hosts_down EXIT
+  mkdir -p "$out/logs"
+  local plan
+  plan=$("$BIN/syndds_plan" "$file" --format launcher --run-id "scaling-$(basename "$out")-$$" \
+         --output "$out" --bin-dir "$BIN" --config-dir "$ROOT/config" "${PROFILES[@]}") || return 1
+  while IFS=$'\t' read -r member cmd; do
+    case "$member" in
+      */v*) h=h$(( (${member##*/v} - 1) % k_hosts + 1 )) ;;
+      *) h=h1 ;;  # coordinator, recorder
+    esac
+    on_host "$h" "$out/logs/${member//\//_}.log" sh -c "exec $cmd"
+    pids+=($!)
+  done <<< "$plan"
+  for p in "${pids[@]}"; do wait "$p" || failed=1; done
+  [ $failed = 0 ] || { tail -n 3 "$out"/logs/*.log; return 1; }
+}
+
 echo "terrain,n,mode,processes,frames,wall_s,rtf,cpu_coordinator_s,cpu_vehicles_s,cpu_controllers_s,cpu_groups_s,cpu_recorder_s,cpu_sim_s,cpu_total_s,load_start" > "$OUT/scaling.csv"
 for n in $NS; do
   file=$(scenario "$n")
@@ -116,7 +151,10 @@ for n in $NS; do
     load=$(cut -d' ' -f1 /proc/loadavg)
     out=$WORK/out_${n}_$mode
     rm -rf "$out"
-    if [ "$mode" != single ]; then
+    if [[ "$mode" == hosts* ]]; then
+      processes=$((2 * n + 2))
+      run_on_hosts "$file" "$out" "${mode#hosts}" > "$WORK/launch.log" 2>&1 &
+    elif [ "$mode" != single ]; then
       case "$mode" in
         distributed) layout=per_member; processes=$((2 * n + 2)) ;;
         per_vehicle) layout=per_vehicle; processes=$((n + 2)) ;;

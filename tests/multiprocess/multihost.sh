@@ -19,52 +19,22 @@ BIN=${SYNDDS_BIN_DIR:-$ROOT/build/bin}
 TAG=sy$$
 WORK=$(mktemp -d)
 HOSTS=(h1 h2 h3)
+# shellcheck source=../netns_hosts.sh
+source "$ROOT/tests/netns_hosts.sh"
 cleanup() {
   for p in $(jobs -p); do { kill -9 "$p" && wait "$p"; } 2> /dev/null || true; done
-  for h in "${HOSTS[@]}"; do
-    ip netns del "$TAG$h" 2> /dev/null || true
-    umount "$WORK/$h/shm" 2> /dev/null || true
-  done
-  ip netns del "${TAG}br" 2> /dev/null || true
+  hosts_down
   rm -rf "$WORK"
 }
 trap cleanup EXIT
 
-# Network: a bridge in its own namespace, one veth per host, 10.77.x.0/24.
-NET=10.77.$(( $$ % 200 + 20 ))
-ip netns add "${TAG}br"
-ip -n "${TAG}br" link add br0 type bridge
-ip -n "${TAG}br" link set br0 up
-i=0
+if [ "$MODE" = discovery-server ]; then multicast=off; else multicast=on; fi
+hosts_up "$TAG" "$WORK" "$multicast" "${HOSTS[@]}"
 for h in "${HOSTS[@]}"; do
-  i=$((i + 1))
-  ip netns add "$TAG$h"
-  ip link add "$TAG${h}a" type veth peer name "$TAG${h}b"
-  ip link set "$TAG${h}a" netns "$TAG$h"
-  ip link set "$TAG${h}b" netns "${TAG}br"
-  ip -n "$TAG$h" link set lo up
-  ip -n "$TAG$h" link set "$TAG${h}a" name eth0
-  ip -n "$TAG$h" addr add "$NET.$i/24" dev eth0
-  ip -n "$TAG$h" link set eth0 up
-  ip -n "${TAG}br" link set "$TAG${h}b" master br0
-  ip -n "${TAG}br" link set "$TAG${h}b" up
-  if [ "$MODE" = discovery-server ]; then
-    ip -n "$TAG$h" link set eth0 multicast off
-  else
-    ip -n "$TAG$h" route add 224.0.0.0/4 dev eth0
-  fi
   # Each host has its own copy of the configuration: nothing is shared on disk.
-  mkdir -p "$WORK/$h/shm"
-  mount -t tmpfs tmpfs "$WORK/$h/shm"
   cp -r "$ROOT/config" "$WORK/$h/config"
   cp "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" "$WORK/$h/scenario.yaml"
 done
-
-on_host() {  # host log command... : run in the host's network namespace and /dev/shm
-  local h=$1 log=$2; shift 2
-  ip netns exec "$TAG$h" unshare -m sh -c 'mount --bind "$0" /dev/shm && exec "$@"' \
-    "$WORK/$h/shm" "$@" > "$log" 2>&1 &
-}
 
 EXTRA=()
 case "$MODE" in

@@ -1,0 +1,61 @@
+# Several "hosts" on one machine, sourced by tests and benchmarks (needs root): network
+# namespaces joined by a bridge, each host with its own address (NET.k) and its own /dev/shm
+# (processes of one host share it, as on a real machine; no host sees another's), optionally
+# pinned to CPUs of its own.
+#
+#   source tests/netns_hosts.sh
+#   hosts_up TAG WORK MULTICAST h1 h2 ...   # MULTICAST: on (route 224.0.0.0/4) or off
+#   on_host h1 LOG command...                # in the background; $! is its pid
+#   hosts_down                               # also on EXIT if the caller traps it
+#
+# Sets NET (the hosts' /24 prefix) and HOST_CPUS[h] (a taskset CPU list; empty: any CPU).
+
+NETNS_TAG=""; NETNS_WORK=""; NETNS_HOSTS=(); declare -gA HOST_CPUS=()
+
+hosts_up() {
+  NETNS_TAG=$1; NETNS_WORK=$2; local multicast=$3; shift 3
+  NETNS_HOSTS=("$@")
+  NET=10.77.$(( $$ % 200 + 20 ))
+  ip netns add "${NETNS_TAG}br"
+  ip -n "${NETNS_TAG}br" link add br0 type bridge
+  ip -n "${NETNS_TAG}br" link set br0 up
+  local i=0 h
+  for h in "${NETNS_HOSTS[@]}"; do
+    i=$((i + 1))
+    ip netns add "$NETNS_TAG$h"
+    ip link add "$NETNS_TAG${h}a" type veth peer name "$NETNS_TAG${h}b"
+    ip link set "$NETNS_TAG${h}a" netns "$NETNS_TAG$h"
+    ip link set "$NETNS_TAG${h}b" netns "${NETNS_TAG}br"
+    ip -n "$NETNS_TAG$h" link set lo up
+    ip -n "$NETNS_TAG$h" link set "$NETNS_TAG${h}a" name eth0
+    ip -n "$NETNS_TAG$h" addr add "$NET.$i/24" dev eth0
+    ip -n "$NETNS_TAG$h" link set eth0 up
+    ip -n "${NETNS_TAG}br" link set "$NETNS_TAG${h}b" master br0
+    ip -n "${NETNS_TAG}br" link set "$NETNS_TAG${h}b" up
+    if [ "$multicast" = on ]; then
+      ip -n "$NETNS_TAG$h" route add 224.0.0.0/4 dev eth0
+    else
+      ip -n "$NETNS_TAG$h" link set eth0 multicast off
+    fi
+    mkdir -p "$NETNS_WORK/$h/shm"
+    mount -t tmpfs tmpfs "$NETNS_WORK/$h/shm"
+  done
+}
+
+on_host() {  # host log command... : run in the host's network namespace, /dev/shm and CPUs
+  local h=$1 log=$2; shift 2
+  local pin=()
+  [ -n "${HOST_CPUS[$h]:-}" ] && pin=(taskset -c "${HOST_CPUS[$h]}")
+  ip netns exec "$NETNS_TAG$h" "${pin[@]}" unshare -m sh -c \
+    'mount --bind "$0" /dev/shm && exec "$@"' "$NETNS_WORK/$h/shm" "$@" > "$log" 2>&1 &
+}
+
+hosts_down() {
+  local h
+  for h in "${NETNS_HOSTS[@]}"; do
+    ip netns del "$NETNS_TAG$h" 2> /dev/null || true
+    umount "$NETNS_WORK/$h/shm" 2> /dev/null || true
+  done
+  ip netns del "${NETNS_TAG}br" 2> /dev/null || true
+  NETNS_HOSTS=()
+}
