@@ -27,7 +27,7 @@
 
 namespace syndds::proto {
 
-inline constexpr std::int32_t kProtocolVersion = 1;
+inline constexpr std::int32_t kProtocolVersion = 2;
 /// A scenario fingerprint as every log shows it (16 hex digits).
 inline std::string fingerprint_hex(std::uint64_t f) {
   static constexpr char kDigits[] = "0123456789abcdef";
@@ -329,12 +329,14 @@ struct MemberAnnounceMsg {
   std::string participant_guid;
   std::string host;
   std::int32_t pid = 0;
+  std::string process_key;  // "BOOT_ID/PID/START": tells a running process from a dead one
+                            // on the same machine (core/process_watch.hpp); "" if unknown
   std::int32_t protocol_version = kProtocolVersion;
   std::uint64_t config_fingerprint = 0;
   std::vector<std::string> expected_members;  // filled by the coordinator only
 };
 SYNDDS_FIELDS(MemberAnnounceMsg, member_id, kind, run_id, participant_guid, host, pid,
-              protocol_version, config_fingerprint, expected_members)
+              process_key, protocol_version, config_fingerprint, expected_members)
 
 struct FrameGrantMsg {
   std::int64_t frame = 0;

@@ -35,7 +35,7 @@ enum {
   EXIT_INTERRUPTED = 130
 };
 
-enum { PROTOCOL_VERSION = 1, WRITER_DEPTH = 8, READER_DEPTH = 64 };
+enum { PROTOCOL_VERSION = 2, WRITER_DEPTH = 8, READER_DEPTH = 64 };
 
 /* Participant liveliness: the coordinator notices this process's death after the lease. */
 #define LEASE_DURATION "2s"
@@ -688,6 +688,7 @@ static bool announce(controller* c) {
   a.participant_guid = c->own_guid;
   a.host = host;
   a.pid = (int32_t)getpid();
+  a.process_key = "";  /* unknown: the coordinator then relies on the DDS lease alone */
   a.protocol_version = PROTOCOL_VERSION;
   a.config_fingerprint = c->coordinator_fingerprint;
   return dds_write(c->announce_writer, &a) == DDS_RETCODE_OK;

@@ -26,6 +26,7 @@ CoordinatorService::~CoordinatorService() { close(); }
 void CoordinatorService::close() {
   // Stop every DDS callback into this object before its members go (see MemberRuntime).
   if (participant_) participant_->remove_lost_callback(lost_callback_);
+  watch_.stop();
   announce_reader_.reset();
   done_reader_.reset();
   announce_writer_.reset();
@@ -72,6 +73,7 @@ void CoordinatorService::setup() {
   a.participant_guid = participant_->guid_prefix();
   a.host = host_name();
   a.pid = process_id();
+  a.process_key = own_process_key();
   a.config_fingerprint = options_.config_fingerprint;
   a.expected_members = options_.barrier.members;
   a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
@@ -112,8 +114,19 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
     if (std::find(members.begin(), members.end(), a.member_id) == members.end()) {
       members.push_back(a.member_id);
     }
+    if (!a.process_key.empty()) process_of_guid_[a.participant_guid] = a.process_key;
     const std::string warning = barrier_->on_join(a.member_id, now());
     if (!warning.empty()) spdlog::warn("coordinator: {}", warning);
+  }
+  advance_locked();
+}
+
+void CoordinatorService::on_process_exit(const std::string& guid) {
+  std::lock_guard lock(mutex_);
+  const auto it = members_of_guid_.find(guid);
+  if (it == members_of_guid_.end() || !barrier_) return;
+  for (const auto& member : it->second) {
+    barrier_->on_member_lost(member, "its process exited after its DDS lease had expired", now());
   }
   advance_locked();
 }
@@ -129,6 +142,22 @@ void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
   std::lock_guard lock(mutex_);
   auto it = members_of_guid_.find(guid);
   if (it == members_of_guid_.end()) return;
+  if (!graceful) {
+    // The lease expired. A process of this machine that still runs is slow (load, SIGSTOP, a
+    // debugger), not dead: its participant is found again when its announcements resume, and
+    // it is lost only if its process exits.
+    const auto p = process_of_guid_.find(guid);
+    if (p != process_of_guid_.end() && !watch_.watching(p->second) &&
+        watch_.watch(p->second, [this, guid] { on_process_exit(guid); })) {
+      std::string names;
+      for (const auto& m : it->second) names += (names.empty() ? "" : ", ") + m;
+      spdlog::warn("coordinator: the DDS lease of {} expired but its process is running "
+                   "(overloaded or stopped?): not lost unless the process exits",
+                   names);
+      return;
+    }
+    if (p != process_of_guid_.end() && watch_.watching(p->second)) return;  // already watched
+  }
   // Members grouped in one process share its participant: they are lost together.
   for (const auto& member : it->second) {
     barrier_->on_member_lost(member,

@@ -11,6 +11,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/process_watch.hpp"
 #include "dds/participant.hpp"
 #include "protocol/barrier.hpp"
 
@@ -51,6 +52,7 @@ class CoordinatorService {
   void on_join(const proto::MemberAnnounceMsg& announce);
   void on_done(const proto::FrameDoneMsg& done);
   void on_lost(const std::string& guid, bool graceful);
+  void on_process_exit(const std::string& guid);
   void malformed(const std::string& what, const std::string& error);
   void advance_locked();
   void wait_for_finished(std::unique_lock<std::mutex>& lock);
@@ -66,6 +68,11 @@ class CoordinatorService {
   std::int64_t progress_every_ = 1;
   // Participant GUID prefix -> the members it announced (several when a process hosts a group).
   std::map<std::string, std::vector<std::string>> members_of_guid_;
+  // Participant GUID prefix -> its process (MemberAnnounce::process_key), when announced.
+  std::map<std::string, std::string> process_of_guid_;
+  // Processes of this machine whose participant's lease expired while they still ran: lost
+  // only once they exit.
+  ProcessWatch watch_;
   int lost_callback_ = -1;
   proto::RunControlMsg result_;
   std::map<std::string, std::string> failed_after_end_;

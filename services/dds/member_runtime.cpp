@@ -80,6 +80,7 @@ void MemberRuntime::close() {
   // writers, and the participant last.
   if (participant_ && lost_callback_ >= 0) participant_->remove_lost_callback(lost_callback_);
   lost_callback_ = -1;
+  coordinator_watch_.stop();
   announce_reader_.reset();
   grant_reader_.reset();
   control_reader_.reset();
@@ -95,10 +96,24 @@ void MemberRuntime::setup() {
   lost_callback_ = participant_->add_lost_callback([this](const std::string& guid, bool graceful) {
     std::lock_guard lock(mutex_);
     const auto& c = session_->coordinator();
-    if (c && c->participant_guid == guid) {
-      session_->on_coordinator_lost(now());
-      cv_.notify_all();
+    if (!c || c->participant_guid != guid) return;
+    if (!graceful && !c->process_key.empty()) {
+      // Its lease expired. A coordinator process of this machine that still runs is slow, not
+      // dead: its participant is found again when its announcements resume.
+      if (coordinator_watch_.watching(c->process_key)) return;
+      if (coordinator_watch_.watch(c->process_key, [this] {
+            std::lock_guard inner(mutex_);
+            session_->on_coordinator_lost(now());
+            cv_.notify_all();
+          })) {
+        spdlog::warn("{}: the coordinator's DDS lease expired but its process is running "
+                     "(overloaded or stopped?): waiting for it",
+                     agent_.member_id());
+        return;
+      }
     }
+    session_->on_coordinator_lost(now());
+    cv_.notify_all();
   });
 
   // Readers before writers and before the announcement, so nothing addressed to us is missed.
@@ -258,6 +273,7 @@ void MemberRuntime::announce() {
   a.participant_guid = participant_->guid_prefix();
   a.host = host_name();
   a.pid = process_id();
+  a.process_key = own_process_key();
   a.config_fingerprint = options_.config_fingerprint;
   announce_writer_->write(to_dds(a));
 }

@@ -16,6 +16,7 @@
 #include <utility>
 
 #include "dds/convert.hpp"
+#include "core/process_watch.hpp"
 #include "dds/participant.hpp"
 #include "protocol/agent.hpp"
 #include "protocol/member_session.hpp"
@@ -100,6 +101,9 @@ class MemberRuntime {
   MemberRuntimeOptions options_;
   std::shared_ptr<Participant> participant_;
   int lost_callback_ = -1;
+  // The coordinator's process when its lease expired while it still ran (this machine only):
+  // lost only once it exits.
+  ProcessWatch coordinator_watch_;
 
   // DDS callbacks only store what arrives in the session and wake the thread in run(), which
   // runs the frames: a long frame must not block a DDS thread (it would hold Fast DDS's

@@ -225,6 +225,58 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   EXPECT_EQ(summary["recorded_up_to_frame"].get<long>(), rows_per_frame.rbegin()->first);
 }
 
+// Overload is not death: a process stopped (SIGSTOP: as a loaded machine or a debugger would)
+// past its DDS lease is not taken for dead while it still runs on this machine. The run goes
+// on when it resumes and the result equals the undisturbed single-process run. Before, the
+// coordinator aborted the run ("member lost: liveliness lost") and members whose coordinator
+// stalled exited ("coordinator was lost").
+namespace {
+
+void stop_until_logged(const fs::path& out, const std::string& member, const fs::path& log,
+                       const std::string& text, Process& launcher) {
+  const int pid = launched_pid(out, member);
+  ASSERT_NE(pid, 0);
+  ASSERT_EQ(::kill(pid, SIGSTOP), 0);
+  // Stopped until the lease expired and the watcher said so (the lease is 2 s).
+  const bool seen = wait_until([&] { return read_file(log).find(text) != std::string::npos; }, 30);
+  ASSERT_EQ(::kill(pid, SIGCONT), 0);
+  ASSERT_TRUE(seen) << read_file(log) << launcher.log();
+}
+
+void expect_completed_as_single(const TestRun& run, const fs::path& out, Process& launcher,
+                                const std::string& scenario) {
+  const auto code = launcher.wait(60);
+  ASSERT_TRUE(code.has_value()) << launcher.log();
+  EXPECT_EQ(*code, 0) << launcher.log() << read_file(out / "logs" / "coordinator.log");
+  EXPECT_EQ(read_file(out / "vehicles.csv"), single_process_csv(run, scenario, "--duration 6"));
+}
+
+}  // namespace
+
+TEST(Overload, AMemberStoppedPastItsLeaseIsNotLost) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  auto launcher = start_launcher(run, scenario, "--duration 6 --realtime");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
+  stop_until_logged(out, "controller/a", out / "logs" / "coordinator.log",
+                    "the DDS lease of controller/a expired but its process is running", *launcher);
+  expect_completed_as_single(run, out, *launcher, scenario);
+}
+
+TEST(Overload, AStoppedCoordinatorIsWaitedFor) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  auto launcher = start_launcher(run, scenario, "--duration 6 --realtime");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
+  stop_until_logged(out, "coordinator", out / "logs" / "vehicle_a.log",
+                    "the coordinator's DDS lease expired but its process is running", *launcher);
+  expect_completed_as_single(run, out, *launcher, scenario);
+}
+
 // on_member_loss: continue. The killed vehicle leaves the barrier, the others run to the end,
 // the launcher succeeds and says what was left behind; the recorder stops the lost vehicle's
 // rows at the frame it was lost and marks it lost.
