@@ -184,6 +184,16 @@ while :; do
 done
 trap - INT TERM HUP EXIT
 
+# A process killed by a signal leaves its Fast DDS shared-memory files behind, and new runs on
+# this machine then fail to open their ports for minutes: remove those of dead processes
+# (Fast DDS's own tool; files of running processes are left alone).
+for c in "${codes[@]}"; do
+  if [ -n "$c" ] && [ "$c" -gt 128 ]; then
+    command -v fastdds > /dev/null && fastdds shm clean > /dev/null 2>&1
+    break
+  fi
+done
+
 summary="$OUTPUT/summary.txt"
 if [ $interrupted = 0 ] && [ "$coordinator_code" = 0 ] && [ "$recorder_code" = 0 ]; then
   [ -f "$summary" ] && cat "$summary"

@@ -206,6 +206,16 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
       << launcher_log;
   const double took = std::chrono::duration<double>(Clock::now() - t_kill).count();
   std::printf("kill -9 to launcher exit: %.2f s\n", took);
+  // The killed process's shared-memory files were removed by the launcher (this test's
+  // /dev/shm is its own, tests/netns_exec.sh): nothing is left for Fast DDS's cleaner.
+  if (std::FILE* clean = ::popen("fastdds shm clean 2>&1", "r")) {
+    std::string said;
+    char buf[256];
+    while (std::fgets(buf, sizeof buf, clean)) said += buf;
+    ::pclose(clean);
+    EXPECT_NE(said.find("0 zombie segments cleaned"), std::string::npos) << said;
+    EXPECT_NE(said.find("0 zombie ports cleaned"), std::string::npos) << said;
+  }
 
   // Every process is gone and the recorder kept only complete frames, from 0 on.
   const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
