@@ -114,7 +114,10 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
     if (std::find(members.begin(), members.end(), a.member_id) == members.end()) {
       members.push_back(a.member_id);
     }
-    if (!a.process_key.empty()) process_of_guid_[a.participant_guid] = a.process_key;
+    if (!a.process_key.empty() && process_of_guid_.emplace(a.participant_guid, a.process_key).second) {
+      const std::string guid = a.participant_guid;
+      watch_.watch(a.process_key, [this, guid] { on_process_exit(guid); });
+    }
     const std::string warning = barrier_->on_join(a.member_id, now());
     if (!warning.empty()) spdlog::warn("coordinator: {}", warning);
   }
@@ -126,7 +129,7 @@ void CoordinatorService::on_process_exit(const std::string& guid) {
   const auto it = members_of_guid_.find(guid);
   if (it == members_of_guid_.end() || !barrier_) return;
   for (const auto& member : it->second) {
-    barrier_->on_member_lost(member, "its process exited after its DDS lease had expired", now());
+    barrier_->on_member_lost(member, "its process exited", now());
   }
   advance_locked();
 }
@@ -143,12 +146,11 @@ void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
   auto it = members_of_guid_.find(guid);
   if (it == members_of_guid_.end()) return;
   if (!graceful) {
-    // The lease expired. A process of this machine that still runs is slow (load, SIGSTOP, a
-    // debugger), not dead: its participant is found again when its announcements resume, and
-    // it is lost only if its process exits.
+    // The lease expired. A process of this machine is watched directly (its exit is seen at
+    // once): while it still runs it is slow (load, SIGSTOP, a debugger), not dead, and its
+    // participant is found again when its announcements resume.
     const auto p = process_of_guid_.find(guid);
-    if (p != process_of_guid_.end() && !watch_.watching(p->second) &&
-        watch_.watch(p->second, [this, guid] { on_process_exit(guid); })) {
+    if (p != process_of_guid_.end() && watch_.watching(p->second)) {
       std::string names;
       for (const auto& m : it->second) names += (names.empty() ? "" : ", ") + m;
       spdlog::warn("coordinator: the DDS lease of {} expired but its process is running "
@@ -156,7 +158,6 @@ void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
                    names);
       return;
     }
-    if (p != process_of_guid_.end() && watch_.watching(p->second)) return;  // already watched
   }
   // Members grouped in one process share its participant: they are lost together.
   for (const auto& member : it->second) {

@@ -97,20 +97,13 @@ void MemberRuntime::setup() {
     std::lock_guard lock(mutex_);
     const auto& c = session_->coordinator();
     if (!c || c->participant_guid != guid) return;
-    if (!graceful && !c->process_key.empty()) {
-      // Its lease expired. A coordinator process of this machine that still runs is slow, not
-      // dead: its participant is found again when its announcements resume.
-      if (coordinator_watch_.watching(c->process_key)) return;
-      if (coordinator_watch_.watch(c->process_key, [this] {
-            std::lock_guard inner(mutex_);
-            session_->on_coordinator_lost(now());
-            cv_.notify_all();
-          })) {
-        spdlog::warn("{}: the coordinator's DDS lease expired but its process is running "
-                     "(overloaded or stopped?): waiting for it",
-                     agent_.member_id());
-        return;
-      }
+    if (!graceful && coordinator_watch_.watching(c->process_key)) {
+      // Its lease expired, but its process (on this machine) still runs: slow, not dead. Its
+      // participant is found again when its announcements resume; its exit is seen at once.
+      spdlog::warn("{}: the coordinator's DDS lease expired but its process is running "
+                   "(overloaded or stopped?): waiting for it",
+                   agent_.member_id());
+      return;
     }
     session_->on_coordinator_lost(now());
     cv_.notify_all();
@@ -138,6 +131,7 @@ void MemberRuntime::setup() {
           note_announcement(a, writer_prefix(info));
           if (a.kind != proto::MemberKind::coordinator) return;
           session_->on_coordinator(a, now());
+          watch_coordinator_locked();
           cv_.notify_all();
         });
       });
@@ -305,6 +299,18 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   d.finished = finished;
   d.error = error;
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
+}
+
+// A coordinator on this machine is watched through its process: its exit is seen at once, and
+// a lease that expires while it still runs (a loaded machine, SIGSTOP) is not its death.
+void MemberRuntime::watch_coordinator_locked() {
+  const auto& c = session_->coordinator();
+  if (!c || c->process_key.empty() || coordinator_watch_.watching(c->process_key)) return;
+  coordinator_watch_.watch(c->process_key, [this] {
+    std::lock_guard lock(mutex_);
+    session_->on_coordinator_lost(now());
+    cv_.notify_all();
+  });
 }
 
 // A member that ends before the coordinator's readers were matched with its writers (e.g.

@@ -94,6 +94,7 @@ class MemberRuntime {
   /// Before reporting a failure: waits (bounded) until the coordinator's readers are matched
   /// with this member's announcement and done writers and the announcement is acknowledged.
   void reach_coordinator();
+  void watch_coordinator_locked();
   /// Carries out the session's finish decision; returns the exit code.
   int end_run(const proto::MemberSession::Action& end);
 
@@ -101,8 +102,8 @@ class MemberRuntime {
   MemberRuntimeOptions options_;
   std::shared_ptr<Participant> participant_;
   int lost_callback_ = -1;
-  // The coordinator's process when its lease expired while it still ran (this machine only):
-  // lost only once it exits.
+  // The coordinator's process, when it runs on this machine: lost when it exits, not when its
+  // lease expires while it still runs.
   ProcessWatch coordinator_watch_;
 
   // DDS callbacks only store what arrives in the session and wake the thread in run(), which

@@ -148,7 +148,7 @@ TEST(CycloneController, KilledControllerIsNamedLostWithinThreeSeconds) {
               detected_s);
   EXPECT_LT(detected_s, 3.0);
   EXPECT_NE(read_file(coordinator_log)
-                .find("run aborted: member external/cy lost: liveliness lost"),
+                .find("run aborted: member external/cy lost: its process exited"),
             std::string::npos)
       << read_file(coordinator_log);
 

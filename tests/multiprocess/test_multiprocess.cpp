@@ -235,56 +235,79 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   EXPECT_EQ(summary["recorded_up_to_frame"].get<long>(), rows_per_frame.rbegin()->first);
 }
 
-// Overload is not death: a process stopped (SIGSTOP: as a loaded machine or a debugger would)
-// past its DDS lease is not taken for dead while it still runs on this machine. The run goes
-// on when it resumes and the result equals the undisturbed single-process run. Before, the
-// coordinator aborted the run ("member lost: liveliness lost") and members whose coordinator
-// stalled exited ("coordinator was lost").
+// Overload is not death: a process stopped for seconds (SIGSTOP, as a loaded machine or a
+// debugger would stall it; the old 2 s lease took that for death) is waited for, and the run
+// completes equal to the undisturbed single-process run. A process of this machine is watched
+// through its process, so its death is still seen at once (Failure.* above).
 namespace {
 
-void stop_until_logged(const fs::path& out, const std::string& member, const fs::path& log,
-                       const std::string& text, Process& launcher) {
+void stall_and_expect_unchanged(const std::string& member) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  auto launcher = start_launcher(run, scenario, "--duration 6 --realtime");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
   const int pid = launched_pid(out, member);
   ASSERT_NE(pid, 0);
   ASSERT_EQ(::kill(pid, SIGSTOP), 0);
-  // Stopped until the lease expired and the watcher said so (the lease is 2 s).
-  const bool seen = wait_until([&] { return read_file(log).find(text) != std::string::npos; }, 30);
+  // The stall itself (the stimulus, not a wait for a condition): longer than the old lease.
+  std::this_thread::sleep_for(std::chrono::seconds(4));
   ASSERT_EQ(::kill(pid, SIGCONT), 0);
-  ASSERT_TRUE(seen) << read_file(log) << launcher.log();
-}
-
-void expect_completed_as_single(const TestRun& run, const fs::path& out, Process& launcher,
-                                const std::string& scenario) {
-  const auto code = launcher.wait(60);
-  ASSERT_TRUE(code.has_value()) << launcher.log();
-  EXPECT_EQ(*code, 0) << launcher.log() << read_file(out / "logs" / "coordinator.log");
+  const auto code = launcher->wait(60);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 0) << launcher->log() << read_file(out / "logs" / "coordinator.log");
   EXPECT_EQ(read_file(out / "vehicles.csv"), single_process_csv(run, scenario, "--duration 6"));
 }
 
 }  // namespace
 
-TEST(Overload, AMemberStoppedPastItsLeaseIsNotLost) {
-  TestRun run;
-  const fs::path out = run.dir / "out";
-  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
-  auto launcher = start_launcher(run, scenario, "--duration 6 --realtime");
-  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
-      << launcher->log();
-  stop_until_logged(out, "controller/a", out / "logs" / "coordinator.log",
-                    "the DDS lease of controller/a expired but its process is running", *launcher);
-  expect_completed_as_single(run, out, *launcher, scenario);
-}
+TEST(Overload, AMemberStalledForSecondsIsNotLost) { stall_and_expect_unchanged("controller/a"); }
 
-TEST(Overload, AStoppedCoordinatorIsWaitedFor) {
+TEST(Overload, AStalledCoordinatorIsWaitedFor) { stall_and_expect_unchanged("coordinator"); }
+
+// Stalled past its lease (here a 2 s lease, the old default, to keep the test short), a process
+// of this machine is still not declared lost: the coordinator says its lease expired while it
+// runs, and the run either goes on once the participants find each other again or, if Fast DDS
+// does not rediscover them in time, misses a frame deadline that names the slow member. Never
+// "lost".
+TEST(Overload, AMemberStalledPastItsLeaseIsSlowNotLost) {
   TestRun run;
   const fs::path out = run.dir / "out";
+  const fs::path profiles = run.dir / "profiles_lease2.xml";
+  std::string xml = read_file(kSource + "/config/dds/profiles.xml");
+  for (std::size_t at = 0; (at = xml.find("<leaseDuration><sec>10</sec>", at)) != std::string::npos;) {
+    xml.replace(at, 28, "<leaseDuration><sec>2</sec>");
+  }
+  ASSERT_NE(xml.find("<leaseDuration><sec>2</sec>"), std::string::npos);
+  std::ofstream(profiles) << xml;
   const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
-  auto launcher = start_launcher(run, scenario, "--duration 6 --realtime");
+  auto launcher = start_launcher(run, scenario,
+                                 "--duration 6 --realtime --dds-profiles " + profiles.string());
   ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
       << launcher->log();
-  stop_until_logged(out, "coordinator", out / "logs" / "vehicle_a.log",
-                    "the coordinator's DDS lease expired but its process is running", *launcher);
-  expect_completed_as_single(run, out, *launcher, scenario);
+  const int pid = launched_pid(out, "controller/a");
+  ASSERT_NE(pid, 0);
+  ASSERT_EQ(::kill(pid, SIGSTOP), 0);
+  const fs::path coordinator = out / "logs" / "coordinator.log";
+  const bool seen = wait_until(
+      [&] {
+        return read_file(coordinator).find("the DDS lease of controller/a expired but its "
+                                           "process is running") != std::string::npos;
+      },
+      30);
+  ASSERT_EQ(::kill(pid, SIGCONT), 0);
+  ASSERT_TRUE(seen) << read_file(coordinator);
+  const auto code = launcher->wait(60);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  if (summary["status"] != "completed") {
+    EXPECT_NE(summary["reason"].get<std::string>().find(
+                  "missed its 10 s deadline; still waiting for controller/a"),
+              std::string::npos)
+        << summary.dump();
+  }
+  EXPECT_EQ(read_file(coordinator).find(" lost: "), std::string::npos) << read_file(coordinator);
 }
 
 // on_member_loss: continue. The killed vehicle leaves the barrier, the others run to the end,
