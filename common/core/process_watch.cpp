@@ -10,10 +10,15 @@
 namespace syndds {
 namespace {
 
-std::string boot_id() {
-  std::ifstream in("/proc/sys/kernel/random/boot_id");
-  std::string id;
-  std::getline(in, id);
+// Read once: it does not change while this process runs (a coordinator checks every member's
+// key five times a second).
+const std::string& boot_id() {
+  static const std::string id = [] {
+    std::ifstream in("/proc/sys/kernel/random/boot_id");
+    std::string line;
+    std::getline(in, line);
+    return line;
+  }();
   return id;
 }
 
@@ -40,7 +45,7 @@ bool stat_of(int pid, char& state, std::string& start) {
 std::string process_key(int pid) {
   char state = '?';
   std::string start;
-  const std::string boot = boot_id();
+  const std::string& boot = boot_id();
   if (pid <= 0 || boot.empty() || !stat_of(pid, state, start)) return "";
   return boot + "/" + std::to_string(pid) + "/" + start;
 }

@@ -24,7 +24,7 @@ bool process_running(const std::string& key);
 /// the watch's lock held; stop() (or the destructor) waits for a callback in progress.
 class ProcessWatch {
  public:
-  explicit ProcessWatch(double poll_s = 0.1) : poll_s_(poll_s) {}
+  explicit ProcessWatch(double poll_s = 0.2) : poll_s_(poll_s) {}
   ~ProcessWatch() { stop(); }
   ProcessWatch(const ProcessWatch&) = delete;
   ProcessWatch& operator=(const ProcessWatch&) = delete;
