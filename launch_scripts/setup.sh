@@ -27,7 +27,6 @@ PACKAGES=(
   cyclonedds-dev cyclonedds-tools
   python3 python3-matplotlib python3-numpy
   iproute2 util-linux procps
-  slurm-wlm
 )
 
 if [ "$INSTALL" = 1 ]; then
