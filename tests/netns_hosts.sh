@@ -5,6 +5,9 @@
 #
 #   source tests/netns_hosts.sh
 #   hosts_up TAG WORK MULTICAST h1 h2 ...   # MULTICAST: on (route 224.0.0.0/4) or off
+#                                            # (off: nftables drops every multicast packet a
+#                                            # host sends or receives, counted; needs nft)
+#   multicast_dropped h1                     # packets the host's rule dropped so far
 #   on_host h1 LOG command...                # in the background; $! is its pid
 #   hosts_down                               # also on EXIT if the caller traps it
 #
@@ -32,14 +35,27 @@ hosts_up() {
     ip -n "$NETNS_TAG$h" link set eth0 up
     ip -n "${NETNS_TAG}br" link set "$NETNS_TAG${h}b" master br0
     ip -n "${NETNS_TAG}br" link set "$NETNS_TAG${h}b" up
-    if [ "$multicast" = on ]; then
-      ip -n "$NETNS_TAG$h" route add 224.0.0.0/4 dev eth0
-    else
-      ip -n "$NETNS_TAG$h" link set eth0 multicast off
+    # Multicast is routed either way; "off" drops it with nftables, as a network without
+    # multicast would (Fast DDS still sends its discovery to the multicast group: taking the
+    # route or the link flag away only changed where it failed, not whether it was tried).
+    ip -n "$NETNS_TAG$h" route add 224.0.0.0/4 dev eth0
+    if [ "$multicast" != on ]; then
+      ip netns exec "$NETNS_TAG$h" nft -f - <<'NFT'
+table inet syndds_nomulticast {
+  chain out { type filter hook output priority 0; ip daddr 224.0.0.0/4 counter drop; }
+  chain in { type filter hook input priority 0; ip daddr 224.0.0.0/4 counter drop; }
+}
+NFT
     fi
     mkdir -p "$NETNS_WORK/$h/shm"
     mount -t tmpfs tmpfs "$NETNS_WORK/$h/shm"
   done
+}
+
+multicast_dropped() {  # host: packets its nftables rules dropped (both directions)
+  ip netns exec "$NETNS_TAG$1" nft list table inet syndds_nomulticast 2> /dev/null |
+    awk '/counter packets/ {for (i = 1; i < NF; ++i) if ($i == "packets") n += $(i + 1)}
+         END {print n + 0}'
 }
 
 on_host() {  # host log command... : run in the host's network namespace, /dev/shm and CPUs

@@ -6,7 +6,8 @@
 # The recorded run must equal the single-process run byte for byte.
 #
 #   multihost.sh multicast          default discovery (multicast on the bridge)
-#   multihost.sh discovery-server   no multicast route anywhere; a Fast DDS discovery server
+#   multihost.sh discovery-server   every multicast packet dropped by nftables on every host
+#                                   (checked: some were dropped); a Fast DDS discovery server
 #                                   on host 1 (the setup for networks without multicast)
 #   multihost.sh udp                like multicast, with --transport udp
 # Needs root (ip netns); exits 77 (skipped) without it.
@@ -28,7 +29,12 @@ cleanup() {
 }
 trap cleanup EXIT
 
-if [ "$MODE" = discovery-server ]; then multicast=off; else multicast=on; fi
+if [ "$MODE" = discovery-server ]; then
+  command -v nft > /dev/null || { echo "multihost: needs nft (Debian package nftables)"; exit 77; }
+  multicast=off
+else
+  multicast=on
+fi
 hosts_up "$TAG" "$WORK" "$multicast" "${HOSTS[@]}"
 for h in "${HOSTS[@]}"; do
   # Each host has its own copy of the configuration: nothing is shared on disk.
@@ -78,5 +84,14 @@ fi
   --output "$WORK/single" > /dev/null
 if ! cmp "$WORK/h1/out/vehicles.csv" "$WORK/single/vehicles.csv"; then
   echo "multihost ($MODE): recorded run differs from the single-process run"; exit 1
+fi
+if [ "$MODE" = discovery-server ]; then
+  # The block was real: Fast DDS tried multicast and every packet was dropped.
+  dropped=0
+  for h in "${HOSTS[@]}"; do dropped=$((dropped + $(multicast_dropped "$h"))); done
+  if [ "$dropped" -eq 0 ]; then
+    echo "multihost ($MODE): no multicast packet was dropped: the block was not exercised"; exit 1
+  fi
+  echo "multihost ($MODE): $dropped multicast packets dropped by nftables"
 fi
 echo "multihost ($MODE): 3 hosts, $(($(wc -l < "$WORK/h1/out/vehicles.csv") - 1)) rows, identical to the single-process run"
