@@ -64,7 +64,7 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
       }
       return "";
     }
-    if (phase_ == Phase::aborted || pending_abort_) return "";
+    if (phase_ == Phase::aborted || pending_abort_ || loss_abort_at_) return "";
     if (m.left || m.active_from < 0) {
       // Not (or no longer) in the barrier: nobody waits for it, so its failure is its own.
       return "ignoring the failure of " + done.member_id + ", which is not in the barrier: " +
@@ -118,7 +118,10 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
     return;
   }
   if (config_.on_member_loss == LossPolicy::abort || phase_ == Phase::joining) {
-    if (!pending_abort_) pending_abort_ = "member " + member + " lost: " + why;
+    if (!pending_abort_) {
+      lost_.emplace_back(member, why);
+      if (!loss_abort_at_) loss_abort_at_ = now_s + kLossGatherS;
+    }
   } else {
     it->second.left = true;
     departed_.push_back(member);
@@ -126,7 +129,7 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
 }
 
 void Barrier::on_interrupt(const std::string& why, double now_s) {
-  if (!pending_abort_) pending_abort_ = why;
+  if (!pending_abort_ && !loss_abort_at_) pending_abort_ = why;
 }
 
 // A member that died without leaving (abort policy) never counts as done: a frame is complete
@@ -183,6 +186,16 @@ Barrier::Action Barrier::abort_with(const std::string& reason, double now_s) {
   return a;
 }
 
+// "member A lost: why", or for several "members A, B lost: why" (the distinct reasons joined).
+std::string Barrier::loss_reason() const {
+  std::string names, whys;
+  for (const auto& [member, why] : lost_) {
+    names += (names.empty() ? "" : ", ") + member;
+    if (whys.find(why) == std::string::npos) whys += (whys.empty() ? "" : "; ") + why;
+  }
+  return (lost_.size() == 1 ? "member " : "members ") + names + " lost: " + whys;
+}
+
 Barrier::Action Barrier::poll(double now_s) {
   Action wait;
   wait.kind = Action::Kind::wait;
@@ -191,6 +204,13 @@ Barrier::Action Barrier::poll(double now_s) {
     return wait;
   }
   if (pending_abort_) return abort_with(*pending_abort_, now_s);
+  if (loss_abort_at_) {
+    if (now_s < *loss_abort_at_) {
+      wait.wake_at_s = *loss_abort_at_;
+      return wait;
+    }
+    return abort_with(loss_reason(), now_s);
+  }
 
   if (phase_ == Phase::joining) {
     const auto missing = missing_members();

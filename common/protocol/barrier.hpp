@@ -49,7 +49,11 @@ class Barrier {
   /// (the warning names it) and the run goes on without it.
   std::string on_config_mismatch(const std::string& member, const std::string& why, double now_s);
   std::string on_done(const FrameDoneMsg& done, double now_s);
+  /// Under on_member_loss: abort (and while joining) the run aborts kLossGatherS after the
+  /// first loss, naming every member lost by then (a partition or a lost host takes several
+  /// at once); nothing is granted meanwhile.
   void on_member_lost(const std::string& member, const std::string& why, double now_s);
+  static constexpr double kLossGatherS = 1.0;
   void on_interrupt(const std::string& why, double now_s);
 
   /// The next decision. Grant/stop/abort are returned once; after them poll() says wait.
@@ -93,6 +97,8 @@ class Barrier {
   /// Late joiners ready to be admitted with the grant of `frame` (they start at frame + 1).
   std::vector<std::string> admit_joiners(std::int64_t frame, double now_s);
 
+  std::string loss_reason() const;
+
   BarrierConfig config_;
   std::map<std::string, Member> members_;
   Phase phase_ = Phase::joining;
@@ -105,6 +111,8 @@ class Barrier {
   Manifest last_manifest_;            // what was published in last_completed_
   std::string last_done_member_;
   std::optional<std::string> pending_abort_;
+  std::vector<std::pair<std::string, std::string>> lost_;  // member, why: the abort to come
+  std::optional<double> loss_abort_at_;                    // when it comes
   std::vector<std::string> departed_;  // left since the last grant, for the next one
   std::map<std::string, std::string> failed_after_end_;  // reported errors
   std::map<std::string, std::string> lost_after_end_;    // processes gone after the stop

@@ -269,8 +269,8 @@ TEST(Overload, AStalledCoordinatorIsWaitedFor) { stall_and_expect_unchanged("coo
 // Stalled past its lease (here a 2 s lease, the old default, to keep the test short), a process
 // of this machine is still not declared lost: the coordinator says its lease expired while it
 // runs, and the run either goes on once the participants find each other again or, if Fast DDS
-// does not rediscover them in time, misses a frame deadline that names the slow member. Never
-// "lost".
+// rediscovers them on one side only (seen in about 1 run of 10 under load), ends naming the
+// slow member (a frame deadline, or a member that gave up waiting for its data). Never "lost".
 TEST(Overload, AMemberStalledPastItsLeaseIsSlowNotLost) {
   TestRun run;
   const fs::path out = run.dir / "out";
@@ -302,10 +302,11 @@ TEST(Overload, AMemberStalledPastItsLeaseIsSlowNotLost) {
   ASSERT_TRUE(code.has_value()) << launcher->log();
   const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
   if (summary["status"] != "completed") {
-    EXPECT_NE(summary["reason"].get<std::string>().find(
-                  "missed its 10 s deadline; still waiting for controller/a"),
-              std::string::npos)
-        << summary.dump();
+    // Slow, named: the coordinator's frame deadline, or a member that gave up waiting for the
+    // stalled controller's announced command ("announced inputs missing ... controller/a").
+    const std::string reason = summary["reason"];
+    EXPECT_NE(reason.find("controller/a"), std::string::npos) << summary.dump();
+    EXPECT_EQ(reason.find(" lost"), std::string::npos) << summary.dump();
   }
   EXPECT_EQ(read_file(coordinator).find(" lost: "), std::string::npos) << read_file(coordinator);
 }

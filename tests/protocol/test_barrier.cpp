@@ -111,11 +111,35 @@ TEST(Barrier, LostMemberAbortsByDefault) {
   for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
   ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 1
   b.on_member_lost("vehicle/a", "liveliness lost", 0.5);
-  auto a = b.poll(0.5);
+  // Other losses may follow within kLossGatherS (a partition): nothing is granted meanwhile.
+  EXPECT_EQ(b.poll(0.5).kind, Kind::wait);
+  auto a = b.poll(0.5 + Barrier::kLossGatherS);
   ASSERT_EQ(a.kind, Kind::abort);
   EXPECT_EQ(a.control.reason, "member vehicle/a lost: liveliness lost");
   EXPECT_EQ(a.control.final_frame, 0);  // frame 0 was the last complete frame
   EXPECT_EQ(a.control.stats.frames, 1u);
+}
+
+// A partition or a lost host takes several members within moments of each other: the abort
+// names all of them (before, only the first). A member that then fails for want of their data,
+// or an interrupt, does not take the loss's place as the reason; a loss after the gathering
+// time is not in the list.
+TEST(Barrier, LossesWithinTheGatheringTimeAreNamedTogether) {
+  Barrier b(config(), 0.0);
+  join_all(b, 0.0);
+  b.poll(0.0);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 0), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 1
+  b.on_member_lost("vehicle/a", "liveliness lost", 1.0);
+  b.on_member_lost("controller/a", "liveliness lost", 1.4);
+  FrameDoneMsg failed = done("recorder", 1);
+  failed.error = "announced data missing";
+  b.on_done(failed, 1.5);
+  b.on_interrupt("interrupted", 1.6);
+  EXPECT_EQ(b.poll(1.9).kind, Kind::wait);
+  auto a = b.poll(1.0 + Barrier::kLossGatherS);
+  ASSERT_EQ(a.kind, Kind::abort);
+  EXPECT_EQ(a.control.reason, "members vehicle/a, controller/a lost: liveliness lost");
 }
 
 TEST(Barrier, AbortAfterACompleteFrameAnnouncesItsSamples) {
@@ -225,7 +249,7 @@ TEST(Barrier, FrameWithALostMemberIsNotComplete) {
   b.on_done(done("controller/a", 1, {{Topic::driver_command, "a", "controller/a", 1}}), 0.1);
   b.on_done(done("recorder", 1), 0.1);
   b.on_member_lost("vehicle/a", "killed", 0.2);
-  auto a = b.poll(0.2);
+  auto a = b.poll(0.2 + Barrier::kLossGatherS);
   ASSERT_EQ(a.kind, Kind::abort);
   EXPECT_EQ(a.control.final_frame, 0);
   EXPECT_TRUE(a.control.final_manifest.empty());
@@ -362,7 +386,7 @@ TEST(Barrier, AbortPolicyNamesNoDeparture) {
   ASSERT_EQ(g.kind, Kind::grant);
   EXPECT_TRUE(g.grant.departed.empty());
   b.on_member_lost("vehicle/a", "killed", 0.1);
-  EXPECT_EQ(b.poll(0.1).kind, Kind::abort);
+  EXPECT_EQ(b.poll(0.1 + Barrier::kLossGatherS).kind, Kind::abort);
 }
 
 // A late joiner that never took part and goes away is not a departure.
