@@ -20,6 +20,7 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 GRACE_S=${SYNDDS_LAUNCH_GRACE_S:-20}   # after a failure: time for the others to exit cleanly
 PROCESS_MB=${SYNDDS_PROCESS_MB:-100}   # memory one process of a run needs (docs/deployment.md)
+GROUP_MB=${SYNDDS_GROUP_MB:-200}       # a syndds_group process (it links libtorch): ~180 MB
 
 die() { echo "run_scenario: $*" >&2; exit "${2:-1}"; }
 usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; }
@@ -80,9 +81,11 @@ plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bi
 # holds about PROCESS_MB of memory (Fast DDS participant, shared-memory transport; measured in
 # docs/deployment.md), and the user may only have so many processes.
 nproc_run=$(printf '%s\n' "$plan" | grep -c $'\t')
+ngroups=$(printf '%s\n' "$plan" | grep -c '^group/')
+need_mb=$(( (nproc_run - ngroups) * PROCESS_MB + ngroups * GROUP_MB ))
 avail_mb=$(awk '/^MemAvailable:/ {print int($2 / 1024)}' /proc/meminfo 2>/dev/null)
-if [ -n "$avail_mb" ] && [ $((nproc_run * PROCESS_MB)) -gt "$avail_mb" ]; then
-  die "$nproc_run processes need about $((nproc_run * PROCESS_MB)) MB ($PROCESS_MB MB each) but this machine has $avail_mb MB available: run fewer vehicles or spread the run over hosts (docs/deployment.md)"
+if [ -n "$avail_mb" ] && [ "$need_mb" -gt "$avail_mb" ]; then
+  die "$nproc_run processes need about $need_mb MB ($PROCESS_MB MB each, $GROUP_MB MB a group process) but this machine has $avail_mb MB available: run fewer vehicles or spread the run over hosts (docs/deployment.md)"
 fi
 max_user=$(ulimit -u)
 if [ "$max_user" != unlimited ]; then

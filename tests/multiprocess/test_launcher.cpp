@@ -152,6 +152,22 @@ TEST(Launcher, RefusesWhatTheMachineCannotStart) {
   EXPECT_FALSE(fs::exists(run.dir / "out" / "logs" / "pids"));
 }
 
+// A group process (a vehicle with its controller) is counted at SYNDDS_GROUP_MB, not at the
+// single-member process's 100 MB.
+TEST(Launcher, CountsGroupProcessesAtTheirOwnSize) {
+  TestRun run;
+  auto launcher = launch(run, run.dir,
+                         kScenarios + "two_vehicles.yaml" + run.common_args() + " --output " +
+                             (run.dir / "out").string() + " --processes per_vehicle",
+                         "launcher.log", "SYNDDS_GROUP_MB=100000000");
+  const auto code = launcher->wait(30);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 1) << launcher->log();
+  EXPECT_NE(launcher->log().find("100000000 MB a group process"), std::string::npos)
+      << launcher->log();
+  EXPECT_FALSE(fs::exists(run.dir / "out" / "logs" / "pids"));
+}
+
 // on_member_loss: continue keeps the run going without a killed recorder; the coordinator
 // completes it, and the launcher says that the run completed but its recording did not (exit 2:
 // the results are incomplete).
