@@ -370,7 +370,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     for (const auto& d : samples.terrain_deformations) {
       soil_->apply_remote_changes(d.source_index, agents::from_messages(d.vertices));
       // The vertex lists as they travel (packed), and how many records they hold.
-      frame_bytes += proto::pack_vertices(d.vertices).size();
+      frame_bytes += proto::packed_size(d.vertices);
       terrain_vertices_ += d.vertices.size();
     }
     terrain_bytes_ += frame_bytes;

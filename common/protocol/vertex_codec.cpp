@@ -17,7 +17,14 @@ double TerrainVertexMsg::*const kDoubles[kFields] = {
     &TerrainVertexMsg::height, &TerrainVertexMsg::level_initial,
     &TerrainVertexMsg::sinkage_plastic, &TerrainVertexMsg::sigma_yield};
 
-void put_varint(std::vector<std::uint8_t>& out, std::uint64_t v) {
+// Where encoded bytes go: into a vector, or only counted (packed_size).
+struct ByteCounter {
+  std::size_t size = 0;
+  void push_back(std::uint8_t) { ++size; }
+};
+
+template <typename Out>
+void put_varint(Out& out, std::uint64_t v) {
   while (v >= 0x80) {
     out.push_back(static_cast<std::uint8_t>(v | 0x80));
     v >>= 7;
@@ -81,9 +88,10 @@ std::int32_t next_index(Reader& in, std::int32_t previous, const char* name) {
 
 }  // namespace
 
-std::vector<std::uint8_t> pack_vertices(const std::vector<TerrainVertexMsg>& vertices) {
-  std::vector<std::uint8_t> out;
-  out.reserve(4 + vertices.size() * 24);
+namespace {
+
+template <typename Out>
+void encode(const std::vector<TerrainVertexMsg>& vertices, Out& out) {
   put_varint(out, vertices.size());
   TerrainVertexMsg prev;
   for (const TerrainVertexMsg& v : vertices) {
@@ -103,7 +111,21 @@ std::vector<std::uint8_t> pack_vertices(const std::vector<TerrainVertexMsg>& ver
     }
     prev = v;
   }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> pack_vertices(const std::vector<TerrainVertexMsg>& vertices) {
+  std::vector<std::uint8_t> out;
+  out.reserve(4 + vertices.size() * 24);
+  encode(vertices, out);
   return out;
+}
+
+std::size_t packed_size(const std::vector<TerrainVertexMsg>& vertices) {
+  ByteCounter count;
+  encode(vertices, count);
+  return count.size;
 }
 
 std::vector<TerrainVertexMsg> unpack_vertices(std::span<const std::uint8_t> bytes) {

@@ -15,6 +15,7 @@
 // A list that does not decode exactly (truncated, a length over 8, a varint over 10 bytes, an
 // index outside int32, bytes left over, more vertices announced than bytes could hold) is
 // refused with a ProtocolError naming the byte. docs/protocol.md, "Packed vertices".
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -24,6 +25,8 @@
 namespace syndds::proto {
 
 std::vector<std::uint8_t> pack_vertices(const std::vector<TerrainVertexMsg>& vertices);
+/// pack_vertices(vertices).size(), without building the bytes (traffic accounting).
+std::size_t packed_size(const std::vector<TerrainVertexMsg>& vertices);
 std::vector<TerrainVertexMsg> unpack_vertices(std::span<const std::uint8_t> bytes);
 
 }  // namespace syndds::proto

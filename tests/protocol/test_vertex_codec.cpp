@@ -49,6 +49,7 @@ TEST(VertexCodec, EveryValueComesBackBitForBit) {
                     std::bit_cast<double>(rng())});
   }
   EXPECT_TRUE(bit_equal(proto::unpack_vertices(proto::pack_vertices(list)), list));
+  EXPECT_EQ(proto::packed_size(list), proto::pack_vertices(list).size());
   EXPECT_TRUE(proto::unpack_vertices(proto::pack_vertices({})).empty());
   EXPECT_EQ(proto::pack_vertices({}).size(), 1u);
 }
@@ -64,6 +65,7 @@ TEST(VertexCodec, ARutPacksIntoFewerBytesThanStructRecords) {
     }
   }
   const auto packed = proto::pack_vertices(rut);
+  EXPECT_EQ(proto::packed_size(rut), packed.size());
   EXPECT_TRUE(bit_equal(proto::unpack_vertices(packed), rut));
   EXPECT_LT(static_cast<double>(packed.size()) / static_cast<double>(rut.size()), 26.0);
 }

@@ -123,7 +123,7 @@ Row run(const std::string& preset, double spacing, int threads, bool forced, boo
         records.push_back({c.i, c.j, c.level_m, c.level_initial_m, c.sinkage_plastic_m,
                            c.sigma_yield_pa});
       }
-      packed += static_cast<double>(proto::pack_vertices(records).size());
+      packed += static_cast<double>(proto::packed_size(records));
       vertices += static_cast<double>(changes.size());
       row.max_bytes_per_frame = std::max(row.max_bytes_per_frame, b);
       ++frames;
