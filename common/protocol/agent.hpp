@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "core/error.hpp"
+#include "core/state_io.hpp"
 #include "protocol/messages.hpp"
 
 namespace syndds::proto {
@@ -109,6 +111,24 @@ class Agent {
   /// Samples of subscribed topics the transport refused since the last frame (called in the
   /// thread that runs frames, before a step).
   virtual void note_rejected(const std::vector<RejectedSample>& rejected) {}
+
+  // ---- checkpoints (docs/checkpoints.md) ----
+  /// True if this agent can write and read its state; a scenario that asks for checkpoints is
+  /// refused when one of its agents cannot.
+  virtual bool can_checkpoint() const { return false; }
+  /// Writes everything that decides this agent's frames after the last one it stepped (called
+  /// between frames). Afterwards the agent continues from exactly the state load_state would
+  /// rebuild from these bytes (a model whose own setters round, e.g. ODE's quaternion
+  /// normalisation, passes its state through them here), so a run that checkpoints and one
+  /// resumed from that checkpoint step the same numbers.
+  virtual void save_state(core::StateWriter& w) {
+    throw ProtocolError(member_id() + " cannot write checkpoints");
+  }
+  /// Restores the state written by save_state into an agent built from the same scenario,
+  /// before its first step. Throws core::StateError if the bytes do not fit.
+  virtual void load_state(core::StateReader& r) {
+    throw ProtocolError(member_id() + " cannot read checkpoints");
+  }
 };
 
 using AgentPtr = std::unique_ptr<Agent>;
