@@ -27,4 +27,9 @@ proto::AgentPtr make_agent(const scenario::Scenario& scenario, const std::string
 std::vector<proto::AgentPtr> make_all_agents(const scenario::Scenario& scenario,
                                              const record::RecorderOptions& recorder_options);
 
+/// Throws ConfigError naming the scenario and the first agent that cannot write checkpoints
+/// (the scenario asks for checkpoints, or a run resumes from one).
+void require_checkpoints(const scenario::Scenario& scenario,
+                         const std::vector<proto::AgentPtr>& agents);
+
 }  // namespace syndds::agents

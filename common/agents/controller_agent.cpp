@@ -35,4 +35,8 @@ proto::DriverCommandMsg command_message(const std::string& vehicle_id, const std
   return out;
 }
 
+void ControllerAgent::save_state(core::StateWriter& w) { follower_.save_state(w); }
+
+void ControllerAgent::load_state(core::StateReader& r) { follower_.load_state(r); }
+
 }  // namespace syndds::agents

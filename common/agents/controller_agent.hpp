@@ -25,6 +25,10 @@ class ControllerAgent final : public proto::Agent {
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
 
+  bool can_checkpoint() const override { return true; }
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
+
   const control::PathFollower& follower() const { return follower_; }
 
  private:

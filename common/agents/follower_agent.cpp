@@ -51,4 +51,8 @@ void FollowerAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
   }
 }
 
+void FollowerAgent::save_state(core::StateWriter& w) { follower_.save_state(w); }
+
+void FollowerAgent::load_state(core::StateReader& r) { follower_.load_state(r); }
+
 }  // namespace syndds::agents

@@ -207,25 +207,26 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw ConfigError(dir.string() + ": cannot create output directory: " + ec.message());
+  const auto open = options_.resume ? OutputFile::Open::resume : OutputFile::Open::create;
   reserve_ = std::make_unique<SpaceReserve>(dir / kReserveFile, kReserveBytes);
-  vehicles_ = std::make_unique<CsvFile>(dir / "vehicles.csv", kVehicleColumns);
-  commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns);
-  events_ = std::make_unique<CsvFile>(dir / "events.csv", kEventColumns);
+  vehicles_ = std::make_unique<CsvFile>(dir / "vehicles.csv", kVehicleColumns, open);
+  commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns, open);
+  events_ = std::make_unique<CsvFile>(dir / "events.csv", kEventColumns, open);
   bool interoceptive = false;
   for (const auto& v : scenario.vehicles) interoceptive = interoceptive || v.has_interoceptive_sensors();
   if (interoceptive) {
     gps_ = std::make_unique<CsvFile>(
         dir / "gps.csv",
-        stamped({"latitude_deg", "longitude_deg", "altitude_m", "e_m", "n_m", "u_m"}));
+        stamped({"latitude_deg", "longitude_deg", "altitude_m", "e_m", "n_m", "u_m"}), open);
     imu_ = std::make_unique<CsvFile>(
         dir / "imu.csv",
-        stamped({"ax_mps2", "ay_mps2", "az_mps2", "gx_rad_s", "gy_rad_s", "gz_rad_s"}));
+        stamped({"ax_mps2", "ay_mps2", "az_mps2", "gx_rad_s", "gy_rad_s", "gz_rad_s"}), open);
     compass_ = std::make_unique<CsvFile>(dir / "compass.csv",
-                                         stamped({"heading_rad", "fx_ut", "fy_ut", "fz_ut"}));
+                                         stamped({"heading_rad", "fx_ut", "fy_ut", "fz_ut"}), open);
     wheel_speeds_ = std::make_unique<CsvFile>(
-        dir / "wheel_speeds.csv", stamped({"fl_rad_s", "fr_rad_s", "rl_rad_s", "rr_rad_s"}));
+        dir / "wheel_speeds.csv", stamped({"fl_rad_s", "fr_rad_s", "rl_rad_s", "rr_rad_s"}), open);
   }
-  if (v2v) v2v_ = std::make_unique<CsvFile>(dir / "v2v.csv", kV2VColumns);
+  if (v2v) v2v_ = std::make_unique<CsvFile>(dir / "v2v.csv", kV2VColumns, open);
   write_summary(nullptr);
 }
 
@@ -586,6 +587,126 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
   }
   write_file_atomically(dir / "summary.txt", text);
   summary_written_ = Clock::now();
+}
+
+}  // namespace syndds::record
+
+namespace syndds::record {
+
+std::vector<CsvFile*> RecorderAgent::files() const {
+  return {vehicles_.get(), commands_.get(), events_.get(), gps_.get(),
+          imu_.get(),      compass_.get(),  wheel_speeds_.get(), v2v_.get()};
+}
+
+void RecorderAgent::save_state(core::StateWriter& w) {
+  if (!failure_.empty()) throw WriteError("no checkpoint of a failed recorder: " + failure_);
+  w.begin("recorder", 1);
+  for (CsvFile* f : files()) {
+    if (f && f->has_pending()) {
+      throw std::logic_error(f->path().string() + ": rows not committed at a checkpoint");
+    }
+    w.io(f != nullptr);
+    if (f) w.io(f->size());
+  }
+  w.io(static_cast<std::uint64_t>(totals_.size()));
+  for (const auto& [id, t] : totals_) {
+    w.io(id);
+    w.io(t.distance_m);
+    w.io(t.speed_sum_mps);
+    w.io(t.max_speed_mps);
+    w.io(t.samples);
+    w.io(t.collisions);
+    w.io(static_cast<std::uint64_t>(t.events.size()));
+    for (const auto& [kind, n] : t.events) {
+      w.io(kind);
+      w.io(n);
+    }
+    w.io(t.last_position);
+  }
+  w.io(static_cast<std::uint64_t>(tracks_.size()));
+  for (const auto& [id, track] : tracks_) {
+    w.io(id);
+    w.io(static_cast<std::uint64_t>(track.size()));
+    for (const auto& p : track) {
+      w.io(p.time_s);
+      w.io(p.position);
+      w.io(p.speed_mps);
+    }
+  }
+  w.io(static_cast<std::uint64_t>(losses_.size()));
+  for (const auto& l : losses_) {
+    w.io(l.member);
+    w.io(l.frame);
+    w.io(l.time_s);
+  }
+  w.io(terrain_bytes_);
+  w.io(terrain_vertices_);
+  w.io(terrain_max_frame_bytes_);
+  w.io(last_frame_);
+  w.io(pending_frame_);
+  w.io(soil_ != nullptr);
+  if (soil_) soil_->save_state(w);
+  w.end();
+}
+
+void RecorderAgent::load_state(core::StateReader& r) {
+  r.begin("recorder", 1);
+  for (CsvFile* f : files()) {
+    const bool has = r.get<bool>();
+    if (has != (f != nullptr)) {
+      r.fail(std::string("the checkpointed recorder ") + (has ? "wrote" : "did not write") +
+             " a CSV file this scenario " + (has ? "does not have" : "has"));
+    }
+    if (!f) continue;
+    const auto size = r.get<std::uint64_t>();
+    try {
+      f->cut_to(size);
+    } catch (const WriteError& e) {
+      r.fail(e.what());
+    }
+  }
+  totals_.clear();
+  const auto n_totals = r.get<std::uint64_t>();
+  for (std::uint64_t i = 0; i < n_totals; ++i) {
+    VehicleTotals& t = totals_[r.get<std::string>()];
+    r.io(t.distance_m);
+    r.io(t.speed_sum_mps);
+    r.io(t.max_speed_mps);
+    r.io(t.samples);
+    r.io(t.collisions);
+    const auto n_events = r.get<std::uint64_t>();
+    for (std::uint64_t k = 0; k < n_events; ++k) {
+      const auto kind = r.get<std::string>();
+      r.io(t.events[kind]);
+    }
+    r.io(t.last_position);
+  }
+  tracks_.clear();
+  const auto n_tracks = r.get<std::uint64_t>();
+  for (std::uint64_t i = 0; i < n_tracks; ++i) {
+    convoy::Track& track = tracks_[r.get<std::string>()];
+    track.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
+    for (auto& p : track) {
+      r.io(p.time_s);
+      r.io(p.position);
+      r.io(p.speed_mps);
+    }
+  }
+  losses_.clear();
+  losses_.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
+  for (auto& l : losses_) {
+    r.io(l.member);
+    r.io(l.frame);
+    r.io(l.time_s);
+  }
+  r.io(terrain_bytes_);
+  r.io(terrain_vertices_);
+  r.io(terrain_max_frame_bytes_);
+  r.io(last_frame_);
+  r.io(pending_frame_);
+  if (r.get<bool>() != (soil_ != nullptr)) r.fail("the soil copy does not match the terrain");
+  if (soil_) soil_->load_state(r);
+  r.end();
 }
 
 }  // namespace syndds::record

@@ -25,6 +25,9 @@ struct RecorderOptions {
   std::string output_dir;
   std::string run_id;
   std::string mode = "distributed";  // or "single-process"
+  /// Continue the files of a checkpointed run in output_dir (load_state cuts them back to the
+  /// checkpoint) instead of creating them.
+  bool resume = false;
 };
 
 /// Per-vehicle totals accumulated from the recorded states.
@@ -69,6 +72,11 @@ class RecorderAgent final : public proto::Agent {
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
+  /// Checkpoints: every file's length and the totals and tracks gathered so far; loading cuts
+  /// the files back to those lengths, so nothing is written twice.
+  bool can_checkpoint() const override { return true; }
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
 
   /// Records an event that does not travel as a sample (e.g. a lost member seen locally).
   /// Throws record::WriteError if events.csv cannot be written.
@@ -95,6 +103,8 @@ class RecorderAgent final : public proto::Agent {
   void write_summary(const proto::RunControlMsg* end);
   void write_convoy_report();
   void write_metrics();
+  /// The CSV files in a fixed order (null: not written by this scenario).
+  std::vector<CsvFile*> files() const;
   /// Runs `write`; a WriteError marks the recorder failed (every later frame fails too).
   template <typename F>
   void guarded(F&& write);

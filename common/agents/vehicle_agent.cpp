@@ -248,4 +248,38 @@ proto::VehicleStateMsg VehicleAgent::state_message(std::int64_t frame, double si
   return m;
 }
 
+void VehicleAgent::save_state(core::StateWriter& w) {
+  w.begin("vehicle_agent", 1);
+  w.io(rejected_);
+  w.io(static_cast<std::uint64_t>(max_deferred_));
+  w.io(controller_lost_);
+  model_->save_state(w);
+  w.io(soil_ != nullptr);
+  if (soil_) soil_->save_state(w);
+  w.io(sensors_ != nullptr);
+  if (sensors_) sensors_->save_state(w);
+  w.io(v2v_ != nullptr);
+  if (v2v_) v2v_->save_state(w);
+  w.end();
+}
+
+void VehicleAgent::load_state(core::StateReader& r) {
+  r.begin("vehicle_agent", 1);
+  r.io(rejected_);
+  max_deferred_ = static_cast<std::size_t>(r.get<std::uint64_t>());
+  r.io(controller_lost_);
+  model_->load_state(r);
+  const auto expect = [&](bool has, const char* what) {
+    if (r.get<bool>() != has) {
+      r.fail(std::string("the checkpointed vehicle ") + (has ? "had no " : "had a ") + what +
+             "; this scenario's " + (has ? "has one" : "has none"));
+    }
+    return has;
+  };
+  if (expect(soil_ != nullptr, "soil copy")) soil_->load_state(r);
+  if (expect(sensors_ != nullptr, "sensors")) sensors_->load_state(r);
+  if (expect(v2v_ != nullptr, "V2V broadcaster")) v2v_->load_state(r);
+  r.end();
+}
+
 }  // namespace syndds::agents

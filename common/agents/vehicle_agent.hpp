@@ -42,6 +42,11 @@ class VehicleAgent final : public proto::Agent {
             proto::FrameSamples& outputs) override;
   void note_rejected(const std::vector<proto::RejectedSample>& rejected) override;
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
+  /// Checkpoints: the dynamics, the soil copy, the sensors, V2V, what the vehicle knows of its
+  /// controller.
+  bool can_checkpoint() const override { return true; }
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
 
   const vehicle::VehicleModel& model() const { return *model_; }
   std::uint64_t rejected_commands() const { return rejected_; }

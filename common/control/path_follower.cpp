@@ -54,3 +54,24 @@ vehicle::DriverInputs PathFollower::update(double time_s, const Pose& pose, cons
 }
 
 }  // namespace syndds::control
+
+namespace syndds::control {
+
+template <typename Archive>
+void PathFollower::state_io(Archive& a) {
+  a.begin("path_follower", 1);
+  steering_pid_.state_io(a);
+  speed_pid_.state_io(a);
+  a.io(progress_s_);
+  a.io(target_speed_);
+  a.io(lateral_error_);
+  a.end();
+}
+
+void PathFollower::save_state(core::StateWriter& w) const {
+  const_cast<PathFollower*>(this)->state_io(w);  // the writer only reads
+}
+
+void PathFollower::load_state(core::StateReader& r) { state_io(r); }
+
+}  // namespace syndds::control

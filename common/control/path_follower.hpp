@@ -5,6 +5,7 @@
 // On an open path the target speed tapers to stop at the end.
 #include "control/path.hpp"
 #include "control/pid.hpp"
+#include "core/state_io.hpp"
 #include "vehicle/vehicle_model.hpp"
 
 namespace syndds::control {
@@ -41,7 +42,14 @@ class PathFollower {
   double target_speed_mps() const { return target_speed_; }
   double lateral_error_m() const { return lateral_error_; }
 
+  /// Checkpoints: the controllers' memories and the progress along the path.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
+
  private:
+  template <typename Archive>
+  void state_io(Archive& a);
+
   Path path_;
   PathFollowerConfig config_;
   Pid steering_pid_;

@@ -28,6 +28,13 @@ class Pid {
     has_previous_ = false;
   }
   const PidGains& gains() const { return gains_; }
+  /// Checkpoint state (the gains come from the configuration).
+  template <typename Archive>
+  void state_io(Archive& a) {
+    a.io(integral_);
+    a.io(previous_);
+    a.io(has_previous_);
+  }
 
  private:
   PidGains gains_;

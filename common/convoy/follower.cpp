@@ -193,3 +193,45 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
 }
 
 }  // namespace syndds::convoy
+
+namespace syndds::convoy {
+
+template <typename Archive>
+void ConvoyFollower::state_io(Archive& a) {
+  a.begin("convoy_follower", 1);
+  speed_pid_.state_io(a);
+  for (auto* e : {&own_, &leader_}) {
+    bool has = e->has_value();
+    a.io(has);
+    if constexpr (std::is_same_v<Archive, core::StateReader>) {
+      if (has) e->emplace(); else e->reset();
+    }
+    if (has) {
+      a.io((*e)->position);
+      a.io((*e)->yaw);
+      a.io((*e)->speed);
+    }
+  }
+  a.io(speed_reading_);
+  a.io(yaw_reading_);
+  a.io(leader_seen_s_);
+  a.io(leader_sequence_);
+  a.io(has_leader_sequence_);
+  a.io(lost_);
+  a.io(trail_);
+  a.io(trail_s_);
+  std::uint64_t index = trail_index_;
+  a.io(index);
+  trail_index_ = static_cast<std::size_t>(index);
+  a.io(gap_m_);
+  a.io(target_speed_);
+  a.end();
+}
+
+void ConvoyFollower::save_state(core::StateWriter& w) const {
+  const_cast<ConvoyFollower*>(this)->state_io(w);  // the writer only reads
+}
+
+void ConvoyFollower::load_state(core::StateReader& r) { state_io(r); }
+
+}  // namespace syndds::convoy

@@ -23,6 +23,7 @@
 
 #include "control/pid.hpp"
 #include "core/math.hpp"
+#include "core/state_io.hpp"
 #include "protocol/messages.hpp"
 #include "sensors/geodesy.hpp"
 #include "vehicle/vehicle_model.hpp"
@@ -82,7 +83,14 @@ class ConvoyFollower {
   double target_speed_mps() const { return target_speed_; }
   const std::vector<Vec2>& trail() const { return trail_; }
 
+  /// Checkpoints: estimates, the trail of crumbs, the speed controller, the leader watch.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
+
  private:
+  template <typename Archive>
+  void state_io(Archive& a);
+
   struct Estimate {
     Vec2 position = Vec2::Zero();
     double yaw = 0.0;     // counter-clockwise from east

@@ -15,6 +15,7 @@
 #include <bit>
 #include <cstdint>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -72,6 +73,11 @@ class StateWriter {
   template <typename Scalar, int Options>
   void io(const Eigen::Quaternion<Scalar, Options>& q) {
     io(q.coeffs());
+  }
+  template <typename T>
+  void io(const std::optional<T>& o) {
+    io(o.has_value());
+    if (o) io(*o);
   }
   /// Anything with a `void state(StateWriter&) const` member.
   template <typename T>
@@ -135,6 +141,16 @@ class StateReader {
   template <typename Scalar, int Options>
   void io(Eigen::Quaternion<Scalar, Options>& q) {
     io(q.coeffs());
+  }
+  template <typename T>
+  void io(std::optional<T>& o) {
+    if (get<bool>()) {
+      T v{};
+      io(v);
+      o = std::move(v);
+    } else {
+      o.reset();
+    }
   }
   template <typename T>
     requires requires(T& t, StateReader& r) { t.state(r); }

@@ -57,16 +57,31 @@ FrameStepper::FrameStepper(std::vector<AgentPtr> agents, double heartbeat_s)
   }
 }
 
+FrameSamples FrameStepper::next_inputs(std::size_t i) const {
+  if (!resumed_inputs_.empty()) return resumed_inputs_.at(i);
+  return previous_.filtered(subs_.at(i));
+}
+
+void FrameStepper::resume(std::int64_t completed_frame, std::vector<FrameSamples> next_inputs) {
+  if (completed_ != -1 || finished_) throw ProtocolError("FrameStepper::resume after a step");
+  if (next_inputs.size() != agents_.size()) {
+    throw ProtocolError("FrameStepper::resume: " + std::to_string(next_inputs.size()) +
+                        " input lists for " + std::to_string(agents_.size()) + " agents");
+  }
+  completed_ = completed_frame;
+  resumed_inputs_ = std::move(next_inputs);
+}
+
 void FrameStepper::step() {
   if (finished_) throw ProtocolError("FrameStepper::step after the run ended");
   const std::int64_t frame = completed_ + 1;
-  if (frame == 0) t0_ = Clock::now();
+  if (frame == 0 || !resumed_inputs_.empty()) t0_ = Clock::now();
   // Nobody joins late or departs here: every agent lives (and fails) with this process.
   FrameContext ctx{frame, static_cast<double>(frame) * heartbeat_s_, heartbeat_s_, {}, {}};
   FrameSamples current;
   for (std::size_t i = 0; i < agents_.size(); ++i) {
     const auto step_t0 = Clock::now();
-    FrameSamples inputs = previous_.filtered(subs_[i]);
+    FrameSamples inputs = next_inputs(i);
     FrameSamples outputs;
     try {
       agents_[i]->step(ctx, inputs, outputs);
@@ -82,7 +97,7 @@ void FrameStepper::step() {
       control.final_frame = completed_;
       finished_ = true;
       for (std::size_t j = 0; j < agents_.size(); ++j) {
-        agents_[j]->finish(RunEnd{control}, j > i ? previous_.filtered(subs_[j]) : FrameSamples{});
+        agents_[j]->finish(RunEnd{control}, j > i ? next_inputs(j) : FrameSamples{});
       }
       throw;
     }
@@ -91,6 +106,7 @@ void FrameStepper::step() {
   }
   current.sort();
   previous_ = std::move(current);
+  resumed_inputs_.clear();
   completed_ = frame;
 }
 
@@ -116,7 +132,7 @@ RunControlMsg FrameStepper::finish(RunStatus status, const std::string& reason) 
 
   RunEnd end{control};
   for (std::size_t i = 0; i < agents_.size(); ++i) {
-    agents_[i]->finish(end, previous_.filtered(subs_[i]));
+    agents_[i]->finish(end, next_inputs(i));
   }
   return control;
 }
@@ -127,7 +143,8 @@ LocalRunner::LocalRunner(std::vector<AgentPtr> agents, LocalRunOptions options)
 RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
   const auto t0 = Clock::now();
   bool interrupted = false;
-  for (std::int64_t frame = 0; frame <= options_.final_frame; ++frame) {
+  const std::int64_t first = stepper_.next_frame();  // 0, or the frame after a checkpoint
+  for (std::int64_t frame = first; frame <= options_.final_frame; ++frame) {
     if (interrupt && interrupt->load()) {
       interrupted = true;
       break;
@@ -135,9 +152,11 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
     if (options_.realtime) {
       std::this_thread::sleep_until(
           t0 + std::chrono::duration_cast<Clock::duration>(
-                   std::chrono::duration<double>(static_cast<double>(frame) * options_.heartbeat_s)));
+                   std::chrono::duration<double>(static_cast<double>(frame - first) *
+                                                 options_.heartbeat_s)));
     }
     stepper_.step();
+    if (options_.after_frame) options_.after_frame(stepper_);
   }
   return stepper_.finish(interrupted ? RunStatus::aborted : RunStatus::completed,
                         interrupted ? "interrupted" : "");

@@ -4,16 +4,21 @@
 // Used by `syndds_sim` (--single-process), RL training, and determinism tests.
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <vector>
 
 #include "protocol/agent.hpp"
 
 namespace syndds::proto {
 
+class FrameStepper;
+
 struct LocalRunOptions {
   std::int64_t final_frame = 0;
   double heartbeat_s = 0.01;
   bool realtime = false;
+  /// Called after every frame (e.g. to write a checkpoint when one is due).
+  std::function<void(FrameStepper&)> after_frame;
 };
 
 /// The frames of a local run one at a time, for callers that act between frames (a learning
@@ -31,6 +36,12 @@ class FrameStepper {
   std::int64_t next_frame() const { return completed_ + 1; }
   /// Everything the agents wrote in the last frame, in canonical order.
   const FrameSamples& last_outputs() const { return previous_; }
+  /// The samples agent `i` steps the next frame with.
+  FrameSamples next_inputs(std::size_t i) const;
+  /// Continues a run from a checkpoint: frame `completed_frame` is taken as done and agent i
+  /// steps the next frame with `next_inputs[i]` (the agents' states were restored by the
+  /// caller). Only before the first step.
+  void resume(std::int64_t completed_frame, std::vector<FrameSamples> next_inputs);
   /// Ends the run: tells every agent (once) and returns the coordinator's RunControl.
   RunControlMsg finish(RunStatus status, const std::string& reason = "");
   bool finished() const { return finished_; }
@@ -42,6 +53,7 @@ class FrameStepper {
   std::vector<std::vector<Subscription>> subs_;
   std::vector<MemberStatsMsg> member_stats_;
   FrameSamples previous_;  // everything stamped completed_
+  std::vector<FrameSamples> resumed_inputs_;  // per agent, for the first frame after resume()
   std::int64_t completed_ = -1;
   std::chrono::steady_clock::time_point t0_;
   bool finished_ = false;
@@ -56,6 +68,8 @@ class LocalRunner {
   RunControlMsg run(const std::atomic<bool>* interrupt = nullptr);
 
   const std::vector<AgentPtr>& agents() const { return stepper_.agents(); }
+  /// The stepper, e.g. to resume() before run().
+  FrameStepper& stepper() { return stepper_; }
 
  private:
   FrameStepper stepper_;

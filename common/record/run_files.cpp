@@ -39,10 +39,18 @@ std::string csv_escape(std::string_view text) {
   return out;
 }
 
-OutputFile::OutputFile(fs::path path) : path_(std::move(path)) {
+OutputFile::OutputFile(fs::path path, Open open) : path_(std::move(path)) {
   // O_APPEND: after a truncate() the next write goes to the new end, never leaving a hole.
-  fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
-  if (fd_ < 0) fail("cannot create", errno);
+  if (open == Open::create) {
+    fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+    if (fd_ < 0) fail("cannot create", errno);
+  } else {
+    fd_ = ::open(path_.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd_ < 0) fail("cannot reopen the file of the checkpointed run", errno);
+    const off_t end = ::lseek(fd_, 0, SEEK_END);
+    if (end < 0) fail("cannot find the end", errno);
+    size_ = static_cast<std::uint64_t>(end);
+  }
 }
 
 OutputFile::~OutputFile() {
@@ -81,8 +89,9 @@ void OutputFile::close() {
   if (::close(fd) != 0) fail("cannot close", errno);
 }
 
-CsvFile::CsvFile(fs::path path, std::vector<std::string> columns)
-    : file_(std::move(path)), columns_(std::move(columns)) {
+CsvFile::CsvFile(fs::path path, std::vector<std::string> columns, OutputFile::Open open)
+    : file_(std::move(path), open), columns_(std::move(columns)) {
+  if (open == OutputFile::Open::resume) return;
   std::string header;
   for (const auto& c : columns_) {
     if (!header.empty()) header += ',';
@@ -107,6 +116,16 @@ void CsvFile::wrong_arity(std::size_t cells) const {
 }
 
 void CsvFile::commit() { commit_rows({this}); }
+
+void CsvFile::cut_to(std::uint64_t size) {
+  if (size > file_.size()) {
+    throw WriteError(path().string() + ": " + std::to_string(file_.size()) +
+                     " bytes, the checkpoint says " + std::to_string(size) +
+                     " (not the run directory that was checkpointed?)");
+  }
+  pending_.clear();
+  file_.truncate(size);
+}
 
 void commit_rows(std::initializer_list<CsvFile*> files) {
   std::vector<std::pair<CsvFile*, std::uint64_t>> before;

@@ -58,8 +58,12 @@ std::string csv_escape(std::string_view text);
 /// A file opened for appending, closed when destroyed. Every write is checked.
 class OutputFile {
  public:
-  /// Creates (truncates) `path`. Throws WriteError if it cannot.
-  explicit OutputFile(std::filesystem::path path);
+  enum class Open {
+    create,  // a new file (an existing one is emptied)
+    resume,  // an existing file of a checkpointed run, appended to (truncate() cuts it back)
+  };
+  /// Creates (truncates) `path`, or reopens it to append. Throws WriteError if it cannot.
+  explicit OutputFile(std::filesystem::path path, Open open = Open::create);
   ~OutputFile();
   OutputFile(const OutputFile&) = delete;
   OutputFile& operator=(const OutputFile&) = delete;
@@ -88,10 +92,17 @@ class OutputFile {
 /// the files of one frame together) writes them.
 class CsvFile {
  public:
-  /// Creates `path` and writes the header: the column names, comma-separated.
-  CsvFile(std::filesystem::path path, std::vector<std::string> columns);
+  /// Creates `path` and writes the header: the column names, comma-separated. With
+  /// Open::resume the file of a checkpointed run is reopened as it is (cut_to() trims it).
+  CsvFile(std::filesystem::path path, std::vector<std::string> columns,
+          OutputFile::Open open = OutputFile::Open::create);
 
   const std::filesystem::path& path() const { return file_.path(); }
+  /// Bytes in the file (header and committed rows).
+  std::uint64_t size() const { return file_.size(); }
+  /// Cuts the file back to `size` bytes (a checkpoint's end of a frame); rows not committed
+  /// are dropped. Throws WriteError if the file is shorter.
+  void cut_to(std::uint64_t size);
   const std::vector<std::string>& columns() const { return columns_; }
 
   /// Adds one row to the buffer. Cells: integers, floating-point numbers (9 significant digits

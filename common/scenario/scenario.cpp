@@ -658,6 +658,21 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
     s.recorder.enabled = r.get_or("enabled", true);
     r.finish();
   }
+  if (auto n = m.optional("checkpoint")) {
+    MapReader r(*n);
+    const auto every = r.required("every_s");
+    s.checkpoint.every_s = r.number("every_s", 0.0, 0.0, kMaxEndTimeS);
+    const double frames = s.checkpoint.every_s / s.time.heartbeat_s;
+    if (s.checkpoint.every_s > 0.0 &&
+        (frames < 1.0 || std::abs(frames - std::round(frames)) > 1e-9 * frames)) {
+      std::ostringstream msg;
+      msg << "every_s (" << s.checkpoint.every_s << ") must be a whole multiple of heartbeat_s ("
+          << s.time.heartbeat_s << ")";
+      every.fail(msg.str());
+    }
+    s.checkpoint.every_frames = static_cast<std::int64_t>(std::llround(frames));
+    r.finish();
+  }
   m.finish();
   if (const auto members = s.member_ids().size(); members > kMaxMembers) {
     vehicles.fail("these vehicles make " + std::to_string(members) +

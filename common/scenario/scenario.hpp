@@ -126,6 +126,14 @@ struct VehicleConfig {
   bool has_rendered_sensors() const { return sensors && sensors->rig.has_rendered_sensors(); }
 };
 
+/// `checkpoint:` (docs/checkpoints.md): every member writes its state every `every_s` of
+/// simulated time; 0 = never.
+struct CheckpointConfig {
+  double every_s = 0.0;
+  std::int64_t every_frames = 0;  // every_s / heartbeat_s
+  bool enabled() const { return every_frames > 0; }
+};
+
 struct RecorderConfig {
   bool enabled = true;
 };
@@ -163,6 +171,7 @@ struct Scenario {
   world::Obstacles obstacles;
   std::vector<VehicleConfig> vehicles;
   RecorderConfig recorder;
+  CheckpointConfig checkpoint;
   ProcessLayout processes;
   /// Every file the scenario was read from (the scenario, vehicle files, rigs, soil presets,
   /// height-map images), in read order with its role and content hash.

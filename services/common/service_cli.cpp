@@ -7,12 +7,14 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <charconv>
 #include <csignal>
 #include <regex>
 #include <filesystem>
 #include <iostream>
 
 #include "core/error.hpp"
+#include "record/checkpoint.hpp"
 
 namespace syndds::service {
 namespace {
@@ -57,6 +59,34 @@ void add_common_options(CLI::App& app, CommonArgs& a) {
   app.add_option("--log-level", a.log_level, "trace, debug, info, warn, error")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}))
       ->capture_default_str();
+  app.add_option("--run-dir", a.run_dir,
+                 "Run directory where checkpoints are written and read (docs/checkpoints.md)");
+  app.add_option("--resume-from", a.resume_from,
+                 "Resume from the complete checkpoint of this frame in --run-dir, or 'latest'");
+}
+
+std::int64_t resume_frame(const CommonArgs& args, const std::string& run_dir) {
+  if (run_dir.empty()) throw ConfigError("--resume-from needs --run-dir (where the checkpoints are)");
+  if (args.resume_from == "latest") {
+    const auto latest = record::latest_complete_checkpoint(run_dir);
+    if (!latest) {
+      throw ConfigError("--resume-from latest: " + run_dir +
+                        " has no complete checkpoint (checkpoints/frame_*/complete.yaml)");
+    }
+    return *latest;
+  }
+  std::int64_t frame = -1;
+  const auto& t = args.resume_from;
+  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), frame);
+  if (ec != std::errc() || end != t.data() + t.size() || frame < 0) {
+    throw ConfigError("--resume-from '" + t + "': expected a frame number or 'latest'");
+  }
+  try {
+    record::read_checkpoint_info(run_dir, frame);
+  } catch (const core::StateError& e) {
+    throw ConfigError(std::string("--resume-from: ") + e.what());
+  }
+  return frame;
 }
 
 void add_debug_options(CLI::App& app, DebugArgs& d) {

@@ -25,7 +25,15 @@ struct CommonArgs {
   std::string config_dir = scenario::default_config_dir();
   std::string dds_profiles;
   std::string log_level = "info";
+  /// Checkpoints (docs/checkpoints.md): the run directory they are written to and read from.
+  std::string run_dir;
+  /// Start from the complete checkpoint of this frame ("latest": the newest) in run_dir.
+  std::string resume_from;
 };
+
+/// The frame --resume-from names in `run_dir` (a number, or "latest"); ConfigError if there is
+/// no such complete checkpoint.
+std::int64_t resume_frame(const CommonArgs& args, const std::string& run_dir);
 
 struct DebugArgs {
   int frame_delay_ms = 0;

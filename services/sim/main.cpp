@@ -1,6 +1,7 @@
 // syndds_sim: every agent of a scenario in one process, with the same frame semantics as the
 // distributed run (the recorded results are byte-identical). For debugging, training and
-// determinism checks.
+// determinism checks. Writes checkpoints when the scenario asks (checkpoint: every_s) and
+// resumes from one (--resume-from), with the same files as a distributed run.
 #include <spdlog/spdlog.h>
 
 #include <fstream>
@@ -10,6 +11,7 @@
 #include "common/service_cli.hpp"
 #include "learn/policy_controller.hpp"
 #include "protocol/local_runner.hpp"
+#include "record/checkpoint.hpp"
 
 using namespace syndds;
 namespace sdds = syndds::dds;
@@ -26,9 +28,30 @@ int main(int argc, char** argv) {
   return service::run_service("sim", app, argc, argv, common, [&] {
     const auto s = service::load_scenario(common);
     const std::string run_id = service::dds_options(common, s).run_id;  // validated
-    proto::LocalRunner runner(
-        agents::make_all_agents(s, record::RecorderOptions{output, run_id, "single-process"}),
-        {s.time.final_frame(), s.time.heartbeat_s, s.time.realtime});
+    const std::string run_dir = common.run_dir.empty() ? output : common.run_dir;
+    const bool resume = !common.resume_from.empty();
+    const std::int64_t resume_at = resume ? service::resume_frame(common, run_dir) : -1;
+    auto agents = agents::make_all_agents(
+        s, record::RecorderOptions{output, run_id, "single-process", resume});
+    if (s.checkpoint.enabled() || resume) agents::require_checkpoints(s, agents);
+    proto::LocalRunOptions options{s.time.final_frame(), s.time.heartbeat_s, s.time.realtime, {}};
+    if (s.checkpoint.enabled()) {
+      options.after_frame = [&](proto::FrameStepper& stepper) {
+        const std::int64_t frame = stepper.next_frame() - 1;
+        if (!record::checkpoint_due(frame, s.checkpoint.every_frames)) return;
+        const auto info = record::write_local_checkpoint(run_dir, stepper, s.fingerprint,
+                                                         s.time.heartbeat_s);
+        std::uint64_t bytes = 0;
+        for (const auto& m : info.members) bytes += m.bytes;
+        spdlog::info("checkpoint of frame {} (t = {:g} s): {} members, {} bytes", frame,
+                     info.sim_time_s, info.members.size(), bytes);
+      };
+    }
+    proto::LocalRunner runner(std::move(agents), options);
+    if (resume) {
+      record::resume_local(run_dir, resume_at, s.fingerprint, runner.stepper());
+      spdlog::info("resumed from the checkpoint of frame {} in {}", resume_at, run_dir);
+    }
     const auto end = runner.run(&service::interrupted());
     if (!quiet && s.recorder.enabled) {
       std::ifstream summary(output + "/summary.txt");

@@ -1,0 +1,177 @@
+#include "record/checkpoint.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "core/state_io.hpp"
+#include "protocol/sample_state.hpp"
+#include "record/run_files.hpp"
+
+namespace syndds::record {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr const char* kComplete = "complete.yaml";
+
+std::string read_all(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw core::StateError(path.string() + ": cannot be read (no checkpoint state there)");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string hex(std::uint64_t v) {
+  char buf[19];
+  std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
+}  // namespace
+
+fs::path checkpoint_dir(const fs::path& run_dir, std::int64_t frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%09lld", static_cast<long long>(frame));
+  return run_dir / "checkpoints" / name;
+}
+
+std::string member_state_file(const std::string& member_id) {
+  std::string name = member_id;
+  for (char& c : name) {
+    if (c == '/') c = '.';
+  }
+  return name + ".state";
+}
+
+std::uint64_t write_member_checkpoint(const fs::path& run_dir, std::int64_t frame,
+                                      std::uint64_t fingerprint, proto::Agent& agent,
+                                      const proto::FrameSamples& next_inputs) {
+  core::StateWriter w;
+  w.begin("member", 1);
+  w.io(agent.member_id());
+  w.io(frame);
+  w.io(fingerprint);
+  agent.save_state(w);
+  proto::save_samples(w, next_inputs);
+  w.end();
+  const fs::path dir = checkpoint_dir(run_dir, frame);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw WriteError(dir.string() + ": cannot create: " + ec.message());
+  const std::string framed = core::frame_state(w.bytes());
+  write_file_atomically(dir / member_state_file(agent.member_id()), framed);
+  return framed.size();
+}
+
+proto::FrameSamples read_member_checkpoint(const fs::path& run_dir, std::int64_t frame,
+                                           std::uint64_t fingerprint, proto::Agent& agent) {
+  const fs::path file = checkpoint_dir(run_dir, frame) / member_state_file(agent.member_id());
+  const std::string bytes = core::unframe_state(read_all(file), file.string());
+  core::StateReader r(bytes, file.string());
+  r.begin("member", 1);
+  const auto member = r.get<std::string>();
+  if (member != agent.member_id()) {
+    r.fail("the state of member '" + member + "', not of '" + agent.member_id() + "'");
+  }
+  const auto saved_frame = r.get<std::int64_t>();
+  if (saved_frame != frame) {
+    r.fail("the state of frame " + std::to_string(saved_frame) + ", not of frame " +
+           std::to_string(frame));
+  }
+  const auto saved_fingerprint = r.get<std::uint64_t>();
+  if (saved_fingerprint != fingerprint) {
+    r.fail("written for scenario fingerprint " + hex(saved_fingerprint) + "; this run's is " +
+           hex(fingerprint) + " (a resumed run needs the same scenario files and overrides)");
+  }
+  agent.load_state(r);
+  proto::FrameSamples inputs = proto::load_samples(r);
+  r.end();
+  if (!r.at_end()) r.fail("bytes after the member's state");
+  return inputs;
+}
+
+void mark_checkpoint_complete(const fs::path& run_dir, const CheckpointInfo& info) {
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  out << YAML::Key << "frame" << YAML::Value << info.frame;
+  out << YAML::Key << "sim_time_s" << YAML::Value << info.sim_time_s;
+  out << YAML::Key << "fingerprint" << YAML::Value << hex(info.fingerprint);
+  out << YAML::Key << "members" << YAML::Value << YAML::BeginSeq;
+  for (const auto& m : info.members) {
+    out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << m.member_id
+        << YAML::Key << "bytes" << YAML::Value << m.bytes << YAML::EndMap;
+  }
+  out << YAML::EndSeq << YAML::EndMap;
+  write_file_atomically(checkpoint_dir(run_dir, info.frame) / kComplete,
+                        std::string(out.c_str()) + "\n");
+}
+
+CheckpointInfo read_checkpoint_info(const fs::path& run_dir, std::int64_t frame) {
+  const fs::path file = checkpoint_dir(run_dir, frame) / kComplete;
+  if (!fs::exists(file)) {
+    throw core::StateError(checkpoint_dir(run_dir, frame).string() +
+                           ": not a complete checkpoint (no " + kComplete +
+                           "; some member never wrote its state)");
+  }
+  try {
+    const YAML::Node root = YAML::LoadFile(file.string());
+    CheckpointInfo info;
+    info.frame = root["frame"].as<std::int64_t>();
+    info.sim_time_s = root["sim_time_s"].as<double>();
+    info.fingerprint = std::stoull(root["fingerprint"].as<std::string>(), nullptr, 16);
+    for (const auto& m : root["members"]) {
+      info.members.push_back({m["id"].as<std::string>(), m["bytes"].as<std::uint64_t>()});
+    }
+    if (info.frame != frame) {
+      throw core::StateError(file.string() + ": says frame " + std::to_string(info.frame));
+    }
+    return info;
+  } catch (const YAML::Exception& e) {
+    throw core::StateError(file.string() + ": " + e.what());
+  }
+}
+
+std::optional<std::int64_t> latest_complete_checkpoint(const fs::path& run_dir) {
+  std::optional<std::int64_t> latest;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(run_dir / "checkpoints", ec)) {
+    const std::string name = entry.path().filename().string();
+    long long frame = 0;
+    if (std::sscanf(name.c_str(), "frame_%lld", &frame) != 1) continue;
+    if (!fs::exists(entry.path() / kComplete)) continue;
+    if (!latest || frame > *latest) latest = frame;
+  }
+  return latest;
+}
+
+CheckpointInfo write_local_checkpoint(const fs::path& run_dir, proto::FrameStepper& stepper,
+                                      std::uint64_t fingerprint, double heartbeat_s) {
+  CheckpointInfo info;
+  info.frame = stepper.next_frame() - 1;
+  info.sim_time_s = static_cast<double>(info.frame) * heartbeat_s;
+  info.fingerprint = fingerprint;
+  const auto& agents = stepper.agents();
+  for (std::size_t i = 0; i < agents.size(); ++i) {
+    const auto bytes = write_member_checkpoint(run_dir, info.frame, fingerprint, *agents[i],
+                                               stepper.next_inputs(i));
+    info.members.push_back({agents[i]->member_id(), bytes});
+  }
+  mark_checkpoint_complete(run_dir, info);
+  return info;
+}
+
+void resume_local(const fs::path& run_dir, std::int64_t frame, std::uint64_t fingerprint,
+                  proto::FrameStepper& stepper) {
+  const CheckpointInfo info = read_checkpoint_info(run_dir, frame);
+  const auto& agents = stepper.agents();
+  std::vector<proto::FrameSamples> inputs;
+  for (const auto& agent : agents) {
+    inputs.push_back(read_member_checkpoint(run_dir, frame, fingerprint, *agent));
+  }
+  stepper.resume(info.frame, std::move(inputs));
+}
+
+}  // namespace syndds::record
