@@ -74,14 +74,11 @@ std::vector<proto::AgentPtr> make_all_agents(const scenario::Scenario& s,
   return out;
 }
 
-void require_checkpoints(const scenario::Scenario& scenario,
-                         const std::vector<proto::AgentPtr>& agents) {
-  for (const auto& a : agents) {
-    if (!a->can_checkpoint()) {
-      throw ConfigError(scenario.file + ": checkpoint: member " + a->member_id() +
-                        " cannot write checkpoints yet (docs/checkpoints.md lists the members "
-                        "that can)");
-    }
+void require_checkpoints(const scenario::Scenario& scenario, const proto::Agent& agent) {
+  if (!agent.can_checkpoint()) {
+    throw ConfigError(scenario.file + ": checkpoint: member " + agent.member_id() +
+                      " cannot write checkpoints yet (docs/checkpoints.md lists the members "
+                      "that can)");
   }
 }
 

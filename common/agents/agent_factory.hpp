@@ -29,7 +29,6 @@ std::vector<proto::AgentPtr> make_all_agents(const scenario::Scenario& scenario,
 
 /// Throws ConfigError naming the scenario and the first agent that cannot write checkpoints
 /// (the scenario asks for checkpoints, or a run resumes from one).
-void require_checkpoints(const scenario::Scenario& scenario,
-                         const std::vector<proto::AgentPtr>& agents);
+void require_checkpoints(const scenario::Scenario& scenario, const proto::Agent& agent);
 
 }  // namespace syndds::agents

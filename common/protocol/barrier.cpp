@@ -89,6 +89,7 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
   if (m.done) return "";
   m.done = true;
   m.published = done.published;
+  m.checkpoint_bytes = done.checkpoint_bytes;
   const double response = now_s - grant_s_;
   m.response_sum_s += response;
   m.response_max_s = std::max(m.response_max_s, response);
@@ -216,13 +217,17 @@ Barrier::Action Barrier::poll(double now_s) {
     const auto missing = missing_members();
     if (missing.empty()) {
       phase_ = Phase::running;
-      frame_ = 0;
+      // A resumed run starts after its checkpoint; every member steps that frame with the
+      // inputs saved in its checkpoint, so the first grant announces none.
+      frame_ = config_.first_frame;
+      last_completed_ = frame_ - 1;
       grant_s_ = first_grant_s_ = now_s;
       Action a;
       a.kind = Action::Kind::grant;
-      a.grant.frame = 0;
-      a.grant.sim_time_s = 0.0;
-      a.grant.joiners = admit_joiners(0, now_s);  // late members already here start at frame 1
+      a.grant.frame = frame_;
+      a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
+      // Late members already here start with the next frame.
+      if (frame_ < config_.final_frame) a.grant.joiners = admit_joiners(frame_, now_s);
       return a;
     }
     const double deadline = created_s_ + config_.join_timeout_s;
@@ -257,6 +262,7 @@ Barrier::Action Barrier::poll(double now_s) {
   last_completed_ = frame_;
   const Manifest manifest = collect_manifest();
   last_manifest_ = manifest;
+  note_checkpoint();
   if (frame_ >= config_.final_frame) {
     phase_ = Phase::stopped;
     end_s_ = now_s;
@@ -270,7 +276,8 @@ Barrier::Action Barrier::poll(double now_s) {
     return a;
   }
   if (config_.realtime) {
-    const double due = first_grant_s_ + static_cast<double>(frame_ + 1) * config_.heartbeat_s;
+    const double due =
+        first_grant_s_ + static_cast<double>(frame_ + 1 - config_.first_frame) * config_.heartbeat_s;
     if (now_s < due) {
       wait.wake_at_s = due;
       return wait;
@@ -281,6 +288,7 @@ Barrier::Action Barrier::poll(double now_s) {
   for (auto& [name, m] : members_) {
     m.done = false;
     m.published.clear();
+    m.checkpoint_bytes = 0;
   }
   Action a;
   a.kind = Action::Kind::grant;
@@ -291,6 +299,30 @@ Barrier::Action Barrier::poll(double now_s) {
   departed_.clear();
   if (frame_ < config_.final_frame) a.grant.joiners = admit_joiners(frame_, now_s);
   return a;
+}
+
+void Barrier::note_checkpoint() {
+  // Members write the checkpoint of frame K before they step K + 1 (not the one a resumed
+  // run started from: it exists).
+  const std::int64_t of = frame_ - 1;
+  if (!checkpoint_due(of, config_.checkpoint_every) || frame_ == config_.first_frame) return;
+  CheckpointReport r;
+  r.frame = of;
+  for (const auto& [name, m] : members_) {
+    if (!active(m) || m.left) continue;
+    if (m.checkpoint_bytes > 0) {
+      r.members.emplace_back(name, m.checkpoint_bytes);
+    } else {
+      r.missing.push_back(name);
+    }
+  }
+  checkpoint_ = std::move(r);
+}
+
+std::optional<CheckpointReport> Barrier::take_checkpoint() {
+  auto r = std::move(checkpoint_);
+  checkpoint_.reset();
+  return r;
 }
 
 std::vector<std::string> Barrier::missing_members() const {

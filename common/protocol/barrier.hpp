@@ -26,6 +26,16 @@ struct BarrierConfig {
   double frame_timeout_s = 10.0;     // from a grant until every member reported it done
   LossPolicy on_member_loss = LossPolicy::abort;
   bool realtime = false;             // pace grants to the wall clock
+  std::int64_t first_frame = 0;      // > 0: a run resumed from the checkpoint of first_frame - 1
+  std::int64_t checkpoint_every = 0; // frames between checkpoints (0: none)
+};
+
+/// A checkpoint every member reported written (FrameDone::checkpoint_bytes).
+struct CheckpointReport {
+  std::int64_t frame = 0;
+  std::vector<std::pair<std::string, std::uint64_t>> members;  // member, bytes
+  std::vector<std::string> missing;  // active members that wrote none: the checkpoint is
+                                     // incomplete (a member that joined after the frame)
 };
 
 class Barrier {
@@ -71,6 +81,8 @@ class Barrier {
   /// members report their own failure in their exit status.
   std::map<std::string, std::string> failed_after_end() const;
   RunStatsMsg stats(double now_s) const;
+  /// The checkpoint reported with the frame completed last, once (nullopt: none).
+  std::optional<CheckpointReport> take_checkpoint();
 
  private:
   struct Member {
@@ -83,6 +95,7 @@ class Barrier {
     bool done = false;       // done with the current frame
     bool finished = false;   // replied to stop
     Manifest published;      // in the current frame
+    std::uint64_t checkpoint_bytes = 0;  // in the current frame
     double response_sum_s = 0.0;
     double response_max_s = 0.0;
     double compute_sum_s = 0.0;
@@ -98,6 +111,8 @@ class Barrier {
   std::vector<std::string> admit_joiners(std::int64_t frame, double now_s);
 
   std::string loss_reason() const;
+  /// After frame_ completed: the checkpoint its done reports carried, if one was due.
+  void note_checkpoint();
 
   BarrierConfig config_;
   std::map<std::string, Member> members_;
@@ -117,6 +132,7 @@ class Barrier {
   std::map<std::string, std::string> failed_after_end_;  // reported errors
   std::map<std::string, std::string> lost_after_end_;    // processes gone after the stop
   bool announced_end_ = false;
+  std::optional<CheckpointReport> checkpoint_;  // reported, not taken yet
 };
 
 }  // namespace syndds::proto

@@ -30,6 +30,12 @@ std::string MemberSession::on_coordinator(const MemberAnnounceMsg& a, double now
   return why;
 }
 
+void MemberSession::resume(FrameSamples inputs) {
+  if (config_.resume_frame < 0) throw ProtocolError("MemberSession::resume without resume_frame");
+  next_frame_ = config_.resume_frame + 1;
+  resumed_inputs_ = std::move(inputs);
+}
+
 void MemberSession::on_grant(FrameGrantMsg grant, double now_s) {
   grants_.push_back(std::move(grant));
 }
@@ -166,7 +172,8 @@ MemberSession::Action MemberSession::poll(double now_s) {
       return fail(why, Outcome::failed, now_s);
     }
     phase_ = Phase::running;
-    admitted_ = !config_.late_join;
+    // A resumed member took part when its checkpoint was written: it is in from the start.
+    admitted_ = !config_.late_join || resumed_inputs_.has_value();
     Action a;
     a.kind = Action::Kind::joined;
     return a;
@@ -215,6 +222,17 @@ MemberSession::Action MemberSession::poll(double now_s) {
                   Outcome::failed, now_s);
     }
     const std::int64_t input_frame = front.frame - 1;
+    if (resumed_inputs_) {
+      Action a;
+      a.kind = Action::Kind::step;
+      a.context = FrameContext{front.frame, front.sim_time_s, config_.heartbeat_s, front.joiners,
+                               front.departed};
+      a.inputs = std::move(*resumed_inputs_);
+      resumed_inputs_.reset();
+      grants_.pop_front();
+      stepping_ = true;
+      return a;
+    }
     if (!config_.skip_data_barrier && !inbox_.complete(input_frame, front.manifest)) {
       // The data barrier: the announced samples of frame - 1 are not all here yet.
       if (waiting_frame_ != front.frame) {

@@ -29,6 +29,7 @@ struct MemberSessionConfig {
   double interrupt_grace_s = 2.0; // after an interrupt: waiting for the coordinator's verdict
   bool late_join = false;         // may join a run under way: starts after the grant naming it
   bool skip_data_barrier = false; // test knob: start frames without waiting for announced data
+  std::int64_t resume_frame = -1; // >= 0: resumed from the checkpoint of this frame (resume())
 };
 
 class MemberSession {
@@ -73,6 +74,10 @@ class MemberSession {
     return inbox_.add(std::move(sample));
   }
 
+  /// A member resumed from its checkpoint of config.resume_frame: the first frame it steps is
+  /// the next one, with `inputs` (saved in the checkpoint) instead of samples from the network.
+  void resume(FrameSamples inputs);
+
   /// The next decision. joined/step/finish are returned once; after finish poll() says wait.
   Action poll(double now_s);
 
@@ -107,6 +112,7 @@ class MemberSession {
   bool admitted_ = false;              // takes part in the barrier (late joiners: once named)
   bool stepping_ = false;              // a step was handed out and has not ended yet
   std::int64_t next_frame_ = 0;
+  std::optional<FrameSamples> resumed_inputs_;  // for the first frame after resume()
   std::int64_t waiting_frame_ = -1;    // the granted frame whose inputs are awaited ...
   double waiting_since_s_ = 0.0;       // ... since then
 };

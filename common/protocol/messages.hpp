@@ -27,7 +27,7 @@
 
 namespace syndds::proto {
 
-inline constexpr std::int32_t kProtocolVersion = 2;
+inline constexpr std::int32_t kProtocolVersion = 3;
 /// A scenario fingerprint as every log shows it (16 hex digits).
 inline std::string fingerprint_hex(std::uint64_t f) {
   static constexpr char kDigits[] = "0123456789abcdef";
@@ -354,8 +354,17 @@ struct FrameDoneMsg {
   double compute_s = 0.0;   // wall time the member spent in its step
   bool finished = false;    // true: reply to RunControl stop, the member is shutting down
   std::string error;        // non-empty: the member failed (and exits); the run aborts with it
+  std::uint64_t checkpoint_bytes = 0;  // > 0: before this frame the member wrote its state of
+                                       // frame - 1 (docs/checkpoints.md), this many bytes
 };
-SYNDDS_FIELDS(FrameDoneMsg, member_id, frame, published, compute_s, finished, error)
+SYNDDS_FIELDS(FrameDoneMsg, member_id, frame, published, compute_s, finished, error,
+              checkpoint_bytes)
+
+/// Checkpoints are written of every frame K that is a positive multiple of `every` frames
+/// (every <= 0: never), by each member before it steps frame K + 1.
+inline bool checkpoint_due(std::int64_t frame, std::int64_t every) {
+  return every > 0 && frame > 0 && frame % every == 0;
+}
 
 struct MemberStatsMsg {
   std::string member_id;

@@ -53,10 +53,7 @@ CheckpointInfo read_checkpoint_info(const std::filesystem::path& run_dir, std::i
 /// The frame of the latest complete checkpoint in `run_dir`, if any.
 std::optional<std::int64_t> latest_complete_checkpoint(const std::filesystem::path& run_dir);
 
-/// Every frame of `every` frames, counted from frame 0 (every <= 0: never).
-inline bool checkpoint_due(std::int64_t frame, std::int64_t every) {
-  return every > 0 && frame > 0 && frame % every == 0;
-}
+using proto::checkpoint_due;
 
 /// One process (syndds_sim): writes every agent's checkpoint of the stepper's last completed
 /// frame, then declares it complete.

@@ -159,6 +159,13 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
   o.debug_frame_delay_ms = d.frame_delay_ms;
   o.debug_publish_delay_ms = d.publish_delay_ms;
   o.debug_skip_data_barrier = d.skip_data_barrier;
+  o.run_dir = a.run_dir;
+  o.checkpoint_every = s.checkpoint.every_frames;
+  if (s.checkpoint.enabled() && a.run_dir.empty()) {
+    throw ConfigError(s.file + ": checkpoint: every_s is set; give the run directory the "
+                      "checkpoints go to with --run-dir");
+  }
+  if (!a.resume_from.empty()) o.resume_frame = resume_frame(a, a.run_dir);
   return o;
 }
 

@@ -1,7 +1,11 @@
 // syndds_coordinator: the time barrier of a run. See docs/protocol.md.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <optional>
+
+#include "core/error.hpp"
+#include "record/checkpoint.hpp"
 
 #include "common/service_cli.hpp"
 #include "dds/coordinator_service.hpp"
@@ -26,8 +30,31 @@ int main(int argc, char** argv) {
     o.dds = service::dds_options(common, s);
     o.config_fingerprint = s.fingerprint;
     o.scenario_name = s.name;
+    o.run_dir = common.run_dir;
+    o.barrier.checkpoint_every = s.checkpoint.every_frames;
+    if (s.checkpoint.enabled() && common.run_dir.empty()) {
+      throw syndds::ConfigError(s.file + ": checkpoint: every_s is set; give the run directory "
+                                "the checkpoints go to with --run-dir");
+    }
+    // A resumed run waits for every member of its checkpoint (late joiners that were in it
+    // included) and starts with the frame after it.
+    std::vector<std::string> resumed;
+    if (!common.resume_from.empty()) {
+      const std::int64_t frame = service::resume_frame(common, common.run_dir);
+      const auto info = syndds::record::read_checkpoint_info(common.run_dir, frame);
+      if (info.fingerprint != s.fingerprint) {
+        throw syndds::ConfigError("--resume-from " + std::to_string(frame) +
+                                  ": the checkpoint was written for another scenario or other "
+                                  "overrides (fingerprint differs)");
+      }
+      for (const auto& m : info.members) resumed.push_back(m.member_id);
+      o.barrier.first_frame = frame + 1;
+      spdlog::info("coordinator: resuming from the checkpoint of frame {} ({} members)", frame,
+                   resumed.size());
+    }
     for (const auto& m : s.member_ids()) {
-      (s.is_late_member(m) ? o.barrier.late_members : o.barrier.members).push_back(m);
+      const bool was_in = std::find(resumed.begin(), resumed.end(), m) != resumed.end();
+      (s.is_late_member(m) && !was_in ? o.barrier.late_members : o.barrier.members).push_back(m);
     }
     o.barrier.final_frame = s.time.final_frame();
     o.barrier.heartbeat_s = s.time.heartbeat_s;

@@ -7,6 +7,7 @@
 
 #include "dds/convert.hpp"
 #include "dds/member_runtime.hpp"
+#include "record/checkpoint.hpp"
 
 namespace syndds::dds {
 namespace {
@@ -170,15 +171,43 @@ void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
 }
 
 // Acts on the barrier's decisions until it says wait. Called with mutex_ held.
+void CoordinatorService::declare_checkpoint(const proto::CheckpointReport& report) {
+  if (!report.missing.empty()) {
+    std::string names;
+    for (const auto& m : report.missing) names += (names.empty() ? "" : ", ") + m;
+    spdlog::warn("coordinator: the checkpoint of frame {} is incomplete: no state from {}",
+                 report.frame, names);
+    return;
+  }
+  record::CheckpointInfo info;
+  info.frame = report.frame;
+  info.sim_time_s = static_cast<double>(report.frame) * options_.barrier.heartbeat_s;
+  info.fingerprint = options_.config_fingerprint;
+  std::uint64_t bytes = 0;
+  for (const auto& [member, n] : report.members) {
+    info.members.push_back({member, n});
+    bytes += n;
+  }
+  try {
+    record::mark_checkpoint_complete(options_.run_dir, info);
+    spdlog::info("coordinator: checkpoint of frame {} (t = {:g} s) complete: {} members, {} bytes",
+                 info.frame, info.sim_time_s, info.members.size(), bytes);
+  } catch (const std::exception& e) {
+    // The run goes on; the previous complete checkpoint stays the one to resume from.
+    spdlog::error("coordinator: checkpoint of frame {}: {}", info.frame, e.what());
+  }
+}
+
 void CoordinatorService::advance_locked() {
   using Kind = proto::Barrier::Action::Kind;
   while (!end_) {
     auto action = barrier_->poll(now());
+    if (auto checkpoint = barrier_->take_checkpoint()) declare_checkpoint(*checkpoint);
     if (action.kind == Kind::grant) {
       for (const auto& j : action.grant.joiners) {
         spdlog::info("coordinator: {} joins the run at frame {}", j, action.grant.frame + 1);
       }
-      if (action.grant.frame == 0) {
+      if (action.grant.frame == options_.barrier.first_frame) {
         spdlog::info("coordinator: all members joined after {:.2f} s; starting", now());
       } else if (action.grant.frame % progress_every_ == 0) {
         spdlog::info("coordinator: frame {}/{}", action.grant.frame, options_.barrier.final_frame);

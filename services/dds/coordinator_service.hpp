@@ -23,6 +23,7 @@ struct CoordinatorOptions {
   std::uint64_t config_fingerprint = 0;
   double finish_timeout_s = 10.0;  // after stop/abort: waiting for members to confirm
   std::string scenario_name;
+  std::string run_dir;  // where checkpoints are declared complete (docs/checkpoints.md)
   /// Called once the run's verdict is sent, with the exit code run() will return (unless a
   /// member fails after the end): from then on nothing can change the run's outcome, and the
   /// main program may treat a Fast DDS abort while the members leave as teardown
@@ -55,6 +56,8 @@ class CoordinatorService {
   void on_process_exit(const std::string& guid);
   void malformed(const std::string& what, const std::string& error);
   void advance_locked();
+  /// Declares a checkpoint every member reported written complete (complete.yaml).
+  void declare_checkpoint(const proto::CheckpointReport& report);
   void wait_for_finished(std::unique_lock<std::mutex>& lock);
 
   CoordinatorOptions options_;

@@ -9,6 +9,7 @@
 #include "core/error.hpp"
 #include "dds/convert.hpp"
 #include "protocol/local_runner.hpp"
+#include "record/checkpoint.hpp"
 
 namespace syndds::dds {
 namespace {
@@ -71,6 +72,7 @@ proto::MemberSessionConfig MemberRuntime::session_config() const {
   c.interrupt_grace_s = options_.interrupt_grace_s;
   c.late_join = options_.late_join;
   c.skip_data_barrier = options_.debug_skip_data_barrier;
+  c.resume_frame = options_.resume_frame;
   return c;
 }
 
@@ -298,6 +300,7 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   d.compute_s = compute_s;
   d.finished = finished;
   d.error = error;
+  d.checkpoint_bytes = finished || !error.empty() ? 0 : checkpoint_bytes_;
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
@@ -337,6 +340,13 @@ void MemberRuntime::reach_coordinator() {
 void MemberRuntime::run_frame(const proto::FrameContext& ctx,
                               const proto::FrameSamples& inputs) {
   const auto t0 = Clock::now();
+  checkpoint_bytes_ = 0;
+  if (proto::checkpoint_due(ctx.frame - 1, options_.checkpoint_every) &&
+      ctx.frame - 1 != options_.resume_frame) {
+    // The state after frame - 1 and the inputs of this frame: all a resumed member needs.
+    checkpoint_bytes_ = record::write_member_checkpoint(
+        options_.run_dir, ctx.frame - 1, options_.config_fingerprint, agent_, inputs);
+  }
   proto::FrameSamples outputs;
   agent_.step(ctx, inputs, outputs);
   proto::check_outputs(outputs, ctx.frame, agent_.member_id(), agent_.vehicle_key());
@@ -411,6 +421,12 @@ void MemberRuntime::prepare() {
     std::lock_guard lock(mutex_);
     t0_ = Clock::now();
     session_.emplace(agent_.subscriptions(), session_config(), now());
+    if (options_.resume_frame >= 0) {
+      session_->resume(record::read_member_checkpoint(options_.run_dir, options_.resume_frame,
+                                                      options_.config_fingerprint, agent_));
+      spdlog::info("{}: resumed from the checkpoint of frame {} in {}", agent_.member_id(),
+                   options_.resume_frame, options_.run_dir);
+    }
   }
   setup();
   announce();

@@ -32,6 +32,10 @@ struct MemberRuntimeOptions {
   double final_timeout_s = 5.0;   // gathering the final frame's samples after the run ended
   double interrupt_grace_s = 2.0; // after a signal: waiting for the coordinator's verdict
   bool late_join = false;         // may join a run under way: starts after the grant naming it
+  // Checkpoints (docs/checkpoints.md): written to / read from run_dir.
+  std::string run_dir;
+  std::int64_t checkpoint_every = 0;  // frames between checkpoints (0: none)
+  std::int64_t resume_frame = -1;     // >= 0: start from the checkpoint of this frame
   /// Called once the agent finished the run, with the exit code run() will return, before the
   /// last DDS exchanges (flushing, confirming): nothing after it changes this member's outcome
   /// (see service::DdsTeardownGuard).
@@ -141,6 +145,7 @@ class MemberRuntime {
 
   std::string end_reason_;
   bool prepared_ = false;
+  std::uint64_t checkpoint_bytes_ = 0;  // written before the current frame, for its done
 };
 
 }  // namespace syndds::dds

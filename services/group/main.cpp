@@ -55,9 +55,13 @@ int main(int argc, char** argv) {
       if (!seen.insert(m).second) throw ConfigError("--member " + m + " given twice");
     }
     const auto dds = service::dds_options(common, s);
-    const record::RecorderOptions ro{output, dds.run_id, "distributed"};
+    const bool resume = !common.resume_from.empty();
+    const record::RecorderOptions ro{output, dds.run_id, "distributed", resume};
     std::vector<proto::AgentPtr> agents;
-    for (const auto& m : members) agents.push_back(agents::make_agent(s, m, ro));
+    for (const auto& m : members) {
+      agents.push_back(agents::make_agent(s, m, ro));
+      if (s.checkpoint.enabled() || resume) agents::require_checkpoints(s, *agents.back());
+    }
 
     // Once every member's outcome is settled, a Fast DDS abort while the run's participants
     // leave (a known 2.9.1 assertion) must not turn the process's outcome into a crash.

@@ -33,7 +33,9 @@ int main(int argc, char** argv) {
     const std::int64_t resume_at = resume ? service::resume_frame(common, run_dir) : -1;
     auto agents = agents::make_all_agents(
         s, record::RecorderOptions{output, run_id, "single-process", resume});
-    if (s.checkpoint.enabled() || resume) agents::require_checkpoints(s, agents);
+    if (s.checkpoint.enabled() || resume) {
+      for (const auto& a : agents) agents::require_checkpoints(s, *a);
+    }
     proto::LocalRunOptions options{s.time.final_frame(), s.time.heartbeat_s, s.time.realtime, {}};
     if (s.checkpoint.enabled()) {
       options.after_frame = [&](proto::FrameStepper& stepper) {
