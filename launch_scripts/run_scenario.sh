@@ -6,10 +6,15 @@
 #       [--single-process] [--processes per_member|per_vehicle|N] [--print-commands]
 #       [--domain D] [--run-id ID] [--transport default|udp] [--discovery-server ADDR:PORT]
 #       [--log-level LEVEL]
+#   launch_scripts/run_scenario.sh SCENARIO.yaml --resume RUN_DIR [--from-frame K] [options]
 #
 # --processes overrides the scenario's process layout (docs/deployment.md, "Processes"): one
 # process per member (default), a vehicle with its controller and sensors in one process, or
 # the vehicles spread over N processes. The results are byte-identical whatever the layout.
+#
+# --resume continues the run in RUN_DIR from its latest complete checkpoint (or the one of
+# frame K) with the same scenario and overrides (docs/checkpoints.md); its files are cut back
+# to the checkpoint and go on from there.
 #
 # Exit status: 0 completed, 1 bad scenario or command line or more than this host can start,
 # 2 run aborted, a process failed, or the run completed without its recorder, 130 interrupted.
@@ -23,7 +28,7 @@ PROCESS_MB=${SYNDDS_PROCESS_MB:-100}   # memory one process of a run needs (docs
 GROUP_MB=${SYNDDS_GROUP_MB:-200}       # a syndds_group process (it links libtorch): ~180 MB
 
 die() { echo "run_scenario: $*" >&2; exit "${2:-1}"; }
-usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; }
 
 [ $# -ge 1 ] || { usage >&2; exit 1; }
 case "$1" in -h|--help) usage; exit 0 ;; esac
@@ -33,11 +38,13 @@ for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_
   [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
 done
 
-OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=(); LAYOUT=()
+OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=(); LAYOUT=(); RESUME=""; FROM=latest
 while [ $# -gt 0 ]; do
   case "$1" in
     --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
     --run-id) [ $# -ge 2 ] || die "--run-id needs a value"; RUN_ID=$2; shift ;;
+    --resume) [ $# -ge 2 ] || die "--resume needs a run directory"; RESUME=$2; shift ;;
+    --from-frame) [ $# -ge 2 ] || die "--from-frame needs a frame number"; FROM=$2; shift ;;
     --duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir)
       [ $# -ge 2 ] || die "$1 needs a value"; PASS+=("$1" "$2"); shift ;;
     --processes) [ $# -ge 2 ] || die "--processes needs a value"; LAYOUT=(--processes "$2"); shift ;;
@@ -55,6 +62,14 @@ stem=${stem//[^A-Za-z0-9_.-]/_}
 stamp=$(date +%Y%m%d-%H%M%S)
 # The pid keeps two launches of one scenario in the same second apart; the stem is cut so that
 # the run id stays within the 64 characters a run id may have (40 + 1 + 15 + 1 + at most 7).
+if [ -n "$RESUME" ]; then
+  [ -z "$OUTPUT" ] || [ "$OUTPUT" = "$RESUME" ] || die "--resume continues RUN_DIR in place: no --output"
+  [ -d "$RESUME/checkpoints" ] || die "--resume $RESUME: no checkpoints there (the scenario needs checkpoint: every_s)"
+  OUTPUT=$RESUME
+  PASS+=(--resume-from "$FROM")
+  # The logs of the interrupted attempt stay beside the new ones.
+  [ -d "$OUTPUT/logs" ] && mv "$OUTPUT/logs" "$OUTPUT/logs.before-resume-$stamp"
+fi
 [ -n "$OUTPUT" ] || OUTPUT="runs/$stem-$stamp-$$"
 [ -n "$RUN_ID" ] || RUN_ID="${stem:0:40}-$stamp-$$"
 

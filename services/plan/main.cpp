@@ -69,6 +69,10 @@ int main(int argc, char** argv) {
     if (common.discovery_server) shared += " --discovery-server " + quote(*common.discovery_server);
     if (!common.dds_profiles.empty()) shared += " --dds-profiles " + quote(common.dds_profiles);
     if (common.log_level != "info") shared += " --log-level " + common.log_level;
+    // Checkpoints go to the run directory (docs/checkpoints.md); a resumed run starts there.
+    const std::string run_dir = quote(fs::absolute(output).string());
+    shared += " --run-dir " + run_dir;
+    if (!common.resume_from.empty()) shared += " --resume-from " + quote(common.resume_from);
 
     scenario::ProcessLayout layout = s.processes;
     if (!layout_option.empty()) {
@@ -81,7 +85,6 @@ int main(int argc, char** argv) {
     }
     // The command of a process hosting `members`: a member alone gets its own program (only
     // the learned-policy controller loads libtorch); several share one syndds_group process.
-    const std::string run_dir = quote(fs::absolute(output).string());
     auto command_of = [&](const std::vector<std::string>& members) {
       if (members.size() > 1) {
         std::string c = program("syndds_group") + shared;
