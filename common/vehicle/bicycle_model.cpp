@@ -2,11 +2,38 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "core/hash.hpp"
 
 namespace syndds::vehicle {
 namespace {
 constexpr double kAirDensity = 1.2;  // kg/m^3
+
+/// The params this model reads (a state is refused by a vehicle whose params differ in any of
+/// them; the full model's own params do not matter here).
+std::uint64_t params_fingerprint(const VehicleParams& p) {
+  Fnv1a64 h;
+  for (double v : {p.chassis.mass_kg, p.wheels.radius_m, p.wheels.mass_kg, p.front.x_m,
+                   p.front.half_track_m, p.rear.x_m, p.rear.half_track_m,
+                   p.steering.max_angle_deg, p.engine.idle_rpm, p.tire.friction_scale,
+                   p.tire.rolling_resistance, p.reduced.max_drive_force_n, p.reduced.max_power_w,
+                   p.reduced.max_brake_decel_mps2, p.reduced.drag_area_m2,
+                   p.reduced.steering_time_constant_s, p.reduced.max_speed_mps}) {
+    h.add(v);
+  }
+  h.add(std::int64_t{p.front.steered});
+  h.add(std::int64_t{p.rear.steered});
+  return h.value();
 }
+
+std::string hex(std::uint64_t v) {
+  char buf[19];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+}  // namespace
 
 DriverInputs clamp_inputs(const DriverInputs& in) {
   return DriverInputs{clamp(in.steering, -1.0, 1.0), clamp(in.throttle, 0.0, 1.0),
@@ -70,6 +97,56 @@ void BicycleModel::advance(double dt) {
   wheel_spin_angle_ = std::fmod(wheel_spin_angle_ + speed_ / params_.wheels.radius_m * dt,
                                 2.0 * std::numbers::pi);
   time_s_ += dt;
+}
+
+// Not saved: params_ and terrain_ (the constructor's; the fingerprint checks the params).
+void BicycleModel::save_state(core::StateWriter& w) {
+  w.begin("bicycle_model", 1);
+  w.io(params_.name);
+  w.io(params_fingerprint(params_));
+  w.io(inputs_.steering);
+  w.io(inputs_.throttle);
+  w.io(inputs_.braking);
+  w.io(time_s_);
+  w.io(x_);
+  w.io(y_);
+  w.io(yaw_);
+  w.io(speed_);
+  w.io(steer_angle_);
+  w.io(yaw_rate_);
+  w.io(wheel_spin_angle_);
+  w.io(acceleration_);
+  w.io(angular_acceleration_);
+  w.end();
+}
+
+void BicycleModel::load_state(core::StateReader& r) {
+  r.begin("bicycle_model", 1, 1);
+  const auto name = r.get<std::string>();
+  const auto fingerprint = r.get<std::uint64_t>();
+  if (fingerprint != params_fingerprint(params_)) {
+    r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex(fingerprint) +
+           "; this model is vehicle '" + params_.name + "' with " +
+           hex(params_fingerprint(params_)) + ": their params differ");
+  }
+  // Read into a copy and take it only once the whole section has been read: a state that
+  // does not fit leaves the model as it was.
+  BicycleModel m = *this;
+  r.io(m.inputs_.steering);
+  r.io(m.inputs_.throttle);
+  r.io(m.inputs_.braking);
+  r.io(m.time_s_);
+  r.io(m.x_);
+  r.io(m.y_);
+  r.io(m.yaw_);
+  r.io(m.speed_);
+  r.io(m.steer_angle_);
+  r.io(m.yaw_rate_);
+  r.io(m.wheel_spin_angle_);
+  r.io(m.acceleration_);
+  r.io(m.angular_acceleration_);
+  r.end();
+  *this = std::move(m);
 }
 
 VehicleSnapshot BicycleModel::snapshot() const {

@@ -16,6 +16,10 @@ class BicycleModel final : public VehicleModel {
   void set_inputs(const DriverInputs& inputs) override;
   void advance(double dt) override;
   VehicleSnapshot snapshot() const override;
+  /// Section "bicycle_model" v1: every member below but the params and the terrain (the
+  /// constructor's), after the vehicle's name and a fingerprint of the params it reads.
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
 
   double speed_mps() const { return speed_; }
   double road_wheel_angle_rad() const { return steer_angle_; }

@@ -5,11 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "vehicle/powertrain.hpp"
 #include "vehicle/steering.hpp"
 #include "vehicle/tire_model.hpp"
@@ -69,6 +71,82 @@ void add_torque(dBodyID b, const Vec3& t) { dBodyAddTorque(b, t.x(), t.y(), t.z(
 
 bool finite(const Vec3& v) { return v.allFinite(); }
 
+/// A body's state as ODE holds it (quaternion in ODE's order w, x, y, z), for checkpoints.
+struct BodyState {
+  Vec3 position = Vec3::Zero();
+  Eigen::Vector4d quaternion = Eigen::Vector4d::Zero();
+  Vec3 linear_velocity = Vec3::Zero();
+  Vec3 angular_velocity = Vec3::Zero();
+};
+
+BodyState get_body_state(dBodyID b) {
+  const dReal* q = dBodyGetQuaternion(b);
+  return {vec(dBodyGetPosition(b)), Eigen::Vector4d(q[0], q[1], q[2], q[3]),
+          vec(dBodyGetLinearVel(b)), vec(dBodyGetAngularVel(b))};
+}
+
+/// The setter calls of a restore. dBodySetQuaternion normalises its argument again (and
+/// computes the rotation matrix from the result), so the body may end up a last bit away from
+/// the raw values it was given: save_state passes its own bodies through this very function
+/// with the values it wrote, and both runs continue from set(raw).
+void set_body_state(dBodyID b, const BodyState& s) {
+  dBodySetPosition(b, s.position.x(), s.position.y(), s.position.z());
+  const dQuaternion q = {s.quaternion[0], s.quaternion[1], s.quaternion[2], s.quaternion[3]};
+  dBodySetQuaternion(b, q);
+  dBodySetLinearVel(b, s.linear_velocity.x(), s.linear_velocity.y(), s.linear_velocity.z());
+  dBodySetAngularVel(b, s.angular_velocity.x(), s.angular_velocity.y(), s.angular_velocity.z());
+}
+
+/// Every param the full model reads (all but the reduced model's, the name and the file):
+/// a state is refused by a vehicle whose params differ in any of them.
+std::uint64_t params_fingerprint(const VehicleParams& p) {
+  Fnv1a64 h;
+  auto add = [&h](std::initializer_list<double> values) {
+    for (double v : values) h.add(v);
+  };
+  auto add_vec = [&](const Vec3& v) { add({v.x(), v.y(), v.z()}); };
+  auto add_map = [&](const std::vector<std::pair<double, double>>& m) {
+    h.add(static_cast<std::int64_t>(m.size()));
+    for (const auto& [a, b] : m) add({a, b});
+  };
+  add({p.chassis.mass_kg, p.chassis.drag_area_m2});
+  add_vec(p.chassis.inertia_kgm2);
+  add_vec(p.chassis.com_m);
+  add_vec(p.chassis.half_extents_m);
+  add_vec(p.chassis.box_centre_m);
+  add({p.wheels.radius_m, p.wheels.width_m, p.wheels.mass_kg, p.wheels.spin_inertia_kgm2});
+  for (const AxleParams* a : {&p.front, &p.rear}) {
+    add({a->x_m, a->half_track_m, a->spring_rate_npm, a->damping_nspm, a->travel_m, a->preload_n,
+         a->bump_stop_rate_npm, a->brake_torque_nm});
+    h.add(std::int64_t{a->steered});
+    h.add(std::int64_t{a->driven});
+  }
+  add({p.steering.max_angle_deg, p.steering.rate_deg_s});
+  add_map(p.engine.torque_map_rpm_nm);
+  add({p.engine.idle_rpm, p.engine.max_rpm, p.engine.inertia_kgm2, p.engine.motoring_torque_nm});
+  const TransmissionParams& t = p.transmission;
+  h.add(static_cast<std::int64_t>(t.forward_ratios.size()));
+  for (double r : t.forward_ratios) h.add(r);
+  add({t.reverse_ratio, t.upshift_rpm, t.downshift_rpm, t.shift_time_s,
+       t.ingear_shaft_inertia_kgm2});
+  add_map(t.converter_capacity_map);
+  add_map(t.converter_torque_ratio_map);
+  const DrivelineParams& d = p.driveline;
+  add({d.final_drive_ratio, d.front_torque_share, d.driveshaft_inertia_kgm2,
+       d.axle_differential_bias, d.centre_differential_bias});
+  const TireParams& tp = p.tire;
+  add({tp.friction_scale, tp.longitudinal_stiffness, tp.cornering_stiffness, tp.nominal_load_n,
+       tp.vertical_stiffness_npm, tp.vertical_damping_nspm, tp.rolling_resistance,
+       tp.relaxation_length_m, tp.stiffness_load_exponent});
+  return h.value();
+}
+
+std::string hex(std::uint64_t v) {
+  char buf[19];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
 }  // namespace
 
 struct OdeVehicleModel::Impl {
@@ -125,6 +203,12 @@ struct OdeVehicleModel::Impl {
   Vec3 accel = Vec3::Zero();
   Vec3 angular_accel = Vec3::Zero();
   std::vector<CollisionContact> collisions;
+
+  // Checked by load_state: the bodies' poses as placed at the start (they fix the hinge-2
+  // frames, which ODE keeps relative to the bodies: a vehicle placed elsewhere or on other
+  // ground differs from this one in the last bits forever), and the obstacles.
+  std::uint64_t placement_fingerprint = 0;
+  std::uint64_t obstacles_fingerprint = 0;
 
   Impl(const VehicleParams& params, std::shared_ptr<const terrain::TerrainSurface> t,
        std::shared_ptr<terrain::WheelTerrainContact> d)
@@ -189,9 +273,29 @@ struct OdeVehicleModel::Impl {
     set_wheel_inertia();
 
     place(start);
+    Fnv1a64 placed;
+    for (dBodyID b : bodies()) {
+      const BodyState st = get_body_state(b);
+      placed.add_bytes(st.position.data(), sizeof(double) * 3);
+      placed.add_bytes(st.quaternion.data(), sizeof(double) * 4);
+    }
+    placement_fingerprint = placed.value();
     for (int i = 0; i < 4; ++i) make_joint(i);
     make_geoms();
-    for (const auto& o : obstacle_list) add_obstacle(o);
+    Fnv1a64 obstacles_hash;
+    for (const auto& o : obstacle_list) {
+      add_obstacle(o);
+      obstacles_hash.add(o.id);
+      obstacles_hash.add(static_cast<std::int64_t>(o.shape));
+      obstacles_hash.add_bytes(o.size.data(), sizeof(double) * 3);
+      obstacles_hash.add_bytes(o.pose.position.data(), sizeof(double) * 3);
+      obstacles_hash.add_bytes(o.pose.orientation.coeffs().data(), sizeof(double) * 4);
+    }
+    obstacles_fingerprint = obstacles_hash.value();
+  }
+
+  std::array<dBodyID, 5> bodies() const {
+    return {chassis, wheels[0], wheels[1], wheels[2], wheels[3]};
   }
 
   /// Wheel masses with the driveline inertia of the current gear: the in-gear and drive
@@ -664,6 +768,242 @@ struct OdeVehicleModel::Impl {
     accel = (v1 - v0) / dt;
     angular_accel = (w1 - w0) / dt;
   }
+
+  // --- checkpoints -------------------------------------------------------------------------
+  //
+  // Saved: time; the inputs commanded and applied (the applied steering is the rate limiter's
+  // state); the last step's accelerations; the five bodies' position, quaternion, linear and
+  // angular velocity; the powertrain (gear, engine speed, shift timer, last outputs); the
+  // tires' tread deflections; the wheel diagnostics (the snapshot reports the tire loads,
+  // set_speed reads the deflections); per obstacle its episode state (last contact time,
+  // episode open) and the collisions not taken yet.
+  //
+  // Not saved, because the constructor rebuilds them identically (checked by the
+  // fingerprints) or the next step overwrites them before reading them:
+  // - p, terrain, deformable, tire, axle, wheel_local, preload, front_share, drive_share,
+  //   vehicle_radius, the obstacles' ids, geoms, centres and radii: from the params, the start
+  //   and the obstacle list. A deformable terrain's own state (soil) is saved by its owner.
+  // - load_scale: 1 after settling, never changed afterwards.
+  // - driveline_inertia and the wheel masses: a function of the gear; load_state sets them
+  //   from the restored gear (set_wheel_inertia).
+  // - last_dt and the hinge-2 suspension ERP/CFM: a function of the step size, set again by
+  //   set_step_size for whatever dt the next step has (restoring last_dt without the joint
+  //   params would be wrong, restoring neither is right).
+  // - contacts and feedback: filled and emptied within a step (the contact joint group is
+  //   empty between steps, so the world's joint list is the four hinge-2 joints in creation
+  //   order, as in a new model).
+  // ODE: a body's other state is its force and torque accumulators (zeroed by dWorldStep), its
+  // rotation matrix (computed from the quaternion by dBodySetQuaternion, as at the end of a
+  // step) and its mass (set_wheel_inertia). No auto-disable, damping or finite rotation is in
+  // use, so no body keeps averages or counters. The hinge-2 joints keep their anchors, axes and
+  // reference angle relative to the bodies from construction (same placement: same numbers),
+  // limits and FMax from construction, motor speed (steering) and FMax2 (brakes) set every step
+  // before dWorldStep, the limit flags computed by dWorldStep itself. dWorldStep solves each
+  // step from scratch (no warm starting) and draws no random numbers. Geoms attached to bodies
+  // follow them: the body setters call dGeomMoved, and dCollide recomputes a moved geom's pose
+  // from its body. Obstacle geoms are static.
+
+  void save_state(core::StateWriter& w) {
+    std::array<BodyState, 5> raw;
+    for (std::size_t b = 0; b < 5; ++b) raw[b] = get_body_state(bodies()[b]);
+
+    w.begin("ode_vehicle", 1);
+    w.io(p.name);
+    w.io(params_fingerprint(p));
+    w.io(placement_fingerprint);
+    w.io(obstacles_fingerprint);
+    w.io(static_cast<std::uint32_t>(wheels.size()));
+    w.io(deformable != nullptr);
+    w.io(time);
+    for (const DriverInputs* in : {&commanded, &applied}) {
+      w.io(in->steering);
+      w.io(in->throttle);
+      w.io(in->braking);
+    }
+    w.io(accel);
+    w.io(angular_accel);
+
+    w.begin("ode_bodies", 1);
+    for (const BodyState& b : raw) {
+      w.io(b.position);
+      w.io(b.quaternion);
+      w.io(b.linear_velocity);
+      w.io(b.angular_velocity);
+    }
+    w.end();
+
+    powertrain.save_state(w);
+
+    w.begin("tires", 1);
+    for (const TireState& t : tire_states) {
+      w.io(t.deflection_x_m);
+      w.io(t.deflection_y_m);
+    }
+    w.end();
+
+    w.begin("wheel_diagnostics", 1);
+    for (const WheelDiagnostics& d : diag) {
+      w.io(d.suspension_compression_m);
+      w.io(d.spring_force_n);
+      w.io(d.tire_normal_force_n);
+      w.io(d.tire_deflection_m);
+      w.io(d.slip_ratio);
+      w.io(d.slip_angle_rad);
+      w.io(d.drive_torque_nm);
+      w.io(d.in_contact);
+    }
+    w.end();
+
+    w.begin("collisions", 1);
+    w.io(static_cast<std::uint64_t>(obstacles.size()));
+    for (const ObstacleGeom& o : obstacles) {
+      w.io(o.id);
+      w.io(o.last_contact_s);
+      w.io(o.episode_open);
+    }
+    w.io(static_cast<std::uint64_t>(collisions.size()));
+    for (const CollisionContact& c : collisions) {
+      w.io(c.obstacle_id);
+      w.io(c.impulse_ns);
+      w.io(c.position);
+    }
+    w.end();
+
+    w.end();
+
+    // The bytes hold the raw values; this model now continues from set(raw), exactly as a
+    // model restored from them will (see set_body_state).
+    for (std::size_t b = 0; b < 5; ++b) set_body_state(bodies()[b], raw[b]);
+  }
+
+  void load_state(core::StateReader& r) {
+    r.begin("ode_vehicle", 1, 1);
+    const auto name = r.get<std::string>();
+    const auto params_fp = r.get<std::uint64_t>();
+    if (params_fp != params_fingerprint(p)) {
+      r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex(params_fp) +
+             "; this model is vehicle '" + p.name + "' with " + hex(params_fingerprint(p)) +
+             ": their params differ");
+    }
+    if (r.get<std::uint64_t>() != placement_fingerprint) {
+      r.fail("the state's vehicle was placed at another start or on other terrain than this "
+             "model");
+    }
+    const auto obstacles_fp = r.get<std::uint64_t>();
+    const auto wheel_count = r.get<std::uint32_t>();
+    if (wheel_count != wheels.size()) {
+      r.fail("the state has " + std::to_string(wheel_count) + " wheels, this vehicle " +
+             std::to_string(wheels.size()));
+    }
+    const bool on_deformable = r.get<bool>();
+    if (on_deformable != (deformable != nullptr)) {
+      r.fail(std::string("the state is of a vehicle on ") +
+             (on_deformable ? "deformable" : "rigid") + " ground, this model is on " +
+             (deformable ? "deformable" : "rigid") + " ground");
+    }
+    // Everything is read into these and taken only after the section's end was checked: a
+    // state that does not fit leaves the model as it was.
+    const auto new_time = r.get<double>();
+    DriverInputs new_commanded, new_applied;
+    for (DriverInputs* in : {&new_commanded, &new_applied}) {
+      r.io(in->steering);
+      r.io(in->throttle);
+      r.io(in->braking);
+    }
+    Vec3 new_accel, new_angular_accel;
+    r.io(new_accel);
+    r.io(new_angular_accel);
+
+    std::array<BodyState, 5> new_bodies;
+    r.begin("ode_bodies", 1, 1);
+    for (BodyState& b : new_bodies) {
+      r.io(b.position);
+      r.io(b.quaternion);
+      r.io(b.linear_velocity);
+      r.io(b.angular_velocity);
+    }
+    r.end();
+
+    Powertrain new_powertrain = powertrain;
+    new_powertrain.load_state(r);
+
+    std::array<TireState, 4> new_tires;
+    r.begin("tires", 1, 1);
+    for (TireState& t : new_tires) {
+      r.io(t.deflection_x_m);
+      r.io(t.deflection_y_m);
+    }
+    r.end();
+
+    std::array<WheelDiagnostics, 4> new_diag;
+    r.begin("wheel_diagnostics", 1, 1);
+    for (WheelDiagnostics& d : new_diag) {
+      r.io(d.suspension_compression_m);
+      r.io(d.spring_force_n);
+      r.io(d.tire_normal_force_n);
+      r.io(d.tire_deflection_m);
+      r.io(d.slip_ratio);
+      r.io(d.slip_angle_rad);
+      r.io(d.drive_torque_nm);
+      r.io(d.in_contact);
+    }
+    r.end();
+
+    r.begin("collisions", 1, 1);
+    const auto obstacle_count = r.get<std::uint64_t>();
+    std::vector<std::string> ids;
+    std::vector<std::pair<double, bool>> episodes;
+    for (std::uint64_t k = 0; k < obstacle_count && k <= obstacles.size(); ++k) {
+      ids.push_back(r.get<std::string>());
+      const auto last = r.get<double>();
+      episodes.emplace_back(last, r.get<bool>());
+    }
+    auto list = [](const std::vector<std::string>& names) {
+      std::string out;
+      for (const auto& n : names) out += (out.empty() ? "'" : ", '") + n + "'";
+      return out.empty() ? std::string("none") : out;
+    };
+    std::vector<std::string> own_ids;
+    for (const ObstacleGeom& o : obstacles) own_ids.push_back(o.id);
+    if (obstacle_count != obstacles.size() || ids != own_ids) {
+      r.fail("the state's obstacles (" + std::to_string(obstacle_count) + ": " + list(ids) +
+             (ids.size() < obstacle_count ? ", ..." : "") + ") are not this model's (" +
+             std::to_string(obstacles.size()) + ": " + list(own_ids) + ")");
+    }
+    if (obstacles_fp != obstacles_fingerprint) {
+      r.fail("the state's obstacles " + list(ids) +
+             " have other shapes, sizes or poses than this model's");
+    }
+    // One by one: a damaged count runs into the section's end instead of allocating it.
+    std::vector<CollisionContact> new_collisions;
+    const auto collision_count = r.get<std::uint64_t>();
+    for (std::uint64_t k = 0; k < collision_count; ++k) {
+      CollisionContact c;
+      r.io(c.obstacle_id);
+      r.io(c.impulse_ns);
+      r.io(c.position);
+      new_collisions.push_back(std::move(c));
+    }
+    r.end();
+
+    r.end();
+
+    time = new_time;
+    commanded = new_commanded;
+    applied = new_applied;
+    accel = new_accel;
+    angular_accel = new_angular_accel;
+    for (std::size_t b = 0; b < 5; ++b) set_body_state(bodies()[b], new_bodies[b]);
+    powertrain = std::move(new_powertrain);
+    set_wheel_inertia();  // masses of the restored gear now (the next step would set them too)
+    tire_states = new_tires;
+    diag = new_diag;
+    for (std::size_t k = 0; k < obstacles.size(); ++k) {
+      obstacles[k].last_contact_s = episodes[k].first;
+      obstacles[k].episode_open = episodes[k].second;
+    }
+    collisions = std::move(new_collisions);
+  }
 };
 
 OdeVehicleModel::OdeVehicleModel(const VehicleParams& params, const Pose& start,
@@ -730,6 +1070,10 @@ VehicleSnapshot OdeVehicleModel::snapshot() const {
   s.engine_speed_rpm = m.powertrain.engine_rpm();
   return s;
 }
+
+void OdeVehicleModel::save_state(core::StateWriter& w) { impl_->save_state(w); }
+
+void OdeVehicleModel::load_state(core::StateReader& r) { impl_->load_state(r); }
 
 std::vector<CollisionContact> OdeVehicleModel::take_collisions() {
   std::vector<CollisionContact> out;

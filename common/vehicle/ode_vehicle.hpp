@@ -42,6 +42,12 @@ class OdeVehicleModel final : public VehicleModel {
   /// constraints, so this is most of the hit), position = first contact point. An episode
   /// lasts until the vehicle has been free of the obstacle for 0.5 s and is out of its reach.
   std::vector<CollisionContact> take_collisions() override;
+  /// Section "ode_vehicle" v1 (docs/vehicle-dynamics.md, "Checkpoint state"): the bodies as
+  /// ODE holds them, powertrain, tires, inputs, collision episodes, after fingerprints of the
+  /// params, the placement and the obstacles that load_state checks. save_state passes the
+  /// bodies through ODE's setters (which normalise the quaternions again), as load_state does.
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
 
   /// Sets the vehicle rolling straight ahead at `forward_speed_mps` (chassis and wheels, tire
   /// states reset), e.g. to start a scenario or a test at speed. Positions are kept.

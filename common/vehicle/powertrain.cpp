@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace syndds::vehicle {
 namespace {
@@ -24,6 +25,41 @@ void Powertrain::reset() {
   since_shift_s_ = 1e9;
   engine_torque_ = 0.0;
   turbine_torque_ = 0.0;
+}
+
+void Powertrain::save_state(core::StateWriter& w) const {
+  w.begin("powertrain", 1);
+  w.io(gear_);
+  w.io(engine_speed_);
+  w.io(turbine_rpm_);
+  w.io(since_shift_s_);
+  w.io(engine_torque_);
+  w.io(turbine_torque_);
+  w.end();
+}
+
+void Powertrain::load_state(core::StateReader& r) {
+  r.begin("powertrain", 1, 1);
+  const auto gear = r.get<int>();
+  // Reverse is never engaged (no gear selector), so a state can only hold 0..top gear; any
+  // other gear would index past the ratios.
+  const int top_gear = static_cast<int>(params_.transmission.forward_ratios.size());
+  if (gear < 0 || gear > top_gear) {
+    r.fail("gear " + std::to_string(gear) + " is not one of this gearbox's 0.." +
+           std::to_string(top_gear));
+  }
+  const auto engine_speed = r.get<double>();
+  const auto turbine_rpm = r.get<double>();
+  const auto since_shift = r.get<double>();
+  const auto engine_torque = r.get<double>();
+  const auto turbine_torque = r.get<double>();
+  r.end();
+  gear_ = gear;
+  engine_speed_ = engine_speed;
+  turbine_rpm_ = turbine_rpm;
+  since_shift_s_ = since_shift;
+  engine_torque_ = engine_torque;
+  turbine_torque_ = turbine_torque;
 }
 
 double Powertrain::engine_rpm() const { return engine_speed_ * kRadPerSToRpm; }

@@ -21,6 +21,7 @@
 //   is never engaged.
 // - Shaft inertias of the in-gear shaft and the drive shaft are not states here: they turn
 //   with the wheels, and driveline_inertia_at_wheels() gives them to the vehicle model.
+#include "core/state_io.hpp"
 #include "vehicle/vehicle_params.hpp"
 
 namespace syndds::vehicle {
@@ -35,6 +36,13 @@ class Powertrain {
   double step(double throttle, double wheel_speed_rad_s, double vehicle_speed_mps, double dt);
   /// Neutral, engine at idle, shift timer cleared.
   void reset();
+  /// Checkpoint state (section "powertrain" v1): gear, engine speed, time since the last shift
+  /// and the last step's outputs (turbine speed, engine and turbine torque: step() overwrites
+  /// them, they are saved so the getters agree after a restore). The params and the motoring
+  /// torque derived from them are the constructor's; the owner checks they match. load_state
+  /// throws core::StateError on a gear this gearbox does not have, and changes nothing then.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
 
   int gear() const { return gear_; }
   double engine_rpm() const;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "core/state_io.hpp"
 #include "terrain/terrain.hpp"
 #include "vehicle/vehicle_params.hpp"
 
@@ -58,6 +59,20 @@ class VehicleModel {
   virtual VehicleSnapshot snapshot() const = 0;
   /// Collisions that started since the last call (each contact episode reported once).
   virtual std::vector<CollisionContact> take_collisions() { return {}; }
+
+  // ---- checkpoints (docs/checkpoints.md, docs/vehicle-dynamics.md "Checkpoint state") ----
+  /// Writes everything that decides the following steps (called between steps): the model's
+  /// state, the inputs in force, collisions not yet taken. Afterwards the model continues from
+  /// exactly the state load_state rebuilds from these bytes: a model whose own setters round
+  /// (ODE normalises quaternions) passes its state through them here, so a run that saves and
+  /// a run restored from its bytes step the same numbers, bit for bit.
+  virtual void save_state(core::StateWriter& w) = 0;
+  /// Restores a state written by save_state. Call it on a model constructed with the same
+  /// params, start, terrain and obstacles (after its constructor, i.e. after settling), before
+  /// any step. Throws core::StateError (naming what does not fit: another kind of model,
+  /// another vehicle's params, other obstacles, truncated bytes) and then leaves the model as
+  /// it was.
+  virtual void load_state(core::StateReader& r) = 0;
 };
 
 /// Clamps driver inputs to their ranges (steering [-1,1], throttle and braking [0,1]).
