@@ -156,7 +156,7 @@ RunControlMsg LocalRunner::run(const std::atomic<bool>* interrupt) {
                                                  options_.heartbeat_s)));
     }
     stepper_.step();
-    if (options_.after_frame) options_.after_frame(stepper_);
+    if (after_frame_) after_frame_(stepper_);
   }
   return stepper_.finish(interrupted ? RunStatus::aborted : RunStatus::completed,
                         interrupted ? "interrupted" : "");

@@ -17,8 +17,6 @@ struct LocalRunOptions {
   std::int64_t final_frame = 0;
   double heartbeat_s = 0.01;
   bool realtime = false;
-  /// Called after every frame (e.g. to write a checkpoint when one is due).
-  std::function<void(FrameStepper&)> after_frame;
 };
 
 /// The frames of a local run one at a time, for callers that act between frames (a learning
@@ -70,10 +68,13 @@ class LocalRunner {
   const std::vector<AgentPtr>& agents() const { return stepper_.agents(); }
   /// The stepper, e.g. to resume() before run().
   FrameStepper& stepper() { return stepper_; }
+  /// Called after every frame (e.g. to write a checkpoint when one is due).
+  void set_after_frame(std::function<void(FrameStepper&)> f) { after_frame_ = std::move(f); }
 
  private:
   FrameStepper stepper_;
   LocalRunOptions options_;
+  std::function<void(FrameStepper&)> after_frame_;
 };
 
 /// Throws ProtocolError if a sample in `out` is not stamped (frame, source) as the rules demand

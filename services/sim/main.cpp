@@ -36,9 +36,10 @@ int main(int argc, char** argv) {
     if (s.checkpoint.enabled() || resume) {
       for (const auto& a : agents) agents::require_checkpoints(s, *a);
     }
-    proto::LocalRunOptions options{s.time.final_frame(), s.time.heartbeat_s, s.time.realtime, {}};
+    proto::LocalRunner runner(std::move(agents),
+                              {s.time.final_frame(), s.time.heartbeat_s, s.time.realtime});
     if (s.checkpoint.enabled()) {
-      options.after_frame = [&](proto::FrameStepper& stepper) {
+      runner.set_after_frame([&](proto::FrameStepper& stepper) {
         const std::int64_t frame = stepper.next_frame() - 1;
         if (!record::checkpoint_due(frame, s.checkpoint.every_frames)) return;
         const auto info = record::write_local_checkpoint(run_dir, stepper, s.fingerprint,
@@ -47,9 +48,8 @@ int main(int argc, char** argv) {
         for (const auto& m : info.members) bytes += m.bytes;
         spdlog::info("checkpoint of frame {} (t = {:g} s): {} members, {} bytes", frame,
                      info.sim_time_s, info.members.size(), bytes);
-      };
+      });
     }
-    proto::LocalRunner runner(std::move(agents), options);
     if (resume) {
       record::resume_local(run_dir, resume_at, s.fingerprint, runner.stepper());
       spdlog::info("resumed from the checkpoint of frame {} in {}", resume_at, run_dir);
