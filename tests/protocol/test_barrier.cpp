@@ -477,3 +477,65 @@ TEST(Barrier, FailureAfterACompletedRunIsNotALoss) {
   EXPECT_NE(failed.at("controller/a").find("without confirming"), std::string::npos);
   for (const auto& m : b.stats(0.3).members) EXPECT_FALSE(m.lost) << m.member_id;
 }
+
+// Checkpoints (docs/checkpoints.md): members write the checkpoint of frame K before stepping
+// K + 1 and say so in that done; the checkpoint is complete only when every member did.
+TEST(Barrier, ACheckpointIsCompleteOnlyWhenEveryMemberReportedItsState) {
+  auto c = config(6);
+  c.checkpoint_every = 2;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  for (std::int64_t f = 0; f <= 2; ++f) {
+    ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+    for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, f), 0.0);
+  }
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);  // frame 3: the members write the state of frame 2
+  EXPECT_FALSE(b.take_checkpoint());          // nothing due before
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) {
+    auto d = done(m, 3);
+    d.checkpoint_bytes = std::string(m) == "recorder" ? 0 : 100;
+    b.on_done(d, 0.0);
+  }
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  auto r = b.take_checkpoint();
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->frame, 2);
+  EXPECT_EQ(r->members.size(), 2u);
+  EXPECT_EQ(r->missing, std::vector<std::string>{"recorder"});
+  EXPECT_FALSE(b.take_checkpoint());  // taken once
+
+  // Frame 4 done, frame 5 granted: the checkpoint of frame 4, everyone this time.
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 4), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) {
+    auto d = done(m, 5);
+    d.checkpoint_bytes = 7;
+    b.on_done(d, 0.0);
+  }
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  r = b.take_checkpoint();
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->frame, 4);
+  EXPECT_EQ(r->members.size(), 3u);
+  EXPECT_TRUE(r->missing.empty());
+}
+
+TEST(Barrier, AResumedRunStartsAfterItsCheckpointWithoutAnnouncedInputs) {
+  auto c = config(6);
+  c.first_frame = 5;
+  c.checkpoint_every = 4;
+  Barrier b(c, 0.0);
+  join_all(b, 0.0);
+  auto a = b.poll(0.0);
+  ASSERT_EQ(a.kind, Kind::grant);
+  EXPECT_EQ(a.grant.frame, 5);
+  EXPECT_DOUBLE_EQ(a.grant.sim_time_s, 0.05);
+  EXPECT_TRUE(a.grant.manifest.empty());  // the members step it with their saved inputs
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 5), 0.0);
+  ASSERT_EQ(b.poll(0.0).kind, Kind::grant);
+  EXPECT_FALSE(b.take_checkpoint());  // the checkpoint of frame 4 is the one resumed from
+  for (const auto* m : {"vehicle/a", "controller/a", "recorder"}) b.on_done(done(m, 6), 0.0);
+  auto end = b.poll(0.0);
+  ASSERT_EQ(end.kind, Kind::stop);
+  EXPECT_EQ(end.control.final_frame, 6);
+}

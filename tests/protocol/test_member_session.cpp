@@ -438,3 +438,42 @@ TEST(MemberSession, CompletedRunWinsOverALateInterrupt) {
   ASSERT_EQ(a.kind, Kind::finish);
   EXPECT_EQ(a.outcome, Outcome::completed);
 }
+
+// A member resumed from its checkpoint steps the first granted frame with its saved inputs at
+// once (the grant announces none), then waits for announced samples as usual.
+TEST(MemberSession, AResumedMemberStepsItsFirstFrameWithTheSavedInputs) {
+  auto c = config();
+  c.resume_frame = 9;
+  MemberSession s(states(), c, 0.0);
+  FrameSamples saved;
+  saved.vehicle_states.push_back(state(9));
+  s.resume(saved);
+  EXPECT_EQ(s.next_frame(), 10);
+  EXPECT_EQ(s.on_coordinator(coordinator(), 0.1), "");
+  EXPECT_EQ(s.poll(0.1).kind, Kind::joined);
+  s.on_grant(grant(10), 0.2);
+  auto a = s.poll(0.2);
+  ASSERT_EQ(a.kind, Kind::step);
+  EXPECT_EQ(a.context.frame, 10);
+  ASSERT_EQ(a.inputs.vehicle_states.size(), 1u);
+  EXPECT_EQ(a.inputs.vehicle_states[0].frame, 9);
+  s.on_stepped(10, "", 0.3);
+  s.on_grant(grant(11, {announced()}), 0.3);
+  EXPECT_EQ(s.poll(0.3).kind, Kind::wait);  // frame 10's state has not arrived
+  s.add(state(10));
+  step(s, 11, 0.4);
+}
+
+TEST(MemberSession, AResumedMemberRefusesAGrantOfAnotherFrame) {
+  auto c = config();
+  c.resume_frame = 9;
+  MemberSession s(states(), c, 0.0);
+  s.resume({});
+  EXPECT_EQ(s.on_coordinator(coordinator(), 0.1), "");
+  EXPECT_EQ(s.poll(0.1).kind, Kind::joined);
+  s.on_grant(grant(12), 0.2);
+  auto a = s.poll(0.2);
+  ASSERT_EQ(a.kind, Kind::finish);
+  EXPECT_NE(a.error.find("granted frame 12 while frame 10 was expected"), std::string::npos)
+      << a.error;
+}
