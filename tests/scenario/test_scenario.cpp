@@ -345,3 +345,42 @@ TEST(Scenario, ProcessLayoutErrorsNameTheKey) {
             std::string::npos)
       << err;
 }
+
+TEST(Scenario, CheckpointsComeEveryWholeNumberOfFrames) {
+  const auto s = parse(kMinimal + "checkpoint: {every_s: 0.5}\n");
+  EXPECT_TRUE(s.checkpoint.enabled());
+  EXPECT_EQ(s.checkpoint.every_frames, 50);
+  EXPECT_FALSE(parse(kMinimal).checkpoint.enabled());
+  auto err = error_of(kMinimal + "checkpoint: {every_s: 0.015}\n");
+  EXPECT_NE(err.find("test.yaml:9:"), std::string::npos) << err;
+  EXPECT_NE(err.find("every_s (0.015) must be a whole multiple of heartbeat_s (0.01)"),
+            std::string::npos)
+      << err;
+  err = error_of(kMinimal + "checkpoint: {}\n");
+  EXPECT_NE(err.find("every_s"), std::string::npos) << err;
+  err = error_of(kMinimal + "checkpoint: {every_s: 1, each: 2}\n");
+  EXPECT_NE(err.find("unknown key 'each'"), std::string::npos) << err;
+}
+
+// The learned-policy controller and external controllers cannot checkpoint yet: a scenario
+// that asks is refused naming the member, before anything runs.
+TEST(Scenario, AMemberThatCannotCheckpointIsNamed) {
+  const auto s = parse(kMinimal + "checkpoint: {every_s: 0.5}\n");
+  struct NoState : proto::Agent {
+    std::string id = "controller/x";
+    const std::string& member_id() const override { return id; }
+    proto::MemberKind kind() const override { return proto::MemberKind::controller; }
+    std::vector<proto::Subscription> subscriptions() const override { return {}; }
+    std::vector<proto::Topic> publications() const override { return {}; }
+    void step(const proto::FrameContext&, const proto::FrameSamples&,
+              proto::FrameSamples&) override {}
+  } agent;
+  try {
+    agents::require_checkpoints(s, agent);
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("member controller/x cannot write checkpoints"),
+              std::string::npos)
+        << e.what();
+  }
+}
