@@ -117,6 +117,17 @@ bool bit_equal(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
+/// Normal stress of the last step at every vertex under load in it (sinking wheels of t1).
+std::vector<double> pressures(const ScmTerrain& t) {
+  std::vector<double> out;
+  for (std::int32_t i = t.i_min(); i <= t.i_max(); ++i) {
+    for (std::int32_t j = -15; j <= 15; ++j) {
+      if (const double p = t.vertex_pressure(i, j); p != 0.0) out.push_back(p);
+    }
+  }
+  return out;
+}
+
 void expect_same_stats(const ScmTerrain& a, const ScmTerrain& b, int frame) {
   const ScmStepStats& x = a.last_step_stats();
   const ScmStepStats& y = b.last_step_stats();
@@ -165,6 +176,9 @@ TEST(ScmState, ACopyResumedFromACheckpointContinuesBitForBit) {
   b.frame = a.frame;
   EXPECT_EQ(save(b.t1), save(a.t1));
   EXPECT_EQ(save(b.lazy), save(a.lazy));
+  expect_same_stats(a.t1, b.t1, a.frame);
+  EXPECT_TRUE(bit_equal(pressures(a.t1), pressures(b.t1)));
+  EXPECT_GT(pressures(a.t1).size(), 20u);
 
   std::vector<double> ta, tb;
   for (int f = 0; f < 60; ++f) {
