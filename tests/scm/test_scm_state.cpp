@@ -294,3 +294,17 @@ TEST(ScmState, ATruncatedOrDamagedStateIsRefused) {
     expect_state_error([&] { load(t, w.bytes()); }, {"expected section 'scm_terrain', found 'vehicle'"});
   }
 }
+
+// Saved between steps, before the frame's list was taken: the changes still to publish are
+// part of the state (at a frame boundary the agent has just taken them, so the list is empty).
+TEST(ScmState, ChangesNotYetPublishedSurviveTheCheckpoint) {
+  World a;
+  std::vector<double> ignored;
+  for (int f = 0; f < 10; ++f) a.run_frame(ignored);
+  for (auto& rig : a.rigs) rig.step(a.t1, 6000.0, kDt);
+  ScmTerrain b(state_params());
+  load(b, save(a.t1));
+  const auto la = a.t1.take_local_changes();
+  EXPECT_FALSE(la.empty());
+  EXPECT_EQ(b.take_local_changes(), la);
+}
