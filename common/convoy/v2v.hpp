@@ -37,6 +37,13 @@ class V2VBroadcaster {
   std::uint64_t built() const { return sequence_; }
   std::uint64_t dropped() const { return dropped_; }
 
+  /// Checkpoint state (between frames): drop stream, newest readings, counters, messages
+  /// waiting for their latency.
+  void save_state(core::StateWriter& w) const;
+  /// Restores into a broadcaster built for the same vehicle and configuration; throws
+  /// core::StateError otherwise.
+  void load_state(core::StateReader& r);
+
  private:
   V2VConfig config_;
   std::string vehicle_id_;
