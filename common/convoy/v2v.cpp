@@ -1,10 +1,12 @@
 #include "convoy/v2v.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <numeric>
 
 #include "core/error.hpp"
+#include "core/state_io.hpp"
 
 namespace syndds::convoy {
 
@@ -71,6 +73,109 @@ std::vector<proto::V2VMessageMsg> V2VBroadcaster::step(std::int64_t frame, doubl
     pending_.pop_front();
   }
   return out;
+}
+
+namespace {
+
+template <typename Sample>
+void save_optional(core::StateWriter& w, const std::optional<Sample>& s) {
+  w.io(s.has_value());
+  if (s) sensors::save_sample(w, *s);
+}
+
+template <typename Sample>
+void load_optional(core::StateReader& r, std::optional<Sample>& s) {
+  s.reset();
+  if (r.get<bool>()) {
+    Sample x;
+    sensors::load_sample(r, x);
+    s = std::move(x);
+  }
+}
+
+}  // namespace
+
+// Everything but the construction data (config, ids, wheel radius, checked by the reader).
+// The messages waiting for their latency are written field by field: a field added to
+// proto::V2VMessageMsg must be added here too (frame is set on release, not yet meaningful).
+void V2VBroadcaster::save_state(core::StateWriter& w) const {
+  w.begin("v2v", 1);
+  w.io(vehicle_id_);
+  w.io(config_.rate_hz);
+  w.io(config_.latency_s);
+  w.io(config_.drop_probability);
+  rng_.save_state(w);
+  save_optional(w, gps_);
+  save_optional(w, compass_);
+  save_optional(w, tachometer_);
+  w.io(sequence_);
+  w.io(dropped_);
+  w.io(static_cast<std::uint64_t>(pending_.size()));
+  for (const auto& [release, m] : pending_) {
+    w.io(release);
+    w.io(m.vehicle_id);
+    w.io(m.source);
+    w.io(m.frame);
+    w.io(m.sequence);
+    w.io(m.sensor_time_s);
+    w.io(m.latitude_deg);
+    w.io(m.longitude_deg);
+    w.io(m.altitude_m);
+    w.io(m.speed_mps);
+    w.io(m.heading_rad);
+  }
+  w.end();
+}
+
+void V2VBroadcaster::load_state(core::StateReader& r) {
+  r.begin("v2v", 1);
+  const auto vehicle = r.get<std::string>();
+  if (vehicle != vehicle_id_) {
+    r.fail("the state is of the V2V broadcaster of vehicle '" + vehicle + "', not '" +
+           vehicle_id_ + "'");
+  }
+  V2VConfig saved;
+  r.io(saved.rate_hz);
+  r.io(saved.latency_s);
+  r.io(saved.drop_probability);
+  if (saved.rate_hz != config_.rate_hz || saved.latency_s != config_.latency_s ||
+      saved.drop_probability != config_.drop_probability) {
+    auto num = [](double v) {  // shortest text that reads back as v
+      char buf[32];
+      return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+    };
+    auto text = [&](const V2VConfig& c) {
+      return "rate_hz " + num(c.rate_hz) + ", latency_s " + num(c.latency_s) +
+             ", drop_probability " + num(c.drop_probability);
+    };
+    r.fail("vehicle '" + vehicle_id_ + "': the state's v2v configuration (" + text(saved) +
+           ") differs from this one's (" + text(config_) + ")");
+  }
+  rng_.load_state(r);
+  load_optional(r, gps_);
+  load_optional(r, compass_);
+  load_optional(r, tachometer_);
+  r.io(sequence_);
+  r.io(dropped_);
+  pending_.clear();
+  const auto n = r.get<std::uint64_t>();
+  for (std::uint64_t k = 0; k < n; ++k) {
+    std::pair<double, proto::V2VMessageMsg> p;
+    auto& m = p.second;
+    r.io(p.first);
+    r.io(m.vehicle_id);
+    r.io(m.source);
+    r.io(m.frame);
+    r.io(m.sequence);
+    r.io(m.sensor_time_s);
+    r.io(m.latitude_deg);
+    r.io(m.longitude_deg);
+    r.io(m.altitude_m);
+    r.io(m.speed_mps);
+    r.io(m.heading_rad);
+    pending_.push_back(std::move(p));
+  }
+  r.end();
 }
 
 }  // namespace syndds::convoy

@@ -36,6 +36,15 @@ class V2VBroadcaster {
   const V2VConfig& config() const { return config_; }
   std::uint64_t built() const { return sequence_; }
   std::uint64_t dropped() const { return dropped_; }
+  /// Messages built and waiting for their latency.
+  std::size_t pending() const { return pending_.size(); }
+
+  /// Checkpoint state (between frames): drop stream, newest readings, counters, messages
+  /// waiting for their latency.
+  void save_state(core::StateWriter& w) const;
+  /// Restores into a broadcaster built for the same vehicle and configuration; throws
+  /// core::StateError otherwise.
+  void load_state(core::StateReader& r);
 
  private:
   V2VConfig config_;

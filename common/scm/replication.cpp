@@ -7,6 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/state_io.hpp"
 
 namespace syndds::scm {
 namespace {
@@ -207,6 +208,126 @@ std::uint64_t Replication::grid_hash(const VertexGrid& grid) {
     h.add(c.sigma_yield_pa);
   }
   return h.value();
+}
+
+// Kept: the merge window (claims of the frame whose lists may still arrive, as (vertex,
+// source) sorted by vertex; window_ so deferred slots compare windows as before), the interest
+// box and the deferred records (tiles in key order, used slots in slot order). Not kept:
+// last_tile_ (a lookup cache, rebuilt on the next deferral).
+void Replication::save_state(core::StateWriter& w) const {
+  w.begin("scm_replication", 1);
+  w.io(source_id_);
+  w.io(window_);
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> claims;
+  claims.reserve(claims_.size());
+  claims_.for_each([&](std::uint64_t key, std::int32_t index) {
+    claims.emplace_back(key, claim_source_[static_cast<std::size_t>(index)]);
+  });
+  // By (i, j) (the key's unsigned order would put negative indices last; either is stable).
+  std::sort(claims.begin(), claims.end(), [](const auto& a, const auto& b) {
+    const std::int32_t ai = key_i(a.first), bi = key_i(b.first);
+    return ai != bi ? ai < bi : key_j(a.first) < key_j(b.first);
+  });
+  w.io(static_cast<std::uint64_t>(claims.size()));
+  for (const auto& [key, source] : claims) {
+    w.io(key_i(key));
+    w.io(key_j(key));
+    w.io(source);
+  }
+  w.io(has_interest_);
+  w.io(interest_.i_lo);
+  w.io(interest_.i_hi);
+  w.io(interest_.j_lo);
+  w.io(interest_.j_hi);
+  std::vector<std::uint64_t> keys;
+  keys.reserve(deferred_.size());
+  for (const auto& [key, tile] : deferred_) keys.push_back(key);
+  std::sort(keys.begin(), keys.end());
+  w.io(static_cast<std::uint64_t>(keys.size()));
+  for (const std::uint64_t key : keys) {
+    const DeferredTile& tile = deferred_.at(key);
+    w.io(key_i(key));
+    w.io(key_j(key));
+    w.io(static_cast<std::uint32_t>(tile.used));
+    for (std::size_t s = 0; s < tile.slots.size(); ++s) {
+      const DeferredSlot& slot = tile.slots[s];
+      if (slot.window == 0) continue;
+      w.io(static_cast<std::uint16_t>(s));  // the vertex follows from the tile and the slot
+      w.io(slot.change.level_m);
+      w.io(slot.change.level_initial_m);
+      w.io(slot.change.sinkage_plastic_m);
+      w.io(slot.change.sigma_yield_pa);
+      w.io(slot.source);
+      w.io(slot.window);
+    }
+  }
+  w.end();
+}
+
+void Replication::load_state(core::StateReader& r, const VertexGrid& grid) {
+  r.begin("scm_replication", 1);
+  r.io(source_id_);
+  r.io(window_);
+  claims_.clear();
+  claim_source_.clear();
+  const auto claims = r.get<std::uint64_t>();
+  for (std::uint64_t k = 0; k < claims; ++k) {
+    const auto i = r.get<std::int32_t>();
+    const auto j = r.get<std::int32_t>();
+    const auto source = r.get<std::uint32_t>();
+    const auto next = static_cast<std::int32_t>(claim_source_.size());
+    if (claims_.insert(vertex_key(i, j), next) != next) {
+      r.fail("vertex (" + std::to_string(i) + ", " + std::to_string(j) +
+             ") is claimed twice: the state is damaged");
+    }
+    claim_source_.push_back(source);
+  }
+  r.io(has_interest_);
+  r.io(interest_.i_lo);
+  r.io(interest_.i_hi);
+  r.io(interest_.j_lo);
+  r.io(interest_.j_hi);
+  forget_deferred();
+  const auto tiles = r.get<std::uint64_t>();
+  for (std::uint64_t t = 0; t < tiles; ++t) {
+    const auto ti = r.get<std::int32_t>();
+    const auto tj = r.get<std::int32_t>();
+    const auto used = r.get<std::uint32_t>();
+    const std::uint64_t key = vertex_key(ti, tj);
+    const std::string where = "deferred tile (" + std::to_string(ti) + ", " + std::to_string(tj) + ")";
+    if (deferred_.count(key) > 0) r.fail(where + " appears twice: the state is damaged");
+    if (used == 0 || used > static_cast<std::uint32_t>(kTileSize * kTileSize)) {
+      r.fail(where + " holds " + std::to_string(used) + " records: the state is damaged");
+    }
+    DeferredTile& tile = deferred_[key];
+    tile.slots.resize(static_cast<std::size_t>(kTileSize * kTileSize));
+    tile.used = used;
+    deferred_vertices_ += used;
+    for (std::uint32_t u = 0; u < used; ++u) {
+      const auto s = r.get<std::uint16_t>();
+      if (s >= tile.slots.size() || tile.slots[s].window != 0) {
+        r.fail(where + ": slot " + std::to_string(s) + " is out of range or repeated");
+      }
+      DeferredSlot& slot = tile.slots[s];
+      slot.change.i = ti * kTileSize + (s >> kTileShift);
+      slot.change.j = tj * kTileSize + (s & (kTileSize - 1));
+      r.io(slot.change.level_m);
+      r.io(slot.change.level_initial_m);
+      r.io(slot.change.sinkage_plastic_m);
+      r.io(slot.change.sigma_yield_pa);
+      r.io(slot.source);
+      r.io(slot.window);
+      if (!grid.in_area(slot.change.i, slot.change.j)) {
+        r.fail(where + ": vertex (" + std::to_string(slot.change.i) + ", " +
+               std::to_string(slot.change.j) + ") is outside the soil's area");
+      }
+      if (slot.window == 0 || slot.window > window_) {
+        r.fail(where + ": a record of merge window " + std::to_string(slot.window) +
+               " (the state is at window " + std::to_string(window_) + ")");
+      }
+    }
+  }
+  r.end();
 }
 
 }  // namespace syndds::scm

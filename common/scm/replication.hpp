@@ -65,6 +65,12 @@ class Replication {
   /// FNV-1a over the shared state of all stored vertices in (i, j) order.
   static std::uint64_t grid_hash(const VertexGrid& grid);
 
+  /// Checkpoint state: source id, merge window and its claims, interest box, deferred records
+  /// (in key order). The vertices themselves are the grid's (VertexGrid::save_state).
+  void save_state(core::StateWriter& w) const;
+  /// Throws core::StateError on records outside `grid`'s area or damaged bookkeeping.
+  void load_state(core::StateReader& r, const VertexGrid& grid);
+
  private:
   struct DeferredSlot {
     VertexChange change;

@@ -1,10 +1,15 @@
 #include "scm/scm_terrain.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <charconv>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
+#include "core/state_io.hpp"
 #include "core/thread_pool.hpp"
 #include "scm/bulldozing.hpp"
 #include "scm/contact_patch.hpp"
@@ -20,6 +25,58 @@ bool finite(const Vec3& v) {
 const ScmParams& validated(const ScmParams& params) {
   validate(params);
   return params;
+}
+
+/// What a checkpoint must match: the grid geometry and every parameter that changes a result.
+/// Not here: threads and thread_min_vertices (results do not depend on them) and
+/// interest_radius_m (the agent's choice of box; merges end the same either way). A base
+/// surface is represented by its height at the grid's corners and centre.
+std::vector<std::pair<std::string, double>> fingerprint(const ScmParams& p, const VertexGrid& g) {
+  const SoilParams& s = p.soil;
+  const BulldozingParams& b = p.bulldozing;
+  std::vector<std::pair<std::string, double>> f = {
+      {"grid spacing_m", p.grid.spacing_m},
+      {"grid x_min_m", p.grid.x_min_m},
+      {"grid x_max_m", p.grid.x_max_m},
+      {"grid y_min_m", p.grid.y_min_m},
+      {"grid y_max_m", p.grid.y_max_m},
+      {"grid base_height_m", p.grid.base_height_m},
+      {"soil bekker_kphi", s.bekker_kphi},
+      {"soil bekker_kc", s.bekker_kc},
+      {"soil bekker_n", s.bekker_n},
+      {"soil cohesion_pa", s.cohesion_pa},
+      {"soil friction_angle_deg", s.friction_angle_deg},
+      {"soil janosi_shear_m", s.janosi_shear_m},
+      {"soil elastic_stiffness_pa_per_m", s.elastic_stiffness_pa_per_m},
+      {"soil damping_pa_s_per_m", s.damping_pa_s_per_m},
+      {"bulldozing enabled", b.enabled ? 1.0 : 0.0},
+      {"bulldozing erosion_angle_deg", b.erosion_angle_deg},
+      {"bulldozing flow_factor", b.flow_factor},
+      {"bulldozing iterations", static_cast<double>(b.iterations)},
+      {"bulldozing propagations", static_cast<double>(b.propagations)},
+      {"patch_test_height_m", p.patch_test_height_m},
+      {"shear_damping_time_s", p.shear_damping_time_s},
+      {"base surface", g.base() ? 1.0 : 0.0},
+  };
+  if (g.base()) {
+    const std::int32_t is[3] = {g.i_min(), g.i_min() + (g.i_max() - g.i_min()) / 2, g.i_max()};
+    const std::int32_t js[3] = {g.j_min(), g.j_min() + (g.j_max() - g.j_min()) / 2, g.j_max()};
+    for (const std::int32_t i : is) {
+      for (const std::int32_t j : js) {
+        f.emplace_back("base surface height at vertex (" + std::to_string(i) + ", " +
+                           std::to_string(j) + ")",
+                       g.base_height(i, j));
+      }
+    }
+  }
+  return f;
+}
+
+// Shortest text that reads back as the same double ("0.05", not "0.050000000000000003").
+std::string shortest(double v) {
+  char buf[32];
+  const auto res = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, res.ptr);
 }
 
 }  // namespace
@@ -406,6 +463,56 @@ void ScmTerrain::load_snapshot(const ScmSnapshot& snap) { replication_.load_snap
 std::uint64_t ScmTerrain::grid_hash() const {
   require_merged(replication_, "grid_hash");
   return Replication::grid_hash(grid_);
+}
+
+// ---- Checkpoints --------------------------------------------------------------------------------
+
+// Member by member: params_ and law_ are construction data (checked through the fingerprint);
+// grid_ and replication_ write their own sections; step_ is kept (the contact state is relative
+// to it) and so is stats_ (last_step_stats() is read after a frame). Not kept: step_data_
+// (per-step work arrays and the bulldozer's, rebuilt by every step before they are read) and
+// pool_ (results do not depend on the thread count).
+void ScmTerrain::save_state(core::StateWriter& w) const {
+  w.begin("scm_terrain", 1);
+  const auto f = fingerprint(params_, grid_);
+  w.io(static_cast<std::uint32_t>(f.size()));
+  for (const auto& [name, value] : f) w.io(value);
+  w.io(step_);
+  for (const std::size_t v : {stats_.footprint_vertices, stats_.covered_vertices,
+                              stats_.contact_vertices, stats_.patches, stats_.patch_vertices,
+                              stats_.bulldozing_domain}) {
+    w.io(static_cast<std::uint64_t>(v));
+  }
+  grid_.save_state(w, step_ - 1);
+  replication_.save_state(w);
+  w.end();
+}
+
+void ScmTerrain::load_state(core::StateReader& r) {
+  r.begin("scm_terrain", 1);
+  const auto f = fingerprint(params_, grid_);
+  const auto n = r.get<std::uint32_t>();
+  if (n != f.size()) {
+    r.fail("the state is of another kind of soil (" + std::to_string(n) +
+           " fingerprint values, this terrain has " + std::to_string(f.size()) +
+           "; a base surface on one side only?)");
+  }
+  for (const auto& [name, value] : f) {
+    const auto saved = r.get<double>();
+    if (std::bit_cast<std::uint64_t>(saved) != std::bit_cast<std::uint64_t>(value)) {
+      r.fail("the state is of another grid or soil: " + name + " is " + shortest(saved) +
+             " in the state and " + shortest(value) + " in this terrain");
+    }
+  }
+  r.io(step_);
+  for (std::size_t* v : {&stats_.footprint_vertices, &stats_.covered_vertices,
+                         &stats_.contact_vertices, &stats_.patches, &stats_.patch_vertices,
+                         &stats_.bulldozing_domain}) {
+    *v = static_cast<std::size_t>(r.get<std::uint64_t>());
+  }
+  grid_.load_state(r, step_ - 1);
+  replication_.load_state(r, grid_);
+  r.end();
 }
 
 double ScmTerrain::plastic_volume_change_m3() const {

@@ -147,6 +147,19 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   double plastic_volume_change_m3() const;
   const ScmStepStats& last_step_stats() const { return stats_; }
 
+  // ---- Checkpoints (docs/scm.md, "Checkpoint state") ----
+  /// Writes everything that decides later steps, merges, hashes and stats, between frames:
+  /// the stored vertices sparsely (sorted by (i, j)), the pending outgoing changes, the open
+  /// merge window, the interest box and the deferred records, the step counter and the last
+  /// step's stats, after a fingerprint of the grid geometry and soil parameters. Equal states
+  /// write equal bytes (no hash-map or insertion order leaks in).
+  void save_state(core::StateWriter& w) const;
+  /// Restores a state written by save_state into a terrain built from the same parameters
+  /// (and base surface). Throws core::StateError naming the parameter when the state is of
+  /// another grid or soil, or when the bytes are damaged; the terrain is then unusable (build
+  /// a new one).
+  void load_state(core::StateReader& r);
+
  private:
   struct StepData;  // per-step work arrays and the bulldozer (scm_terrain.cpp)
 

@@ -13,6 +13,11 @@
 #include "scm/vertex_map.hpp"
 #include "terrain/terrain.hpp"
 
+namespace syndds::core {
+class StateWriter;
+class StateReader;
+}  // namespace syndds::core
+
 namespace syndds::scm {
 
 /// One vertex's shared (synchronised) state: everything a receiver needs for a faithful copy.
@@ -124,6 +129,16 @@ class VertexGrid {
   std::size_t dirty_count() const { return dirty_.size(); }
   /// Forgets every stored vertex (the grid is undeformed again).
   void clear();
+
+  /// Checkpoint state (docs/scm.md, "Checkpoint state"): the stored vertices sparsely, sorted
+  /// by (i, j), with their dirty marks, and the level bound. `last_step` is the index of the
+  /// last step taken (the soil law's contact state is relative to it).
+  void save_state(core::StateWriter& w, std::int64_t last_step) const;
+  /// Replaces every stored vertex by those of the state; throws core::StateError on a vertex
+  /// outside the area, out of order or with unknown flags.
+  void load_state(core::StateReader& r, std::int64_t last_step);
+  /// Largest size of one vertex in save_state (bytes): the bound on a checkpoint's growth.
+  static constexpr std::size_t kMaxStateRecordBytes = 2 * 4 + 1 + 7 * 8;
 
  private:
   std::shared_ptr<const terrain::TerrainSurface> base_;

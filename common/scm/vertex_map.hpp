@@ -55,6 +55,15 @@ class KeyIndexMap {
 
   std::size_t size() const { return size_; }
 
+  /// Calls fn(key, value) for every entry, in slot order (which depends on the insertion
+  /// history: callers that need a stable order sort what they collect).
+  template <class Fn>
+  void for_each(Fn&& fn) const {
+    for (const auto& s : slots_) {
+      if (s.value != kNone) fn(s.key, s.value);
+    }
+  }
+
   void clear() {
     if (size_ == 0) return;
     for (auto& s : slots_) s.value = kNone;

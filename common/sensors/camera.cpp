@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "core/state_io.hpp"
 #include "sensors/random.hpp"
 #include "sensors/ray_packets.hpp"
 
@@ -430,6 +431,79 @@ void CameraSensor::update(const Scene& scene, double time_s) {
 
 std::vector<CameraFrame> CameraSensor::take_available(double now_s) {
   return queue_.take_ready(clock_.tick_of(now_s));
+}
+
+// Kept: the clock, the open capture and, once it has accumulated a render, accum_ (the next
+// frames add to it); last_pose_ (the frame's pose is that of its last render); renders_; the
+// waiting frames. Not kept: frame_radiance_ (rendered and used within one update), the pixel
+// noise (a pure function of seed and frame index), offsets_ and gamma_lut_ (configuration).
+void CameraSensor::save_state(core::StateWriter& w) const {
+  w.begin("camera", 1);
+  w.io(seed_);
+  clock_.save_state(w);
+  w.io(capture_.has_value());
+  if (capture_) {
+    w.io(capture_->k);
+    w.io(capture_->trigger_tick);
+    w.io(static_cast<std::uint64_t>(capture_->next));
+    w.io(capture_->weight);
+    if (offsets_.size() > 1 && capture_->weight != 0.0) w.io(accum_);
+  }
+  w.io(last_pose_.position);
+  w.io(last_pose_.orientation);
+  w.io(static_cast<std::uint64_t>(renders_));
+  queue_.save_state(w, [](core::StateWriter& ww, const CameraFrame& f) {
+    ww.io(f.sensor_id);
+    ww.io(f.stamp);
+    ww.io(f.pose.position);
+    ww.io(f.pose.orientation);
+    ww.io(f.image.width);
+    ww.io(f.image.height);
+    ww.io(f.image.pixels);
+  });
+  w.end();
+}
+
+void CameraSensor::load_state(core::StateReader& r) {
+  r.begin("camera", 1);
+  if (r.get<std::uint64_t>() != seed_) {
+    r.fail(config_.id + ": the state is of a camera with another noise seed (another scenario "
+           "seed or vehicle)");
+  }
+  clock_.load_state(r, config_.id);
+  capture_.reset();
+  if (r.get<bool>()) {
+    Capture c;
+    r.io(c.k);
+    r.io(c.trigger_tick);
+    c.next = static_cast<std::size_t>(r.get<std::uint64_t>());
+    r.io(c.weight);
+    if (c.next > offsets_.size()) r.fail(config_.id + ": the open exposure is past its end");
+    if (offsets_.size() > 1 && c.weight != 0.0) {
+      std::vector<float> accum;
+      r.io(accum);
+      if (accum.size() != accum_.size()) {
+        r.fail(config_.id + ": the open exposure holds " + std::to_string(accum.size()) +
+               " radiance values, this camera " + std::to_string(accum_.size()) +
+               " (another image size)");
+      }
+      accum_ = std::move(accum);
+    }
+    capture_ = c;
+  }
+  r.io(last_pose_.position);
+  r.io(last_pose_.orientation);
+  renders_ = static_cast<std::size_t>(r.get<std::uint64_t>());
+  queue_.load_state(r, [](core::StateReader& rr, CameraFrame& f) {
+    rr.io(f.sensor_id);
+    rr.io(f.stamp);
+    rr.io(f.pose.position);
+    rr.io(f.pose.orientation);
+    rr.io(f.image.width);
+    rr.io(f.image.height);
+    rr.io(f.image.pixels);
+  });
+  r.end();
 }
 
 }  // namespace syndds::sensors

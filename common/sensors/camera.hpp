@@ -105,6 +105,12 @@ class CameraSensor {
   RgbImage finish(std::span<const float> radiance, std::uint64_t noise_index);
   std::size_t renders() const { return renders_; }
 
+  /// Checkpoint state (between frames): schedule, an exposure still open (its accumulated
+  /// radiance), frames waiting for their lag (images included), the render counter. The
+  /// renderer and the scene are not part of it (the scene is the caller's).
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
+
  private:
   struct Capture {
     std::uint64_t k = 0;

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "core/state_io.hpp"
+
 namespace syndds::sensors {
 
 Vec3 NoiseModel3::apply(const Vec3& truth, double dt, NormalRng& rng) {
@@ -106,6 +108,121 @@ void TachometerSensor::update(const vehicle::VehicleSnapshot& state) {
     }
     return s;
   });
+}
+
+// ---- Checkpoints ---------------------------------------------------------------------------
+
+void save_sample(core::StateWriter& w, const GpsSample& s) {
+  w.io(s.sensor_id);
+  w.io(s.stamp);
+  w.io(s.position.lat_deg);
+  w.io(s.position.lon_deg);
+  w.io(s.position.alt_m);
+  w.io(s.enu_m);
+  w.io(s.true_enu_m);
+}
+void load_sample(core::StateReader& r, GpsSample& s) {
+  r.io(s.sensor_id);
+  r.io(s.stamp);
+  r.io(s.position.lat_deg);
+  r.io(s.position.lon_deg);
+  r.io(s.position.alt_m);
+  r.io(s.enu_m);
+  r.io(s.true_enu_m);
+}
+void save_sample(core::StateWriter& w, const ImuSample& s) {
+  w.io(s.sensor_id);
+  w.io(s.stamp);
+  w.io(s.accel_mps2);
+  w.io(s.gyro_rad_s);
+}
+void load_sample(core::StateReader& r, ImuSample& s) {
+  r.io(s.sensor_id);
+  r.io(s.stamp);
+  r.io(s.accel_mps2);
+  r.io(s.gyro_rad_s);
+}
+void save_sample(core::StateWriter& w, const MagnetometerSample& s) {
+  w.io(s.sensor_id);
+  w.io(s.stamp);
+  w.io(s.heading_rad);
+  w.io(s.field_ut);
+}
+void load_sample(core::StateReader& r, MagnetometerSample& s) {
+  r.io(s.sensor_id);
+  r.io(s.stamp);
+  r.io(s.heading_rad);
+  r.io(s.field_ut);
+}
+void save_sample(core::StateWriter& w, const TachometerSample& s) {
+  w.io(s.sensor_id);
+  w.io(s.stamp);
+  w.io(s.wheel_spin_rad_s);
+}
+void load_sample(core::StateReader& r, TachometerSample& s) {
+  r.io(s.sensor_id);
+  r.io(s.stamp);
+  r.io(s.wheel_spin_rad_s);
+}
+
+// Configuration (rates, noise levels, mounts, the geodetic converter, the magnetometer's
+// world field) is rebuilt from the rig; only what the runs changed is written.
+void GpsSensor::save_state(core::StateWriter& w) const {
+  w.begin("gps", 1);
+  save_schedule(w);
+  rng_.save_state(w);
+  noise_.save_state(w);
+  w.end();
+}
+void GpsSensor::load_state(core::StateReader& r) {
+  r.begin("gps", 1);
+  load_schedule(r, config_.id);
+  rng_.load_state(r);
+  noise_.load_state(r);
+  r.end();
+}
+
+void ImuSensor::save_state(core::StateWriter& w) const {
+  w.begin("imu", 1);
+  save_schedule(w);
+  rng_.save_state(w);
+  accel_noise_.save_state(w);
+  gyro_noise_.save_state(w);
+  w.end();
+}
+void ImuSensor::load_state(core::StateReader& r) {
+  r.begin("imu", 1);
+  load_schedule(r, config_.id);
+  rng_.load_state(r);
+  accel_noise_.load_state(r);
+  gyro_noise_.load_state(r);
+  r.end();
+}
+
+void MagnetometerSensor::save_state(core::StateWriter& w) const {
+  w.begin("magnetometer", 1);
+  save_schedule(w);
+  rng_.save_state(w);
+  w.end();
+}
+void MagnetometerSensor::load_state(core::StateReader& r) {
+  r.begin("magnetometer", 1);
+  load_schedule(r, config_.id);
+  rng_.load_state(r);
+  r.end();
+}
+
+void TachometerSensor::save_state(core::StateWriter& w) const {
+  w.begin("tachometer", 1);
+  save_schedule(w);
+  rng_.save_state(w);
+  w.end();
+}
+void TachometerSensor::load_state(core::StateReader& r) {
+  r.begin("tachometer", 1);
+  load_schedule(r, config_.id);
+  rng_.load_state(r);
+  r.end();
 }
 
 }  // namespace syndds::sensors

@@ -27,6 +27,9 @@ class NoiseModel3 {
   /// Advances the bias by dt and returns truth + bias + white noise.
   Vec3 apply(const Vec3& truth, double dt, NormalRng& rng);
   const Vec3& bias() const { return bias_; }
+  /// Checkpoint state: the bias random walk.
+  void save_state(core::StateWriter& w) const { w.io(bias_); }
+  void load_state(core::StateReader& r) { r.io(bias_); }
 
  private:
   NoiseConfig config_;
@@ -62,6 +65,16 @@ struct TachometerSample {
   std::vector<double> wheel_spin_rad_s;  // in the snapshot's wheel order (FL, FR, RL, RR)
 };
 
+/// Exact encodings of the samples (for the lag queues and V2V in checkpoints).
+void save_sample(core::StateWriter& w, const GpsSample& s);
+void save_sample(core::StateWriter& w, const ImuSample& s);
+void save_sample(core::StateWriter& w, const MagnetometerSample& s);
+void save_sample(core::StateWriter& w, const TachometerSample& s);
+void load_sample(core::StateReader& r, GpsSample& s);
+void load_sample(core::StateReader& r, ImuSample& s);
+void load_sample(core::StateReader& r, MagnetometerSample& s);
+void load_sample(core::StateReader& r, TachometerSample& s);
+
 /// Common scheduling of the sensors below (rate, lag, queue).
 template <typename Sample>
 class PeriodicSensor {
@@ -73,6 +86,21 @@ class PeriodicSensor {
   std::size_t pending() const { return queue_.pending(); }
 
  protected:
+  /// Checkpoint state of the schedule: clock, samples waiting for their lag, last tick
+  /// measured (the next measurement's dt, hence its bias walk, depends on it).
+  void save_schedule(core::StateWriter& w) const {
+    clock_.save_state(w);
+    queue_.save_state(w, [](core::StateWriter& ww, const Sample& s) { save_sample(ww, s); });
+    w.io(last_tick_);
+    w.io(has_last_);
+  }
+  void load_schedule(core::StateReader& r, const std::string& id) {
+    clock_.load_state(r, id);
+    queue_.load_state(r, [](core::StateReader& rr, Sample& s) { load_sample(rr, s); });
+    r.io(last_tick_);
+    r.io(has_last_);
+  }
+
   PeriodicSensor(double rate_hz, double lag_s, double tick_s, const std::string& id)
       : clock_(rate_hz, lag_s, tick_s, id) {}
   template <typename Measure>
@@ -102,6 +130,9 @@ class GpsSensor : public PeriodicSensor<GpsSample> {
   void update(const vehicle::VehicleSnapshot& state);
   const GpsConfig& config() const { return config_; }
   const GeodeticConverter& converter() const { return converter_; }
+  /// Checkpoint state: schedule, random stream, bias walk (docs/sensors.md).
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
 
  private:
   GpsConfig config_;
@@ -115,6 +146,9 @@ class ImuSensor : public PeriodicSensor<ImuSample> {
   ImuSensor(const ImuConfig& config, std::uint64_t seed, double tick_s);
   void update(const vehicle::VehicleSnapshot& state);
   const ImuConfig& config() const { return config_; }
+  /// Checkpoint state: schedule, random stream, both bias walks.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
 
  private:
   ImuConfig config_;
@@ -128,6 +162,9 @@ class MagnetometerSensor : public PeriodicSensor<MagnetometerSample> {
   MagnetometerSensor(const MagnetometerConfig& config, std::uint64_t seed, double tick_s);
   void update(const vehicle::VehicleSnapshot& state);
   const MagnetometerConfig& config() const { return config_; }
+  /// Checkpoint state: schedule and random stream.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
   /// Earth's field in the world (ENU) frame.
   Vec3 world_field_ut() const { return world_field_; }
 
@@ -142,6 +179,9 @@ class TachometerSensor : public PeriodicSensor<TachometerSample> {
   TachometerSensor(const TachometerConfig& config, std::uint64_t seed, double tick_s);
   void update(const vehicle::VehicleSnapshot& state);
   const TachometerConfig& config() const { return config_; }
+  /// Checkpoint state: schedule and random stream.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
 
  private:
   TachometerConfig config_;

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "core/state_io.hpp"
 #include "sensors/random.hpp"
 #include "sensors/ray_packets.hpp"
 
@@ -304,6 +305,64 @@ void LidarSensor::update(const Scene& scene, double time_s) {
 
 std::vector<LidarScan> LidarSensor::take_available(double now_s) {
   return queue_.take_ready(clock_.tick_of(now_s));
+}
+
+// Kept: the clock and the waiting scans. Not kept: returns_ and points_ (work arrays of one
+// scan) and the renderer (configuration).
+void LidarSensor::save_state(core::StateWriter& w) const {
+  w.begin("lidar", 1);
+  w.io(seed_);
+  clock_.save_state(w);
+  queue_.save_state(w, [](core::StateWriter& ww, const LidarScan& s) {
+    ww.io(s.sensor_id);
+    ww.io(s.stamp);
+    ww.io(s.pose.position);
+    ww.io(s.pose.orientation);
+    ww.io(s.channels);
+    ww.io(s.samples);
+    ww.io(static_cast<std::uint64_t>(s.points.size()));
+    for (const LidarPoint& p : s.points) {
+      ww.io(p.x);
+      ww.io(p.y);
+      ww.io(p.z);
+      ww.io(p.intensity);
+      ww.io(p.range);
+      ww.io(p.channel);
+      ww.io(p.sample);
+    }
+  });
+  w.end();
+}
+
+void LidarSensor::load_state(core::StateReader& r) {
+  r.begin("lidar", 1);
+  if (r.get<std::uint64_t>() != seed_) {
+    r.fail(config_.id + ": the state is of a lidar with another noise seed (another scenario "
+           "seed or vehicle)");
+  }
+  clock_.load_state(r, config_.id);
+  queue_.load_state(r, [](core::StateReader& rr, LidarScan& s) {
+    rr.io(s.sensor_id);
+    rr.io(s.stamp);
+    rr.io(s.pose.position);
+    rr.io(s.pose.orientation);
+    rr.io(s.channels);
+    rr.io(s.samples);
+    const auto n = rr.get<std::uint64_t>();
+    s.points.clear();
+    for (std::uint64_t k = 0; k < n; ++k) {
+      LidarPoint p;
+      rr.io(p.x);
+      rr.io(p.y);
+      rr.io(p.z);
+      rr.io(p.intensity);
+      rr.io(p.range);
+      rr.io(p.channel);
+      rr.io(p.sample);
+      s.points.push_back(p);
+    }
+  });
+  r.end();
 }
 
 }  // namespace syndds::sensors

@@ -84,6 +84,11 @@ class LidarSensor {
   const LidarConfig& config() const { return config_; }
   const LidarRenderer& renderer() const { return renderer_; }
 
+  /// Checkpoint state (between frames): schedule and scans waiting for their lag. The noise is
+  /// a pure function of (seed, scan index, beam): no stream to keep.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
+
  private:
   LidarConfig config_;
   std::string vehicle_id_;

@@ -1,8 +1,10 @@
 #include "sensors/random.hpp"
 
 #include <array>
+#include <sstream>
 
 #include "core/hash.hpp"
+#include "core/state_io.hpp"
 
 namespace syndds::sensors {
 
@@ -14,6 +16,29 @@ std::uint64_t derive_seed(std::uint64_t scenario_seed, std::string_view stream) 
   std::array<std::uint32_t, 2> out{};
   seq.generate(out.begin(), out.end());
   return (static_cast<std::uint64_t>(out[1]) << 32) | out[0];
+}
+
+// The engine's text form is fixed by the standard (its 312 words and position), so it reads
+// back into the same sequence on any library. The spare half of a Box-Muller pair is the next
+// normal() when has_spare_ is set: losing it would shift every later variate.
+void NormalRng::save_state(core::StateWriter& w) const {
+  w.begin("normal_rng", 1);
+  std::ostringstream engine;
+  engine << engine_;
+  w.io(engine.str());
+  w.io(spare_);
+  w.io(has_spare_);
+  w.end();
+}
+
+void NormalRng::load_state(core::StateReader& r) {
+  r.begin("normal_rng", 1);
+  std::istringstream engine(r.get<std::string>());
+  engine >> engine_;
+  if (!engine) r.fail("the random engine's state cannot be read");
+  r.io(spare_);
+  r.io(has_spare_);
+  r.end();
 }
 
 double inverse_normal_cdf(double p) {

@@ -16,6 +16,11 @@
 
 #include "core/hash.hpp"
 
+namespace syndds::core {
+class StateWriter;
+class StateReader;
+}  // namespace syndds::core
+
 namespace syndds::sensors {
 
 /// Seed of the random stream `stream` in a scenario seeded with `scenario_seed`
@@ -46,6 +51,10 @@ class NormalRng {
     return r * std::cos(phi);
   }
   double normal(double std_dev) { return std_dev == 0.0 ? 0.0 : std_dev * normal(); }
+
+  /// Checkpoint state: the engine (its standard text form, exact) and the spare variate.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
 
  private:
   std::mt19937_64 engine_;

@@ -3,6 +3,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/state_io.hpp"
+
 namespace syndds::sensors {
 namespace {
 
@@ -10,6 +12,42 @@ std::string fmt(double v) {
   std::ostringstream s;
   s << v;
   return s.str();
+}
+
+// Sensors of one kind in rig order, each behind its id so a state of another rig is refused
+// by name rather than read into the wrong sensor.
+template <typename Sensor, typename Id>
+void save_kind(core::StateWriter& w, const std::vector<Sensor>& sensors, Id&& id) {
+  w.io(static_cast<std::uint64_t>(sensors.size()));
+  for (const auto& s : sensors) {
+    w.io(id(s));
+    if constexpr (requires { s->save_state(w); }) {
+      s->save_state(w);
+    } else {
+      s.save_state(w);
+    }
+  }
+}
+
+template <typename Sensor, typename Id>
+void load_kind(core::StateReader& r, std::vector<Sensor>& sensors, Id&& id, const char* kind) {
+  const auto n = r.get<std::uint64_t>();
+  if (n != sensors.size()) {
+    r.fail(std::string("the state has ") + std::to_string(n) + " " + kind + " sensors, this rig " +
+           std::to_string(sensors.size()));
+  }
+  for (auto& s : sensors) {
+    const auto saved = r.get<std::string>();
+    if (saved != id(s)) {
+      r.fail(std::string("the state has ") + kind + " '" + saved + "' where this rig has '" +
+             id(s) + "'");
+    }
+    if constexpr (requires { s->load_state(r); }) {
+      s->load_state(r);
+    } else {
+      s.load_state(r);
+    }
+  }
 }
 
 }  // namespace
@@ -86,6 +124,37 @@ RenderedBatch VehicleSensors::take_rendered(double now_s) {
     for (auto& s : l->take_available(now_s)) b.lidar.push_back(std::move(s));
   }
   return b;
+}
+
+void VehicleSensors::save_state(core::StateWriter& w) const {
+  w.begin("vehicle_sensors", 1);
+  w.io(vehicle_id_);
+  auto id = [](const auto& s) -> const std::string& { return s.config().id; };
+  auto pid = [](const auto& s) -> const std::string& { return s->config().id; };
+  save_kind(w, gps_, id);
+  save_kind(w, imus_, id);
+  save_kind(w, magnetometers_, id);
+  save_kind(w, tachometers_, id);
+  save_kind(w, cameras_, pid);
+  save_kind(w, lidars_, pid);
+  w.end();
+}
+
+void VehicleSensors::load_state(core::StateReader& r) {
+  r.begin("vehicle_sensors", 1);
+  const auto vehicle = r.get<std::string>();
+  if (vehicle != vehicle_id_) {
+    r.fail("the state is of the sensors of vehicle '" + vehicle + "', not '" + vehicle_id_ + "'");
+  }
+  auto id = [](const auto& s) -> const std::string& { return s.config().id; };
+  auto pid = [](const auto& s) -> const std::string& { return s->config().id; };
+  load_kind(r, gps_, id, "gps");
+  load_kind(r, imus_, id, "imu");
+  load_kind(r, magnetometers_, id, "magnetometer");
+  load_kind(r, tachometers_, id, "tachometer");
+  load_kind(r, cameras_, pid, "camera");
+  load_kind(r, lidars_, pid, "lidar");
+  r.end();
 }
 
 }  // namespace syndds::sensors

@@ -69,6 +69,14 @@ class VehicleSensors {
   std::vector<std::unique_ptr<CameraSensor>>& cameras() { return cameras_; }
   std::vector<std::unique_ptr<LidarSensor>>& lidars() { return lidars_; }
 
+  /// Checkpoint state of every sensor built (between frames; docs/sensors.md, "Checkpoint
+  /// state"): random streams, bias walks, schedules, samples waiting for their lag, open
+  /// exposures. The scene the rendered sensors look at is not part of it.
+  void save_state(core::StateWriter& w) const;
+  /// Restores into sensors built from the same rig, vehicle, seed, step and frame. Throws
+  /// core::StateError naming the sensor when the state is of another vehicle or rig.
+  void load_state(core::StateReader& r);
+
  private:
   std::string vehicle_id_;
   std::vector<GpsSensor> gps_;

@@ -53,4 +53,35 @@ std::optional<std::uint64_t> SampleClock::trigger(std::int64_t tick) {
   return k;
 }
 
+// Rate, lag and tick come from the configuration; they are written so a state of a sensor
+// configured otherwise is refused by name instead of resuming on another schedule.
+void SampleClock::save_state(core::StateWriter& w) const {
+  w.begin("sample_clock", 1);
+  w.io(tick_s_);
+  w.io(period_ticks_);
+  w.io(lag_ticks_);
+  w.io(started_);
+  w.io(next_k_);
+  w.io(next_tick_);
+  w.end();
+}
+
+void SampleClock::load_state(core::StateReader& r, const std::string& sensor_id) {
+  r.begin("sample_clock", 1);
+  const auto tick = r.get<double>();
+  const auto period = r.get<double>();
+  const auto lag = r.get<std::int64_t>();
+  if (tick != tick_s_ || period != period_ticks_ || lag != lag_ticks_) {
+    std::ostringstream msg;
+    msg << "sensor '" << sensor_id << "' ran on another schedule: tick " << tick << " s, "
+        << period << " ticks per measurement, lag " << lag << " ticks in the state; " << tick_s_
+        << " s, " << period_ticks_ << ", " << lag_ticks_ << " here";
+    r.fail(msg.str());
+  }
+  r.io(started_);
+  r.io(next_k_);
+  r.io(next_tick_);
+  r.end();
+}
+
 }  // namespace syndds::sensors

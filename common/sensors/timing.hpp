@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "core/state_io.hpp"
+
 namespace syndds::sensors {
 
 /// Stamps every sample carries.
@@ -20,6 +22,14 @@ struct SampleStamp {
   std::uint64_t sequence = 0;  // measurement index k (0, 1, 2, ...)
   double time_s = 0.0;         // measurement time (start of the collection window)
   double available_s = 0.0;    // time_s + lag: when a consumer may see it
+
+  template <typename Archive>
+  void state(Archive& a) {
+    a.io(sequence);
+    a.io(time_s);
+    a.io(available_s);
+  }
+  void state(core::StateWriter& w) const { const_cast<SampleStamp*>(this)->state<core::StateWriter>(w); }
 };
 
 class SampleClock {
@@ -45,6 +55,12 @@ class SampleClock {
   SampleStamp stamp(std::uint64_t k, std::int64_t tick) const {
     return {k, time_of(tick), time_of(tick + lag_ticks_)};
   }
+
+  /// Checkpoint state: where the schedule stands (started, next measurement and its tick),
+  /// after the tick, period and lag it was built with; load refuses a clock built otherwise
+  /// (`sensor_id` names it in the message).
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r, const std::string& sensor_id);
 
  private:
   double rate_hz_;
@@ -73,6 +89,31 @@ class LagQueue {
     return out;
   }
   std::size_t pending() const { return items_.size(); }
+
+  /// Checkpoint state: every waiting sample with its available tick, in release order;
+  /// `write(w, sample)` / `read(r, sample)` encode one sample.
+  template <typename Write>
+  void save_state(core::StateWriter& w, Write&& write) const {
+    w.io(static_cast<std::uint64_t>(items_.size()));
+    for (const auto& [tick, sample] : items_) {
+      w.io(tick);
+      write(w, sample);
+    }
+  }
+  template <typename Read>
+  void load_state(core::StateReader& r, Read&& read) {
+    items_.clear();
+    const auto n = r.get<std::uint64_t>();
+    for (std::uint64_t k = 0; k < n; ++k) {
+      std::pair<std::int64_t, Sample> item;
+      r.io(item.first);
+      read(r, item.second);
+      if (!items_.empty() && item.first < items_.back().first) {
+        r.fail("waiting samples are not in release order: the state is damaged");
+      }
+      items_.push_back(std::move(item));
+    }
+  }
 
  private:
   std::deque<std::pair<std::int64_t, Sample>> items_;
