@@ -91,6 +91,9 @@ fi
 
 plan=$("$BIN/syndds_plan" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" --bin-dir "$BIN" \
        --format launcher "${LAYOUT[@]}" "${PASS[@]}") || exit 1
+# on_member_loss: recover: a member process that dies is started again (--rejoin), at most
+# max_recoveries times per process; the coordinator rolls every member back (docs/checkpoints.md).
+read -r LOSS_POLICY MAX_RESTARTS < <("$BIN/syndds_plan" "$SCENARIO" --format policy "${PASS[@]}") || exit 1
 
 # Refuse what this machine cannot start, before starting anything: every process of a run
 # holds about PROCESS_MB of memory (Fast DDS participant, shared-memory transport; measured in
@@ -111,7 +114,7 @@ fi
 
 mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
 : > "$OUTPUT/logs/pids"
-names=(); pids=(); codes=()
+names=(); pids=(); codes=(); cmds=(); restarts=()
 # From here on no child may outlive the launcher: signals are noted and handled by the watch
 # loop below, and whatever ends the script kills what is still running.
 interrupted=0
@@ -133,7 +136,7 @@ while IFS=$'\t' read -r member cmd; do
   fi
   log="$OUTPUT/logs/${member//\//_}.log"
   ( eval "exec $cmd" ) > "$log" 2>&1 &
-  names+=("$member"); pids+=($!); codes+=("")
+  names+=("$member"); pids+=($!); codes+=(""); cmds+=("$cmd"); restarts+=(0)
   echo "$member $!" >> "$OUTPUT/logs/pids"
 done <<< "$plan"
 echo "run_scenario: started ${#pids[@]} processes for run $RUN_ID (logs in $OUTPUT/logs)"
@@ -160,7 +163,25 @@ while :; do
       alive=$((alive + 1))
       continue
     fi
-    wait "${pids[$i]}"; codes[$i]=$?
+    wait "${pids[$i]}"; code=$?
+    # Only a process that died (killed by a signal) is restarted: one that ended by itself
+    # (aborted run, own failure, interrupt) was told to or will fail again.
+    if [ "$LOSS_POLICY" = recover ] && [ "${names[$i]}" != coordinator ] && [ $code -gt 128 ] &&
+       [ $code -ne 130 ] && [ $run_started = 1 ] && [ $interrupted = 0 ] && [ $deadline -eq 0 ] &&
+       [ "${restarts[$i]}" -lt "$MAX_RESTARTS" ] && kill -0 "${pids[0]}" 2>/dev/null; then
+      # Lost while the run goes on: start it again; it rejoins from the coordinator's rollback.
+      restarts[$i]=$((restarts[$i] + 1))
+      echo "run_scenario: ${names[$i]} was killed by signal $((code - 128)); restarting it (${restarts[$i]} of at most $MAX_RESTARTS)" >&2
+      # Its Fast DDS shared-memory files would keep the new process from opening its ports.
+      command -v fastdds > /dev/null && fastdds shm clean > /dev/null 2>&1
+      log="$OUTPUT/logs/${names[$i]//\//_}.restart${restarts[$i]}.log"
+      ( eval "exec ${cmds[$i]} --rejoin" ) > "$log" 2>&1 &
+      pids[$i]=$!
+      echo "${names[$i]} $!" >> "$OUTPUT/logs/pids"
+      alive=$((alive + 1))
+      continue
+    fi
+    codes[$i]=$code
     case "${names[$i]}" in
       coordinator) coordinator_code=${codes[$i]}
                    [ $deadline -eq 0 ] && deadline=$((SECONDS + GRACE_S)) ;;

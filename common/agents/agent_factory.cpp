@@ -46,7 +46,8 @@ proto::AgentPtr make_agent(const scenario::Scenario& s, const std::string& membe
     }
     if (member_id == scenario::sensor_member(v.id) && v.has_rendered_sensors()) {
       return std::make_unique<SensorAgent>(
-          s, v, SensorAgentOptions{(std::filesystem::path(recorder_options.output_dir) / "sensors").string()});
+          s, v, SensorAgentOptions{(std::filesystem::path(recorder_options.output_dir) / "sensors").string(),
+                             recorder_options.resume});
     }
     if (member_id == scenario::external_member(v.id) && v.controller.type == "external") {
       throw ConfigError(member_id + " is an external controller: it is the user's own program");

@@ -87,6 +87,7 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
     const auto& v = s.vehicles[i];
     scene_->add_vehicle(v.id, sensors::vehicle_shape(v.params, sensors::vehicle_palette(i)));
     scene_->set_vehicle_pose(v.id, v.start, {});
+    poses_[v.id] = {v.start, {}};
   }
   scene_->commit();
   sensors_ = std::make_unique<sensors::VehicleSensors>(config_.rig, vehicle_id_, s.seed,
@@ -99,7 +100,8 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
     index_ = std::make_unique<record::CsvFile>(
         dir / "frames.csv",
         std::vector<std::string>{"sensor", "sequence", "time_s", "available_s", "x", "y", "z",
-                                 "qw", "qx", "qy", "qz", "file"});
+                                 "qw", "qx", "qy", "qz", "file"},
+        options_.resume ? record::OutputFile::Open::resume : record::OutputFile::Open::create);
   }
 }
 
@@ -125,6 +127,7 @@ void SensorAgent::update_world(const proto::FrameSamples& inputs) {
     wheels.reserve(st.wheels.size());
     for (const auto& w : st.wheels) wheels.push_back(w.pose);
     scene_->set_vehicle_pose(st.vehicle_id, st.pose, wheels);
+    poses_[st.vehicle_id] = {st.pose, std::move(wheels)};
   }
   if (soil_) {
     // The soil copy merges every list by the SCM rule; the scene shows the merged heights.
@@ -161,6 +164,7 @@ void SensorAgent::remove_departed(const std::vector<std::string>& departed) {
     // Our own vehicle is never drawn for our own sensors, and they still ride where it stopped.
     if (id == vehicle_id_ || !scene_->has_vehicle(id)) continue;
     scene_->remove_vehicle(id);
+    poses_.erase(id);
     removed = true;
     spdlog::info("{}: vehicle '{}' was lost; removed from the scene", member_id_, id);
   }
@@ -217,6 +221,74 @@ void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& fi
   for (auto& [id, video] : videos_) video->close();
   spdlog::info("{}: rendered {} camera frames", member_id_, frames_rendered_);
   if (soil_) spdlog::info("{}: terrain grid hash {:016x}", member_id_, soil_->grid_hash());
+}
+
+void SensorAgent::save_state(core::StateWriter& w) {
+  if (config_.video) throw ProtocolError(member_id_ + ": a camera video cannot be checkpointed");
+  w.begin("sensor_agent", 1);
+  w.io(frames_rendered_);
+  w.io(static_cast<std::uint64_t>(poses_.size()));
+  for (const auto& [id, pose] : poses_) {
+    w.io(id);
+    w.io(pose.first.position);
+    w.io(pose.first.orientation);
+    w.io(static_cast<std::uint64_t>(pose.second.size()));
+    for (const auto& p : pose.second) {
+      w.io(p.position);
+      w.io(p.orientation);
+    }
+  }
+  sensors_->save_state(w);
+  w.io(soil_ != nullptr);
+  if (soil_) soil_->save_state(w);
+  w.io(index_ != nullptr);
+  if (index_) w.io(index_->size());
+  w.end();
+}
+
+void SensorAgent::load_state(core::StateReader& r) {
+  r.begin("sensor_agent", 1);
+  r.io(frames_rendered_);
+  std::map<std::string, std::pair<Pose, std::vector<Pose>>> poses;
+  const auto n = r.get<std::uint64_t>();
+  for (std::uint64_t k = 0; k < n; ++k) {
+    const auto id = r.get<std::string>();
+    if (!scene_->has_vehicle(id)) r.fail("vehicle '" + id + "' is not in this scenario's scene");
+    auto& pose = poses[id];
+    r.io(pose.first.position);
+    r.io(pose.first.orientation);
+    pose.second.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
+    for (auto& p : pose.second) {
+      r.io(p.position);
+      r.io(p.orientation);
+    }
+  }
+  sensors_->load_state(r);
+  if (r.get<bool>() != (soil_ != nullptr)) r.fail("the soil copy does not match the terrain");
+  if (soil_) soil_->load_state(r);
+  if (r.get<bool>() != (index_ != nullptr)) r.fail("the frame index does not match the rig");
+  if (index_) {
+    const auto size = r.get<std::uint64_t>();
+    try {
+      index_->cut_to(size);
+    } catch (const record::WriteError& e) {
+      r.fail(e.what());
+    }
+  }
+  r.end();
+  // The scene as it was: vehicles removed since the start stay removed, the others where they
+  // were, the terrain at the soil copy's heights.
+  for (const auto& [id, pose] : poses_) {
+    if (!poses.contains(id)) scene_->remove_vehicle(id);
+  }
+  for (const auto& [id, pose] : poses) scene_->set_vehicle_pose(id, pose.first, pose.second);
+  poses_ = std::move(poses);
+  if (soil_) {
+    std::vector<sensors::HeightUpdate> updates;
+    for (const auto& v : soil_->snapshot().vertices) render_vertex(v.i, v.j, updates);
+    if (!updates.empty()) scene_->update_terrain_world(updates);
+  }
+  scene_->commit();
 }
 
 }  // namespace syndds::agents

@@ -4,6 +4,7 @@
 // the vehicle's cameras and lidars. In frame k it sees the states and deformations stamped
 // k-1 (the world at t_{k-1}), renders it, and publishes what became available, stamped k.
 // A vehicle lost under on_member_loss: continue leaves the scene in the frame it is reported.
+#include <map>
 #include <memory>
 
 #include "protocol/agent.hpp"
@@ -17,6 +18,7 @@ namespace syndds::agents {
 
 struct SensorAgentOptions {
   std::string output_dir;  // where saved frames / videos go (scenario decides whether to save)
+  bool resume = false;     // continue the frame index of a checkpointed run (load_state)
 };
 
 class SensorAgent final : public proto::Agent {
@@ -33,6 +35,11 @@ class SensorAgent final : public proto::Agent {
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
+  /// Checkpoints: the sensors, the soil copy, the scene's vehicles and their poses, the frame
+  /// index. Not with a video (an MJPG file cannot be continued).
+  bool can_checkpoint() const override { return !config_.video; }
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
 
   const sensors::Scene& scene() const { return *scene_; }
   std::uint64_t frames_rendered() const { return frames_rendered_; }
@@ -55,6 +62,9 @@ class SensorAgent final : public proto::Agent {
   std::map<std::string, std::unique_ptr<sensors::VideoWriter>> videos_;
   std::unique_ptr<record::CsvFile> index_;  // frames.csv, when frames are saved
   std::uint64_t frames_rendered_ = 0;
+  // The pose the scene shows of each vehicle (kept for checkpoints: a vehicle whose states
+  // stop arriving stays where it was), absent once removed.
+  std::map<std::string, std::pair<Pose, std::vector<Pose>>> poses_;
 };
 
 }  // namespace syndds::agents

@@ -17,6 +17,8 @@ std::string join_names(const std::vector<std::string>& names) {
 Barrier::Barrier(BarrierConfig config, double now_s) : config_(std::move(config)), created_s_(now_s) {
   for (const auto& m : config_.members) members_[m].active_from = 0;
   for (const auto& m : config_.late_members) members_[m].late = true;
+  // A resumed run starts from a complete checkpoint: the first one to fall back on.
+  if (config_.first_frame > 0) last_checkpoint_ = restored_checkpoint_ = config_.first_frame - 1;
 }
 
 std::string Barrier::on_join(const std::string& member, double now_s) {
@@ -25,6 +27,14 @@ std::string Barrier::on_join(const std::string& member, double now_s) {
     return "ignoring join of '" + member + "': not a member of this scenario";
   }
   Member& m = it->second;
+  if (m.rejoining) {
+    // A lost member restarted (on_member_loss: recover): back in with the rollback.
+    m.rejoining = false;
+    m.lost = false;
+    m.joined = true;
+    m.joined_at_s = now_s;
+    return "";
+  }
   if (m.joined) return "";  // repeated announcement (TRANSIENT_LOCAL) is harmless
   if (phase_ != Phase::joining && !m.late) {
     return "ignoring join of '" + member + "': the run has already started";
@@ -65,6 +75,9 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
       return "";
     }
     if (phase_ == Phase::aborted || pending_abort_ || loss_abort_at_) return "";
+    // While lost members are waited for, others may fail waiting for what the lost ones never
+    // delivered: they end, are lost in turn and are recovered with the rest.
+    if (recovering_) return "";
     if (m.left || m.active_from < 0) {
       // Not (or no longer) in the barrier: nobody waits for it, so its failure is its own.
       return "ignoring the failure of " + done.member_id + ", which is not in the barrier: " +
@@ -81,6 +94,8 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
     return "";
   }
   if (phase_ != Phase::running) return "";
+  // A done of an epoch that was rolled back answers a grant that no longer counts.
+  if (done.epoch != epoch_ || recovering_) return "";
   if (done.frame != frame_) {
     if (done.frame < frame_) return "";  // stale duplicate
     return "ignoring done from '" + done.member_id + "' for frame " + std::to_string(done.frame) +
@@ -118,7 +133,32 @@ void Barrier::on_member_lost(const std::string& member, const std::string& why, 
     it->second.lost = false;
     return;
   }
-  if (config_.on_member_loss == LossPolicy::abort || phase_ == Phase::joining) {
+  if (config_.on_member_loss == LossPolicy::recover && phase_ == Phase::running &&
+      !loss_abort_at_ && !pending_abort_) {
+    std::string cannot;
+    if (last_checkpoint_ < 0) {
+      cannot = "no complete checkpoint to recover from yet";
+    } else if (static_cast<int>(recoveries_.size()) >= config_.max_recoveries) {
+      cannot = "the run recovered " + std::to_string(recoveries_.size()) +
+               " times already (coordinator.max_recoveries)";
+    }
+    if (cannot.empty()) {
+      // Every member rolls back to the last complete checkpoint once the lost ones announce
+      // themselves again (restarted by the launcher or by hand); nothing is granted meanwhile.
+      if (!recovering_) {
+        recovering_ = Recovery{frame_, last_checkpoint_, {}};
+        rejoin_deadline_ = now_s + config_.rejoin_timeout_s;
+      }
+      recovering_->members.emplace_back(member, why);
+      it->second.rejoining = true;
+      it->second.joined = false;
+      return;
+    }
+    lost_.emplace_back(member, why + "; cannot recover: " + cannot);
+    if (!loss_abort_at_) loss_abort_at_ = now_s + kLossGatherS;
+    return;
+  }
+  if (config_.on_member_loss != LossPolicy::continue_run || phase_ == Phase::joining) {
     if (!pending_abort_) {
       lost_.emplace_back(member, why);
       if (!loss_abort_at_) loss_abort_at_ = now_s + kLossGatherS;
@@ -242,6 +282,7 @@ Barrier::Action Barrier::poll(double now_s) {
   }
 
   // running
+  if (recovering_) return poll_recovering(now_s);
   if (!everyone_done()) {
     const double deadline = grant_s_ + config_.frame_timeout_s;
     if (now_s >= deadline) {
@@ -262,7 +303,11 @@ Barrier::Action Barrier::poll(double now_s) {
   last_completed_ = frame_;
   const Manifest manifest = collect_manifest();
   last_manifest_ = manifest;
-  note_checkpoint();
+  if (rolling_back_) {
+    rolling_back_ = false;  // every member restored the checkpoint of frame_: nothing was due
+  } else {
+    note_checkpoint();
+  }
   if (frame_ >= config_.final_frame) {
     phase_ = Phase::stopped;
     end_s_ = now_s;
@@ -294,6 +339,7 @@ Barrier::Action Barrier::poll(double now_s) {
   a.kind = Action::Kind::grant;
   a.grant.frame = frame_;
   a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
+  a.grant.epoch = epoch_;
   a.grant.manifest = manifest;
   a.grant.departed = std::move(departed_);
   departed_.clear();
@@ -302,10 +348,10 @@ Barrier::Action Barrier::poll(double now_s) {
 }
 
 void Barrier::note_checkpoint() {
-  // Members write the checkpoint of frame K before they step K + 1 (not the one a resumed
-  // run started from: it exists).
+  // Members write the checkpoint of frame K before they step K + 1, but not the one the run
+  // resumed or rolled back to: it exists.
   const std::int64_t of = frame_ - 1;
-  if (!checkpoint_due(of, config_.checkpoint_every) || frame_ == config_.first_frame) return;
+  if (!checkpoint_due(of, config_.checkpoint_every) || of == restored_checkpoint_) return;
   CheckpointReport r;
   r.frame = of;
   for (const auto& [name, m] : members_) {
@@ -316,7 +362,63 @@ void Barrier::note_checkpoint() {
       r.missing.push_back(name);
     }
   }
+  if (r.missing.empty()) last_checkpoint_ = of;
   checkpoint_ = std::move(r);
+}
+
+std::vector<std::string> Barrier::rejoining_members() const {
+  std::vector<std::string> out;
+  for (const auto& [name, m] : members_) {
+    if (m.rejoining) out.push_back(name);
+  }
+  return out;
+}
+
+Barrier::Action Barrier::poll_recovering(double now_s) {
+  const auto waiting = rejoining_members();
+  if (!waiting.empty()) {
+    if (now_s >= *rejoin_deadline_) {
+      std::ostringstream msg;
+      msg << join_names(waiting) << " lost (";
+      for (const auto& [member, why] : recovering_->members) msg << member << ": " << why << "; ";
+      msg << "the run was to roll back to the checkpoint of frame " << recovering_->to_checkpoint
+          << ") and did not announce itself again within " << config_.rejoin_timeout_s << " s";
+      return abort_with(msg.str(), now_s);
+    }
+    Action wait;
+    wait.kind = Action::Kind::wait;
+    wait.wake_at_s = *rejoin_deadline_;
+    return wait;
+  }
+  // Everyone is back: every member restores its checkpoint of frame C and reports frame C
+  // done (in the new epoch); only then is C + 1 granted, which every member steps with the
+  // inputs saved in its checkpoint. Two steps, so that no member publishes a sample of the new
+  // epoch while another still holds the old one's frames as taken.
+  Action a;
+  a.kind = Action::Kind::grant;
+  for (const auto& [member, why] : recovering_->members) a.grant.rejoined.push_back(member);
+  recoveries_.push_back(std::move(*recovering_));
+  recovering_.reset();
+  rejoin_deadline_.reset();
+  checkpoint_.reset();
+  ++epoch_;
+  restored_checkpoint_ = last_checkpoint_;
+  frame_ = last_checkpoint_;
+  last_completed_ = last_checkpoint_ - 1;
+  rolling_back_ = true;
+  grant_s_ = now_s;
+  // Realtime pacing goes on from here.
+  first_grant_s_ = now_s - static_cast<double>(frame_ - config_.first_frame) * config_.heartbeat_s;
+  for (auto& [name, m] : members_) {
+    m.done = false;
+    m.published.clear();
+    m.checkpoint_bytes = 0;
+  }
+  a.grant.frame = frame_;
+  a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
+  a.grant.epoch = epoch_;
+  a.grant.rollback = true;
+  return a;
 }
 
 std::optional<CheckpointReport> Barrier::take_checkpoint() {

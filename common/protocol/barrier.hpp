@@ -13,7 +13,7 @@
 
 namespace syndds::proto {
 
-enum class LossPolicy : std::uint8_t { abort, continue_run };
+enum class LossPolicy : std::uint8_t { abort, continue_run, recover };
 
 struct BarrierConfig {
   std::vector<std::string> members;  // declared by the scenario, waited for at the start
@@ -28,6 +28,16 @@ struct BarrierConfig {
   bool realtime = false;             // pace grants to the wall clock
   std::int64_t first_frame = 0;      // > 0: a run resumed from the checkpoint of first_frame - 1
   std::int64_t checkpoint_every = 0; // frames between checkpoints (0: none)
+  // on_member_loss: recover (docs/checkpoints.md, "Recovering a lost member"):
+  int max_recoveries = 3;            // recoveries per run; the next loss aborts it
+  double rejoin_timeout_s = 60.0;    // for the lost members to announce themselves again
+};
+
+/// A recovery: members lost while frame `lost_in` ran, the run rolled back to `to_checkpoint`.
+struct Recovery {
+  std::int64_t lost_in = 0;
+  std::int64_t to_checkpoint = 0;
+  std::vector<std::pair<std::string, std::string>> members;  // member, why it was lost
 };
 
 /// A checkpoint every member reported written (FrameDone::checkpoint_bytes).
@@ -83,6 +93,12 @@ class Barrier {
   RunStatsMsg stats(double now_s) const;
   /// The checkpoint reported with the frame completed last, once (nullopt: none).
   std::optional<CheckpointReport> take_checkpoint();
+  /// The newest complete checkpoint (-1: none yet).
+  std::int64_t last_checkpoint() const { return last_checkpoint_; }
+  /// Recoveries so far (on_member_loss: recover).
+  const std::vector<Recovery>& recoveries() const { return recoveries_; }
+  /// Lost members the run waits for (to announce themselves again) before it rolls back.
+  std::vector<std::string> rejoining_members() const;
 
  private:
   struct Member {
@@ -94,6 +110,7 @@ class Barrier {
     bool left = false;       // lost under the `continue` policy: no longer waited for
     bool done = false;       // done with the current frame
     bool finished = false;   // replied to stop
+    bool rejoining = false;  // lost under recover: waited for to announce itself again
     Manifest published;      // in the current frame
     std::uint64_t checkpoint_bytes = 0;  // in the current frame
     double response_sum_s = 0.0;
@@ -113,6 +130,8 @@ class Barrier {
   std::string loss_reason() const;
   /// After frame_ completed: the checkpoint its done reports carried, if one was due.
   void note_checkpoint();
+  /// Under recover: waits for the lost members, then rolls every member back.
+  Action poll_recovering(double now_s);
 
   BarrierConfig config_;
   std::map<std::string, Member> members_;
@@ -133,6 +152,13 @@ class Barrier {
   std::map<std::string, std::string> lost_after_end_;    // processes gone after the stop
   bool announced_end_ = false;
   std::optional<CheckpointReport> checkpoint_;  // reported, not taken yet
+  std::int64_t last_checkpoint_ = -1;           // newest complete checkpoint
+  std::int64_t restored_checkpoint_ = -1;       // the one the run resumed or rolled back to
+  std::uint32_t epoch_ = 0;
+  std::optional<Recovery> recovering_;          // lost members being waited for
+  bool rolling_back_ = false;                   // the current frame is the rollback's
+  std::optional<double> rejoin_deadline_;
+  std::vector<Recovery> recoveries_;
 };
 
 }  // namespace syndds::proto

@@ -47,6 +47,15 @@ class FrameInbox {
   /// dropped and counted in unexpected_samples().
   FrameSamples take(std::int64_t frame, const Manifest& manifest);
 
+  /// After a rollback to the checkpoint of `frame`: accepts samples stamped after `frame`
+  /// again. Those held already stay: whether they came before the rollback or after (a member
+  /// that rolled back sooner), a run is deterministic, so a frame's samples are the same in
+  /// every epoch, and take() hands out as many as announced.
+  void reset(std::int64_t frame) {
+    pending_.erase(pending_.begin(), pending_.upper_bound(frame));
+    last_taken_ = frame;
+  }
+
   std::uint64_t unexpected_samples() const { return unexpected_; }
   std::int64_t last_taken_frame() const { return last_taken_; }
 

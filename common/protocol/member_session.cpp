@@ -36,6 +36,11 @@ void MemberSession::resume(FrameSamples inputs) {
   resumed_inputs_ = std::move(inputs);
 }
 
+void MemberSession::on_rolled_back(FrameSamples inputs, double now_s) {
+  rolling_back_ = false;
+  resumed_inputs_ = std::move(inputs);
+}
+
 void MemberSession::on_grant(FrameGrantMsg grant, double now_s) {
   grants_.push_back(std::move(grant));
 }
@@ -153,7 +158,7 @@ MemberSession::Action MemberSession::poll_finishing(double now_s) {
 }
 
 MemberSession::Action MemberSession::poll(double now_s) {
-  if (phase_ == Phase::ended || stepping_) return wait_until(now_s + 1.0);
+  if (phase_ == Phase::ended || stepping_ || rolling_back_) return wait_until(now_s + 1.0);
 
   if (phase_ == Phase::joining) {
     if (interrupted_s_) return fail("interrupted", Outcome::interrupted, now_s);
@@ -173,7 +178,7 @@ MemberSession::Action MemberSession::poll(double now_s) {
     }
     phase_ = Phase::running;
     // A resumed member took part when its checkpoint was written: it is in from the start.
-    admitted_ = !config_.late_join || resumed_inputs_.has_value();
+    admitted_ = (!config_.late_join && !config_.rejoin) || resumed_inputs_.has_value();
     Action a;
     a.kind = Action::Kind::joined;
     return a;
@@ -199,8 +204,48 @@ MemberSession::Action MemberSession::poll(double now_s) {
                 Outcome::failed, now_s);
   }
 
+  // A rollback (on_member_loss: recover) voids every grant before it: whatever this member
+  // was waiting for in the old epoch will not come, or comes again identical.
+  for (auto it = grants_.rbegin(); it != grants_.rend(); ++it) {
+    if (it->rollback && it->epoch > epoch_) {
+      grants_.erase(grants_.begin(), std::prev(it.base()));
+      break;
+    }
+  }
   while (!grants_.empty()) {
     FrameGrantMsg& front = grants_.front();
+    if (front.epoch < epoch_) {  // an old epoch's grant, replayed
+      grants_.pop_front();
+      continue;
+    }
+    if (front.rollback && front.epoch > epoch_) {
+      const auto& r = front.rejoined;
+      const bool named = std::any_of(r.begin(), r.end(), [&](const std::string& e) {
+        return e.substr(0, e.find(' ')) == config_.member_id;
+      });
+      if (!admitted_ && !(config_.rejoin && named)) {
+        grants_.pop_front();  // a late joiner not in yet: not its business
+        continue;
+      }
+      // Every member restores its checkpoint of the granted frame and reports it done; the next
+      // frame is then stepped with the inputs saved there.
+      admitted_ = true;
+      epoch_ = front.epoch;
+      next_frame_ = front.frame + 1;
+      inbox_.reset(front.frame);
+      waiting_frame_ = -1;
+      rolling_back_ = true;
+      Action a;
+      a.kind = Action::Kind::rollback;
+      a.rollback_frame = front.frame;
+      a.rejoined = std::move(front.rejoined);
+      grants_.pop_front();
+      return a;
+    }
+    if (!admitted_ && config_.rejoin) {  // restarted: waits for the rollback naming it
+      grants_.pop_front();
+      continue;
+    }
     if (!admitted_) {
       // A late joiner starts with the frame after the grant that names it; grants before that
       // (also old ones replayed by TRANSIENT_LOCAL) are not its business.

@@ -30,6 +30,8 @@ struct MemberSessionConfig {
   bool late_join = false;         // may join a run under way: starts after the grant naming it
   bool skip_data_barrier = false; // test knob: start frames without waiting for announced data
   std::int64_t resume_frame = -1; // >= 0: resumed from the checkpoint of this frame (resume())
+  bool rejoin = false;            // restarted after it was lost (on_member_loss: recover): takes
+                                  // part from the rollback grant that names it
 };
 
 class MemberSession {
@@ -39,9 +41,13 @@ class MemberSession {
   enum class Outcome { completed, aborted, failed, interrupted };
 
   struct Action {
-    enum class Kind { wait, joined, step, finish };
+    enum class Kind { wait, joined, rollback, step, finish };
     Kind kind = Kind::wait;
     double wake_at_s = 0.0;  // wait: call poll() again by then even without events
+    // rollback: restore the agent from its checkpoint of `rollback_frame`, call
+    // on_rolled_back() with the inputs saved there (or on_failure()), report the frame done.
+    std::int64_t rollback_frame = -1;
+    std::vector<std::string> rejoined;  // "MEMBER PARTICIPANT_GUID" of the restarted members
     // step: run the agent on `context` with `inputs`, publish, report done, then on_stepped().
     FrameContext context;
     FrameSamples inputs;     // step: samples stamped frame - 1; finish: the final inputs
@@ -77,6 +83,11 @@ class MemberSession {
   /// A member resumed from its checkpoint of config.resume_frame: the first frame it steps is
   /// the next one, with `inputs` (saved in the checkpoint) instead of samples from the network.
   void resume(FrameSamples inputs);
+  /// The rollback handed out by poll() is done: the agent holds its checkpointed state and
+  /// steps the granted frame with `inputs`.
+  void on_rolled_back(FrameSamples inputs, double now_s);
+  /// The epoch of the grants this member answers (dones carry it).
+  std::uint32_t epoch() const { return epoch_; }
 
   /// The next decision. joined/step/finish are returned once; after finish poll() says wait.
   Action poll(double now_s);
@@ -113,6 +124,8 @@ class MemberSession {
   bool stepping_ = false;              // a step was handed out and has not ended yet
   std::int64_t next_frame_ = 0;
   std::optional<FrameSamples> resumed_inputs_;  // for the first frame after resume()
+  std::uint32_t epoch_ = 0;
+  bool rolling_back_ = false;          // a rollback was handed out and has not ended yet
   std::int64_t waiting_frame_ = -1;    // the granted frame whose inputs are awaited ...
   double waiting_since_s_ = 0.0;       // ... since then
 };

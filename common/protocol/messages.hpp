@@ -344,8 +344,14 @@ struct FrameGrantMsg {
   Manifest manifest;        // what was published in frame - 1
   std::vector<std::string> joiners;  // late joiners taking part from frame + 1 on
   std::vector<std::string> departed;  // members lost under on_member_loss: continue since the previous grant
+  std::uint32_t epoch = 0;  // +1 at every recovery (on_member_loss: recover)
+  bool rollback = false;    // every member restores its checkpoint of `frame` (instead of
+                            // stepping it) and reports it done; frame + 1 is granted next
+  std::vector<std::string> rejoined;  // with rollback: "MEMBER PARTICIPANT_GUID" of each member
+                                      // restarted since (its new participant)
 };
-SYNDDS_FIELDS(FrameGrantMsg, frame, sim_time_s, manifest, joiners, departed)
+SYNDDS_FIELDS(FrameGrantMsg, frame, sim_time_s, manifest, joiners, departed, epoch, rollback,
+              rejoined)
 
 struct FrameDoneMsg {
   std::string member_id;
@@ -356,9 +362,10 @@ struct FrameDoneMsg {
   std::string error;        // non-empty: the member failed (and exits); the run aborts with it
   std::uint64_t checkpoint_bytes = 0;  // > 0: before this frame the member wrote its state of
                                        // frame - 1 (docs/checkpoints.md), this many bytes
+  std::uint32_t epoch = 0;  // of the grant this answers: dones of an epoch rolled back are void
 };
 SYNDDS_FIELDS(FrameDoneMsg, member_id, frame, published, compute_s, finished, error,
-              checkpoint_bytes)
+              checkpoint_bytes, epoch)
 
 /// Checkpoints are written of every frame K that is a positive multiple of `every` frames
 /// (every <= 0: never), by each member before it steps frame K + 1.

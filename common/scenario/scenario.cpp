@@ -57,8 +57,13 @@ CoordinatorConfig parse_coordinator(const YamlNode& node) {
   // Bounded so that deadlines stay representable on the steady clock (1e300 s wrapped).
   c.join_timeout_s = m.number("join_timeout_s", c.join_timeout_s, 0.001, kMaxTimeoutS);
   c.frame_timeout_s = m.number("frame_timeout_s", c.frame_timeout_s, 0.001, kMaxTimeoutS);
-  const std::string policy = m.choice("on_member_loss", "abort", {"abort", "continue"});
-  c.on_member_loss = policy == "abort" ? proto::LossPolicy::abort : proto::LossPolicy::continue_run;
+  const std::string policy =
+      m.choice("on_member_loss", "abort", {"abort", "continue", "recover"});
+  c.on_member_loss = policy == "abort"      ? proto::LossPolicy::abort
+                     : policy == "continue" ? proto::LossPolicy::continue_run
+                                            : proto::LossPolicy::recover;
+  c.max_recoveries = static_cast<int>(m.number("max_recoveries", c.max_recoveries, 0, 1000));
+  c.rejoin_timeout_s = m.number("rejoin_timeout_s", c.rejoin_timeout_s, 0.001, kMaxTimeoutS);
   m.finish();
   return c;
 }
@@ -672,6 +677,19 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
     }
     s.checkpoint.every_frames = static_cast<std::int64_t>(std::llround(frames));
     r.finish();
+  }
+  if (s.coordinator.on_member_loss == proto::LossPolicy::recover) {
+    // A lost member is recovered by rolling every member back to a checkpoint.
+    const YamlNode policy = MapReader(m.required("coordinator")).required("on_member_loss");
+    if (!s.checkpoint.enabled()) {
+      policy.fail("recover rolls the run back to its last checkpoint: set checkpoint: every_s");
+    }
+    for (const auto& v : s.vehicles) {
+      if (v.controller.type == "external") {
+        policy.fail("recover cannot roll back vehicle " + v.id +
+                    "'s external controller (the user's program); use abort or continue");
+      }
+    }
   }
   m.finish();
   if (const auto members = s.member_ids().size(); members > kMaxMembers) {

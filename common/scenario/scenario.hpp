@@ -72,6 +72,8 @@ struct CoordinatorConfig {
   double join_timeout_s = 30.0;
   double frame_timeout_s = 10.0;
   proto::LossPolicy on_member_loss = proto::LossPolicy::abort;
+  int max_recoveries = 3;          // on_member_loss: recover
+  double rejoin_timeout_s = 60.0;  // on_member_loss: recover
 };
 
 struct DdsConfig {

@@ -33,9 +33,9 @@ inline int member_main(const char* name, const char* description, int argc, char
     options.on_outcome = [&](int code) { leaving.emplace(code); };
     record::RecorderOptions ro;
     if (recorder_options) ro = recorder_options(s, options.dds.run_id);
-    ro.resume = options.resume_frame >= 0;
+    ro.resume = options.resume_frame >= 0 || options.rejoin;
     auto agent = agents::make_agent(s, member, ro);
-    if (options.checkpoint_every > 0 || options.resume_frame >= 0) {
+    if (options.checkpoint_every > 0 || options.resume_frame >= 0 || options.rejoin) {
       agents::require_checkpoints(s, *agent);
     }
     if (configure) configure(*agent);

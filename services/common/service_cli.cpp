@@ -63,6 +63,9 @@ void add_common_options(CLI::App& app, CommonArgs& a) {
                  "Run directory where checkpoints are written and read (docs/checkpoints.md)");
   app.add_option("--resume-from", a.resume_from,
                  "Resume from the complete checkpoint of this frame in --run-dir, or 'latest'");
+  app.add_flag("--rejoin", a.rejoin,
+               "A member restarted after it was lost (on_member_loss: recover): join the run "
+               "under way from the coordinator's rollback");
 }
 
 std::int64_t resume_frame(const CommonArgs& args, const std::string& run_dir) {
@@ -166,6 +169,11 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
                       "checkpoints go to with --run-dir");
   }
   if (!a.resume_from.empty()) o.resume_frame = resume_frame(a, a.run_dir);
+  o.rejoin = a.rejoin;
+  if (a.rejoin && s.coordinator.on_member_loss != proto::LossPolicy::recover) {
+    throw ConfigError("--rejoin: " + s.file + " does not recover lost members "
+                      "(coordinator.on_member_loss is not recover)");
+  }
   return o;
 }
 

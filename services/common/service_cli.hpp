@@ -29,6 +29,9 @@ struct CommonArgs {
   std::string run_dir;
   /// Start from the complete checkpoint of this frame ("latest": the newest) in run_dir.
   std::string resume_from;
+  /// Restarted after it was lost (on_member_loss: recover): joins the run under way and takes
+  /// part from the coordinator's rollback (the launcher adds it).
+  bool rejoin = false;
 };
 
 /// The frame --resume-from names in `run_dir` (a number, or "latest"); ConfigError if there is

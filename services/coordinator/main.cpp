@@ -61,6 +61,8 @@ int main(int argc, char** argv) {
     o.barrier.join_timeout_s = s.coordinator.join_timeout_s;
     o.barrier.frame_timeout_s = s.coordinator.frame_timeout_s;
     o.barrier.on_member_loss = s.coordinator.on_member_loss;
+    o.barrier.max_recoveries = s.coordinator.max_recoveries;
+    o.barrier.rejoin_timeout_s = s.coordinator.rejoin_timeout_s;
     o.barrier.realtime = s.time.realtime;
     // From the verdict on, the members leave; Fast DDS 2.9.1 may abort on an assertion while
     // many participants leave at once (seen at 32 vehicles after a completed run), which must

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 
 #include "dds/convert.hpp"
 #include "dds/member_runtime.hpp"
@@ -111,6 +113,27 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
     const std::string refused = barrier_->on_config_mismatch(a.member_id, mismatch, now());
     if (!refused.empty()) spdlog::error("coordinator: {}", refused);
   } else {
+    const auto rejoining = barrier_->rejoining_members();
+    const bool rejoin =
+        std::find(rejoining.begin(), rejoining.end(), a.member_id) != rejoining.end();
+    const auto known = guid_of_member_.find(a.member_id);
+    if (known != guid_of_member_.end() && known->second != a.participant_guid && !rejoin) {
+      // Another participant under a name already taken (its samples are refused by the
+      // members): not a restart the run waits for.
+      spdlog::warn("coordinator: ignoring {} announced by participant {} (pid {} on {}): "
+                   "participant {} is that member", a.member_id, a.participant_guid, a.pid,
+                   a.host, known->second);
+      advance_locked();
+      return;
+    }
+    if (rejoin && known != guid_of_member_.end()) {
+      // The member's old participant is gone: its lease running out later is not a new loss.
+      auto& old = members_of_guid_[known->second];
+      old.erase(std::remove(old.begin(), old.end(), a.member_id), old.end());
+      spdlog::info("coordinator: {} announced itself again (pid {} on {})", a.member_id, a.pid,
+                   a.host);
+    }
+    guid_of_member_[a.member_id] = a.participant_guid;
     auto& members = members_of_guid_[a.participant_guid];
     if (std::find(members.begin(), members.end(), a.member_id) == members.end()) {
       members.push_back(a.member_id);
@@ -132,6 +155,7 @@ void CoordinatorService::on_process_exit(const std::string& guid) {
   for (const auto& member : it->second) {
     barrier_->on_member_lost(member, "its process exited", now());
   }
+  note_recovering_locked();
   advance_locked();
 }
 
@@ -167,6 +191,7 @@ void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
                                       : "liveliness lost (no DDS announcement within the lease)",
                              now());
   }
+  note_recovering_locked();
   advance_locked();
 }
 
@@ -198,12 +223,54 @@ void CoordinatorService::declare_checkpoint(const proto::CheckpointReport& repor
   }
 }
 
+void CoordinatorService::note_recovering_locked() {
+  const auto waiting = barrier_->rejoining_members();
+  if (waiting.empty()) return;
+  std::string names;
+  for (const auto& m : waiting) names += (names.empty() ? "" : ", ") + m;
+  if (names == recovering_logged_) return;
+  recovering_logged_ = names;
+  spdlog::warn("coordinator: recovering: waiting up to {:g} s for {} to announce itself again; "
+               "then every member rolls back to the checkpoint of frame {}",
+               options_.barrier.rejoin_timeout_s, names, barrier_->last_checkpoint());
+}
+
+void CoordinatorService::note_recovery_locked(const proto::FrameGrantMsg& grant) {
+  recovering_logged_.clear();
+  const proto::Recovery& r = barrier_->recoveries().back();
+  std::string names;
+  for (const auto& [member, why] : r.members) names += (names.empty() ? "" : ", ") + member;
+  spdlog::warn("coordinator: recovery {}: {} lost in frame {}; every member rolls back to the "
+               "checkpoint of frame {} and goes on", barrier_->recoveries().size(), names,
+               r.lost_in, r.to_checkpoint);
+  if (options_.run_dir.empty()) return;
+  // The run's record of its recoveries (the CSV files of the run hold no trace of them: they
+  // are byte-identical to an undisturbed run's).
+  try {
+    const std::filesystem::path file = std::filesystem::path(options_.run_dir) / "recoveries.csv";
+    const bool fresh = !std::filesystem::exists(file);
+    std::ofstream out(file, std::ios::app);
+    if (fresh) out << "recovery,lost_in_frame,rolled_back_to_frame,member,why\n";
+    for (const auto& [member, why] : r.members) {
+      out << barrier_->recoveries().size() << ',' << r.lost_in << ',' << r.to_checkpoint << ','
+          << member << ",\"" << why << "\"\n";
+    }
+    if (!out) throw std::runtime_error("cannot write " + file.string());
+  } catch (const std::exception& e) {
+    spdlog::error("coordinator: recoveries.csv: {}", e.what());
+  }
+}
+
 void CoordinatorService::advance_locked() {
   using Kind = proto::Barrier::Action::Kind;
   while (!end_) {
     auto action = barrier_->poll(now());
     if (auto checkpoint = barrier_->take_checkpoint()) declare_checkpoint(*checkpoint);
     if (action.kind == Kind::grant) {
+      if (action.grant.rollback) {
+        note_recovery_locked(action.grant);
+        for (auto& member : action.grant.rejoined) member += " " + guid_of_member_[member];
+      }
       for (const auto& j : action.grant.joiners) {
         spdlog::info("coordinator: {} joins the run at frame {}", j, action.grant.frame + 1);
       }

@@ -56,6 +56,10 @@ class CoordinatorService {
   void on_process_exit(const std::string& guid);
   void malformed(const std::string& what, const std::string& error);
   void advance_locked();
+  /// Logs the lost members a recovery waits for (once per change).
+  void note_recovering_locked();
+  /// Logs a rollback and appends it to RUN_DIR/recoveries.csv.
+  void note_recovery_locked(const proto::FrameGrantMsg& grant);
   /// Declares a checkpoint every member reported written complete (complete.yaml).
   void declare_checkpoint(const proto::CheckpointReport& report);
   void wait_for_finished(std::unique_lock<std::mutex>& lock);
@@ -71,6 +75,9 @@ class CoordinatorService {
   std::int64_t progress_every_ = 1;
   // Participant GUID prefix -> the members it announced (several when a process hosts a group).
   std::map<std::string, std::vector<std::string>> members_of_guid_;
+  // Member -> the participant that is it (the newest, after a restart under recover).
+  std::map<std::string, std::string> guid_of_member_;
+  std::string recovering_logged_;  // the members last logged as awaited
   // Participant GUID prefix -> its process (MemberAnnounce::process_key), when announced.
   std::map<std::string, std::string> process_of_guid_;
   // Processes of this machine whose participant's lease expired while they still ran: lost

@@ -73,6 +73,7 @@ proto::MemberSessionConfig MemberRuntime::session_config() const {
   c.late_join = options_.late_join;
   c.skip_data_barrier = options_.debug_skip_data_barrier;
   c.resume_frame = options_.resume_frame;
+  c.rejoin = options_.rejoin;
   return c;
 }
 
@@ -212,9 +213,15 @@ void MemberRuntime::note_announcement(const proto::MemberAnnounceMsg& a,
   }
   const auto [it, inserted] = members_.emplace(a.member_id, named);
   if (!inserted && it->second != named) {
-    spdlog::error("{}: participant {} (pid {} on {}) announced itself as '{}', which participant "
-                  "{} announced first: its samples are refused", agent_.member_id(),
-                  a.participant_guid, a.pid, a.host, a.member_id, to_string(it->second));
+    // An impostor, or the member restarted (on_member_loss: recover): the coordinator's
+    // rollback grant says which participant is the member from then on; until then its
+    // samples wait.
+    if (reannounced_[a.member_id].insert(named).second) {
+      spdlog::warn("{}: participant {} (pid {} on {}) announced itself as '{}', which participant "
+                   "{} announced first: its samples wait until the coordinator names it (a "
+                   "restarted member) and are refused otherwise", agent_.member_id(),
+                   a.participant_guid, a.pid, a.host, a.member_id, to_string(it->second));
+    }
     return;
   }
   if (!inserted) return;
@@ -245,6 +252,15 @@ void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
     return;
   }
   if (it->second != writer) {
+    if (replaced_.contains(writer)) return;  // a member's process before its restart
+    const auto re = reannounced_.find(sample.source);
+    if (re != reannounced_.end() && re->second.contains(writer)) {
+      // A restarted member's sample may arrive before the rollback naming it: it waits.
+      unannounced_.push_back([this, s = std::move(sample), writer]() mutable {
+        admit_locked<T>(std::move(s), writer);
+      });
+      return;
+    }
     proto::RejectedSample r;
     r.topic = T;
     r.key = sample.vehicle_id;
@@ -301,6 +317,7 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   d.finished = finished;
   d.error = error;
   d.checkpoint_bytes = finished || !error.empty() ? 0 : checkpoint_bytes_;
+  d.epoch = session_->epoch();
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
@@ -341,8 +358,10 @@ void MemberRuntime::run_frame(const proto::FrameContext& ctx,
                               const proto::FrameSamples& inputs) {
   const auto t0 = Clock::now();
   checkpoint_bytes_ = 0;
+  // Not the checkpoint this member was just restored from (resume or rollback): it exists, and
+  // saving again would pass the state through the model's setters a second time.
   if (proto::checkpoint_due(ctx.frame - 1, options_.checkpoint_every) &&
-      ctx.frame - 1 != options_.resume_frame) {
+      ctx.frame - 1 != restored_from_) {
     // The state after frame - 1 and the inputs of this frame: all a resumed member needs.
     checkpoint_bytes_ = record::write_member_checkpoint(
         options_.run_dir, ctx.frame - 1, options_.config_fingerprint, agent_, inputs);
@@ -422,6 +441,7 @@ void MemberRuntime::prepare() {
     t0_ = Clock::now();
     session_.emplace(agent_.subscriptions(), session_config(), now());
     if (options_.resume_frame >= 0) {
+      restored_from_ = options_.resume_frame;
       session_->resume(record::read_member_checkpoint(options_.run_dir, options_.resume_frame,
                                                       options_.config_fingerprint, agent_));
       spdlog::info("{}: resumed from the checkpoint of frame {} in {}", agent_.member_id(),
@@ -465,6 +485,51 @@ int MemberRuntime::run(const std::atomic<bool>& interrupt) {
         const double wait_s = std::clamp(action.wake_at_s - now(), 0.0,
                                          std::chrono::duration<double>(kPollInterval).count());
         cv_.wait_for(lock, std::chrono::duration<double>(wait_s));
+        break;
+      }
+      case Kind::rollback: {
+        // Restarted members are their new participants from now on; what their old ones
+        // still deliver is of the epoch rolled back.
+        for (const auto& entry : action.rejoined) {
+          const auto space = entry.find(' ');
+          GuidPrefix guid;
+          if (space == std::string::npos || !parse_guid_prefix(entry.substr(space + 1), guid)) {
+            session_->on_failure("malformed rejoined entry '" + entry + "' in a rollback grant",
+                                 now());
+            continue;
+          }
+          const std::string member = entry.substr(0, space);
+          if (const auto old = members_.find(member); old != members_.end() && old->second != guid) {
+            replaced_.insert(old->second);
+          }
+          members_[member] = guid;
+        }
+        std::vector<std::function<void()>> waiting;
+        waiting.swap(unannounced_);
+        for (auto& retry : waiting) retry();
+        lock.unlock();
+        spdlog::warn("{}: rolling back to the checkpoint of frame {} (a member was lost)",
+                     agent_.member_id(), action.rollback_frame);
+        std::string error;
+        proto::FrameSamples inputs;
+        try {
+          inputs = record::read_member_checkpoint(options_.run_dir, action.rollback_frame,
+                                                  options_.config_fingerprint, agent_);
+        } catch (const std::exception& e) {
+          error = e.what();
+        }
+        lock.lock();
+        if (error.empty()) {
+          restored_from_ = action.rollback_frame;
+          session_->on_rolled_back(std::move(inputs), now());
+          lock.unlock();
+          checkpoint_bytes_ = 0;
+          send_done(action.rollback_frame, {}, 0.0, false);
+          lock.lock();
+        } else {
+          session_->on_rolled_back({}, now());
+          session_->on_failure("rollback: " + error, now());
+        }
         break;
       }
       case Kind::joined:

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <functional>
 #include <map>
+#include <set>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -36,6 +37,7 @@ struct MemberRuntimeOptions {
   std::string run_dir;
   std::int64_t checkpoint_every = 0;  // frames between checkpoints (0: none)
   std::int64_t resume_frame = -1;     // >= 0: start from the checkpoint of this frame
+  bool rejoin = false;  // restarted after it was lost (recover): waits for the rollback
   /// Called once the agent finished the run, with the exit code run() will return, before the
   /// last DDS exchanges (flushing, confirming): nothing after it changes this member's outcome
   /// (see service::DdsTeardownGuard).
@@ -121,6 +123,10 @@ class MemberRuntime {
   std::vector<std::function<void()>> unannounced_;  // samples waiting for their writer's
                                                     // announcement
   std::vector<proto::RejectedSample> rejected_;     // not yet told to the agent
+  // Participants that announced a member already announced by another (restarts or
+  // impostors), and participants a rollback replaced by the member's restarted process.
+  std::map<std::string, std::set<GuidPrefix>> reannounced_;
+  std::set<GuidPrefix> replaced_;
 
   // One writer and one reader slot per data topic (null when the agent does not use it).
   template <proto::Topic T>
@@ -146,6 +152,7 @@ class MemberRuntime {
   std::string end_reason_;
   bool prepared_ = false;
   std::uint64_t checkpoint_bytes_ = 0;  // written before the current frame, for its done
+  std::int64_t restored_from_ = -1;     // the checkpoint last restored (resume or rollback)
 };
 
 }  // namespace syndds::dds

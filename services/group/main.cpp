@@ -55,7 +55,7 @@ int main(int argc, char** argv) {
       if (!seen.insert(m).second) throw ConfigError("--member " + m + " given twice");
     }
     const auto dds = service::dds_options(common, s);
-    const bool resume = !common.resume_from.empty();
+    const bool resume = !common.resume_from.empty() || common.rejoin;
     const record::RecorderOptions ro{output, dds.run_id, "distributed", resume};
     std::vector<proto::AgentPtr> agents;
     for (const auto& m : members) {

@@ -37,8 +37,9 @@ int main(int argc, char** argv) {
   app.add_option("--bin-dir", bin_dir, "Folder holding the syndds_* programs");
   app.add_option("--format", format,
                  "shell: one command per line; launcher: member<TAB>command; files: every file "
-                 "the scenario loads (role, hash, bytes, path), to compare hosts")
-      ->check(CLI::IsMember({"shell", "launcher", "files"}))
+                 "the scenario loads (role, hash, bytes, path), to compare hosts; policy: the "
+                 "on_member_loss policy and max_recoveries")
+      ->check(CLI::IsMember({"shell", "launcher", "files", "policy"}))
       ->capture_default_str();
   app.add_option("--processes", layout_option,
                  "Process layout: per_member, per_vehicle or a number of processes for the "
@@ -52,6 +53,16 @@ int main(int argc, char** argv) {
                     static_cast<unsigned long long>(f.hash),
                     static_cast<unsigned long long>(f.size), f.path.c_str());
       }
+      return 0;
+    }
+    if (format == "policy") {
+      // For the launcher: what it does when a member's process dies (restart it under recover).
+      const auto p = s.coordinator.on_member_loss;
+      std::printf("%s %d\n",
+                  p == proto::LossPolicy::recover        ? "recover"
+                  : p == proto::LossPolicy::continue_run ? "continue"
+                                                         : "abort",
+                  s.coordinator.max_recoveries);
       return 0;
     }
     const std::string run_id = service::dds_options(common, s).run_id;  // validated
