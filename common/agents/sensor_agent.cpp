@@ -64,9 +64,14 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
   if (s.terrain.type == "scm") {
     const auto& g = s.terrain.scm.grid;
     render_stride_ = std::max(1, static_cast<int>(std::lround(kRenderSpacingM / g.spacing_m)));
-    scene_->set_terrain(sensors::sample_terrain(*surface, g.spacing_m * render_stride_, g.x_min_m,
-                                                g.x_max_m, g.y_min_m, g.y_max_m),
-                        sensors::terrain_look(look_of(s.terrain)));
+    // Kept to draw the soil afresh when a rollback (on_member_loss: recover) takes back ruts
+    // made after the checkpoint.
+    reset_terrain_ = [this, surface, g, look = sensors::terrain_look(look_of(s.terrain))] {
+      scene_->set_terrain(sensors::sample_terrain(*surface, g.spacing_m * render_stride_,
+                                                  g.x_min_m, g.x_max_m, g.y_min_m, g.y_max_m),
+                          look);
+    };
+    reset_terrain_();
   } else if (s.terrain.type == "heightmap") {
     const auto& h = s.terrain.heightmap;
     const double spacing = std::max(0.1, h.size_x_m / 1024.0);
@@ -173,6 +178,7 @@ void SensorAgent::remove_departed(const std::vector<std::string>& departed) {
 
 void SensorAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                        proto::FrameSamples& outputs) {
+  stepped_ = true;
   remove_departed(ctx.departed);
   if (ctx.frame == 0) {
     if (soil_) soil_->take_local_changes();  // the merge window of frame 0's lists
@@ -284,6 +290,7 @@ void SensorAgent::load_state(core::StateReader& r) {
   for (const auto& [id, pose] : poses) scene_->set_vehicle_pose(id, pose.first, pose.second);
   poses_ = std::move(poses);
   if (soil_) {
+    if (stepped_) reset_terrain_();  // a rollback: ruts of later frames are drawn in the scene
     std::vector<sensors::HeightUpdate> updates;
     for (const auto& v : soil_->snapshot().vertices) render_vertex(v.i, v.j, updates);
     if (!updates.empty()) scene_->update_terrain_world(updates);

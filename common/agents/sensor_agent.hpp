@@ -4,6 +4,7 @@
 // the vehicle's cameras and lidars. In frame k it sees the states and deformations stamped
 // k-1 (the world at t_{k-1}), renders it, and publishes what became available, stamped k.
 // A vehicle lost under on_member_loss: continue leaves the scene in the frame it is reported.
+#include <functional>
 #include <map>
 #include <memory>
 
@@ -65,6 +66,8 @@ class SensorAgent final : public proto::Agent {
   // The pose the scene shows of each vehicle (kept for checkpoints: a vehicle whose states
   // stop arriving stays where it was), absent once removed.
   std::map<std::string, std::pair<Pose, std::vector<Pose>>> poses_;
+  std::function<void()> reset_terrain_;  // the scene's soil as it was at the start (SCM)
+  bool stepped_ = false;
 };
 
 }  // namespace syndds::agents

@@ -41,7 +41,12 @@ int main(int argc, char** argv) {
     if (s.checkpoint.enabled()) {
       runner.set_after_frame([&](proto::FrameStepper& stepper) {
         const std::int64_t frame = stepper.next_frame() - 1;
-        if (!record::checkpoint_due(frame, s.checkpoint.every_frames)) return;
+        // As distributed: the checkpoint of frame K is written before frame K + 1 (none of the
+        // final frame).
+        if (!record::checkpoint_due(frame, s.checkpoint.every_frames) ||
+            frame >= s.time.final_frame()) {
+          return;
+        }
         const auto info = record::write_local_checkpoint(run_dir, stepper, s.fingerprint,
                                                          s.time.heartbeat_s);
         std::uint64_t bytes = 0;

@@ -1,0 +1,165 @@
+// Checkpoints, resume and recovery with the real programs (docs/checkpoints.md): a run whose
+// processes were all killed resumes from its last complete checkpoint, and under
+// on_member_loss: recover a run in which one member is killed goes on; both end with exactly
+// the files of an undisturbed run.
+#include <csignal>
+
+#include "harness.hpp"
+
+using namespace syndds;
+using namespace syndds::test;
+
+namespace {
+
+const std::string kScenario = kSource + "/tests/multiprocess/scenarios/checkpointed.yaml";
+
+// Every file of a run directory that must match an undisturbed run (the logs, the checkpoints,
+// the summaries with their wall times and recoveries.csv are the run's own).
+std::vector<fs::path> result_files(const fs::path& dir) {
+  std::vector<fs::path> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const auto rel = fs::relative(e.path(), dir);
+    const std::string first = rel.begin()->string();
+    if (first == "logs" || first.starts_with("logs.") || first == "checkpoints" ||
+        first == "summary.json" || first == "summary.txt" || first == "recoveries.csv" ||
+        first == "launcher.log" || rel.filename().string().starts_with(".")) {
+      continue;
+    }
+    out.push_back(rel);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::string grid_hash(const fs::path& dir) {
+  const std::string s = read_file(dir / "summary.json");
+  const auto at = s.find("\"grid_hash\"");
+  return at == std::string::npos ? "" : s.substr(at, 32);
+}
+
+// The files of `got` are those of `want`, byte for byte.
+void expect_same_run(const fs::path& want, const fs::path& got) {
+  const auto files = result_files(want);
+  ASSERT_GT(files.size(), 10u);
+  EXPECT_EQ(result_files(got), files);
+  for (const auto& f : files) {
+    EXPECT_TRUE(read_file(want / f) == read_file(got / f)) << f << " differs";
+  }
+  EXPECT_EQ(grid_hash(got), grid_hash(want));
+  EXPECT_FALSE(grid_hash(want).empty());
+}
+
+// The undisturbed run, all members in one process (byte-identical to the distributed run).
+fs::path reference(const TestRun& run) {
+  const fs::path out = run.dir / "reference";
+  Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
+                  run.common_args(),
+              run.dir / "reference.log");
+  const auto code = sim.wait(120);
+  EXPECT_EQ(code, std::optional<int>(0)) << sim.log();
+  return out;
+}
+
+bool complete(const fs::path& out, int frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%09d", frame);
+  return fs::exists(out / "checkpoints" / name / "complete.yaml");
+}
+
+}  // namespace
+
+// Everything killed (the launcher too) once the checkpoint of frame 300 is complete; the
+// launcher's --resume then finishes the run from it.
+TEST(Checkpoint, ARunResumedAfterEveryProcessWasKilledIsByteIdentical) {
+  TestRun run;
+  const fs::path want = reference(run);
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kScenario);
+  ASSERT_TRUE(wait_until([&] { return complete(out, 300) || launcher->poll(); }, 120))
+      << launcher->log();
+  ASSERT_FALSE(launcher->poll()) << "the run ended before it could be killed\n" << launcher->log();
+  launcher->signal(SIGKILL);
+  for (const auto& [member, pid] : launched_pids(out)) ::kill(pid, SIGKILL);
+  launcher->wait(10);
+  ASSERT_FALSE(fs::exists(out / "summary.json") &&
+               read_file(out / "summary.json").find("\"completed\"") != std::string::npos)
+      << "the run completed before it was killed";
+
+  Process resumed("env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
+                      "/launch_scripts/run_scenario.sh " + kScenario + " --resume " +
+                      out.string() + run.common_args(),
+                  run.dir / "resume.log");
+  const auto code = resumed.wait(180);
+  ASSERT_EQ(code, std::optional<int>(0)) << resumed.log();
+  EXPECT_NE(read_file(out / "logs" / "coordinator.log").find("resuming from the checkpoint of frame"),
+            std::string::npos);
+  expect_same_run(want, out);
+}
+
+// The same checkpoint files resume a single-process run: the layouts share them.
+TEST(Checkpoint, ADistributedCheckpointResumesInOneProcess) {
+  TestRun run;
+  const fs::path want = reference(run);
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kScenario);
+  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  expect_same_run(want, out);  // distributed, with checkpoints, as the single process
+  // Back to the checkpoint of frame 200, in one process.
+  Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
+                  " --resume-from 200" + run.common_args(),
+              run.dir / "sim.log");
+  ASSERT_EQ(sim.wait(120), std::optional<int>(0)) << sim.log();
+  expect_same_run(want, out);
+}
+
+// A damaged state file is refused with its name before anything runs.
+TEST(Checkpoint, ADamagedStateFileIsRefusedByName) {
+  TestRun run;
+  const fs::path out = reference(run);
+  const fs::path file = out / "checkpoints" / "frame_000000300" / "vehicle.b.state";
+  std::string bytes = read_file(file);
+  ASSERT_GT(bytes.size(), 1000u);
+  bytes[bytes.size() / 2] ^= 0x10;
+  std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes;
+  Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
+                  " --resume-from 300" + run.common_args(),
+              run.dir / "sim.log");
+  const auto code = sim.wait(60);
+  ASSERT_TRUE(code.has_value());
+  EXPECT_NE(*code, 0);
+  EXPECT_NE(sim.log().find("vehicle.b.state: checksum"), std::string::npos) << sim.log();
+}
+
+// on_member_loss: recover. One member of each kind is killed at a different frame (once a
+// checkpoint is complete): the launcher restarts it, every member rolls back to the last
+// complete checkpoint, and the run ends with the undisturbed run's files.
+TEST(Checkpoint, EveryKindOfMemberKilledIsRecoveredByteIdentical) {
+  TestRun run;
+  const fs::path want = reference(run);
+  const std::vector<std::pair<std::string, int>> victims = {
+      {"vehicle/a", 150}, {"controller/b", 230}, {"sensor/a", 340}, {"recorder", 420}};
+  for (const auto& [victim, frame] : victims) {
+    SCOPED_TRACE(victim);
+    const fs::path out = run.dir / "out";
+    fs::remove_all(out);
+    auto launcher = start_launcher(run, kScenario);
+    // Killed once the run passed `frame` (the recorder has written it), after a checkpoint.
+    const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
+    ASSERT_TRUE(wait_until(
+        [&] { return (complete(out, 100) && rows() > 2u * frame) || launcher->poll(); }, 120))
+        << launcher->log();
+    ASSERT_FALSE(launcher->poll()) << launcher->log();
+    const int pid = launched_pid(out, victim);
+    ASSERT_GT(pid, 0);
+    ::kill(pid, SIGKILL);
+    ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+    EXPECT_NE(launcher->log().find(victim + " was killed by signal 9; restarting it"),
+              std::string::npos)
+        << launcher->log();
+    const std::string recoveries = read_file(out / "recoveries.csv");
+    EXPECT_NE(recoveries.find("," + victim + ",\"its process exited\""), std::string::npos)
+        << recoveries;
+    expect_same_run(want, out);
+  }
+}
