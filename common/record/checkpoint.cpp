@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -155,9 +156,11 @@ CheckpointInfo write_local_checkpoint(const fs::path& run_dir, proto::FrameStepp
   info.fingerprint = fingerprint;
   const auto& agents = stepper.agents();
   for (std::size_t i = 0; i < agents.size(); ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
     const auto bytes = write_member_checkpoint(run_dir, info.frame, fingerprint, *agents[i],
                                                stepper.next_inputs(i));
-    info.members.push_back({agents[i]->member_id(), bytes});
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    info.members.push_back({agents[i]->member_id(), bytes, s});
   }
   mark_checkpoint_complete(run_dir, info);
   return info;

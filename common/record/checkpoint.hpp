@@ -39,6 +39,7 @@ proto::FrameSamples read_member_checkpoint(const std::filesystem::path& run_dir,
 struct CheckpointMember {
   std::string member_id;
   std::uint64_t bytes = 0;
+  double write_s = 0.0;  // wall time to save and write (single process only; else 0)
 };
 struct CheckpointInfo {
   std::int64_t frame = 0;

@@ -50,9 +50,15 @@ int main(int argc, char** argv) {
         const auto info = record::write_local_checkpoint(run_dir, stepper, s.fingerprint,
                                                          s.time.heartbeat_s);
         std::uint64_t bytes = 0;
-        for (const auto& m : info.members) bytes += m.bytes;
-        spdlog::info("checkpoint of frame {} (t = {:g} s): {} members, {} bytes", frame,
-                     info.sim_time_s, info.members.size(), bytes);
+        double seconds = 0.0;
+        for (const auto& m : info.members) {
+          bytes += m.bytes;
+          seconds += m.write_s;
+          spdlog::debug("checkpoint of frame {}: {} {} bytes {:.3f} ms", frame, m.member_id,
+                        m.bytes, 1e3 * m.write_s);
+        }
+        spdlog::info("checkpoint of frame {} (t = {:g} s): {} members, {} bytes, {:.1f} ms",
+                     frame, info.sim_time_s, info.members.size(), bytes, 1e3 * seconds);
       });
     }
     if (resume) {
