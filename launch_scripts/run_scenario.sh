@@ -5,7 +5,7 @@
 #   launch_scripts/run_scenario.sh SCENARIO.yaml [--output DIR] [--duration S] [--realtime]
 #       [--single-process] [--processes per_member|per_vehicle|N] [--print-commands]
 #       [--domain D] [--run-id ID] [--transport default|udp] [--discovery-server ADDR:PORT]
-#       [--log-level LEVEL]
+#       [--log-level LEVEL] [--security-dir DIR]
 #   launch_scripts/run_scenario.sh SCENARIO.yaml --resume RUN_DIR [--from-frame K] [options]
 #
 # --processes overrides the scenario's process layout (docs/deployment.md, "Processes"): one
@@ -45,7 +45,7 @@ while [ $# -gt 0 ]; do
     --run-id) [ $# -ge 2 ] || die "--run-id needs a value"; RUN_ID=$2; shift ;;
     --resume) [ $# -ge 2 ] || die "--resume needs a run directory"; RESUME=$2; shift ;;
     --from-frame) [ $# -ge 2 ] || die "--from-frame needs a frame number"; FROM=$2; shift ;;
-    --duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir)
+    --duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir|--security-dir)
       [ $# -ge 2 ] || die "$1 needs a value"; PASS+=("$1" "$2"); shift ;;
     --processes) [ $# -ge 2 ] || die "--processes needs a value"; LAYOUT=(--processes "$2"); shift ;;
     --realtime) PASS+=("$1") ;;

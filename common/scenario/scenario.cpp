@@ -78,6 +78,15 @@ DdsConfig parse_dds(const YamlNode& node) {
       !std::regex_match(d.discovery_server, std::regex(R"([0-9.]+:[0-9]+)"))) {
     m.required("discovery_server").fail("expected IPv4ADDR:PORT, e.g. 10.0.0.1:11811");
   }
+  if (auto n = m.optional("security")) {
+    MapReader sec(*n);
+    const bool enabled = sec.get_or("enabled", true);
+    const std::string dir = sec.get_or<std::string>("dir", "security");
+    if (enabled) {
+      d.security_dir = (fs::path(node.file()).parent_path() / dir).lexically_normal().string();
+    }
+    sec.finish();
+  }
   m.finish();
   return d;
 }

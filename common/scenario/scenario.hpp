@@ -80,6 +80,9 @@ struct DdsConfig {
   int domain_id = 0;
   std::string transport = "default";  // default (shared memory + UDP) | udp
   std::string discovery_server;       // "ADDR:PORT"; empty: multicast discovery
+  // DDS Security (security: {enabled: true, dir: ...}): the folder make_security.sh wrote,
+  // relative to the scenario file; empty: off.
+  std::string security_dir;
 };
 
 struct TerrainConfig {

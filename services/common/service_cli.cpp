@@ -63,6 +63,9 @@ void add_common_options(CLI::App& app, CommonArgs& a) {
                  "Run directory where checkpoints are written and read (docs/checkpoints.md)");
   app.add_option("--resume-from", a.resume_from,
                  "Resume from the complete checkpoint of this frame in --run-dir, or 'latest'");
+  app.add_option("--security-dir", a.security_dir,
+                 "DDS Security folder written by launch_scripts/make_security.sh (overrides "
+                 "dds.security)");
   app.add_flag("--rejoin", a.rejoin,
                "A member restarted after it was lost (on_member_loss: recover): join the run "
                "under way from the coordinator's rollback");
@@ -146,6 +149,7 @@ dds::DdsOptions dds_options(const CommonArgs& a, const scenario::Scenario& s) {
   d.profiles_file =
       a.dds_profiles.empty() ? (std::filesystem::path(a.config_dir) / "dds" / "profiles.xml").string()
                              : a.dds_profiles;
+  d.security_dir = a.security_dir.empty() ? s.dds.security_dir : a.security_dir;
   return d;
 }
 
@@ -188,6 +192,7 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
                                          const scenario::Scenario& s, const std::string& member) {
   auto o = member_options(a, d, s);
   o.late_join = s.is_late_member(member);
+  o.dds.identity = member;  // its certificate, under DDS Security
   return o;
 }
 

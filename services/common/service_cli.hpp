@@ -32,6 +32,8 @@ struct CommonArgs {
   /// Restarted after it was lost (on_member_loss: recover): joins the run under way and takes
   /// part from the coordinator's rollback (the launcher adds it).
   bool rejoin = false;
+  /// DDS Security folder (overrides dds.security.dir; launch_scripts/make_security.sh).
+  std::string security_dir;
 };
 
 /// The frame --resume-from names in `run_dir` (a number, or "latest"); ConfigError if there is

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
     }
     sdds::CoordinatorOptions o;
     o.dds = service::dds_options(common, s);
+    o.dds.identity = "coordinator";
     o.config_fingerprint = s.fingerprint;
     o.scenario_name = s.name;
     o.run_dir = common.run_dir;

@@ -45,6 +45,35 @@ void load_profiles(const std::string& file) {
 
 }  // namespace
 
+std::vector<std::pair<std::string, std::string>> security_properties(const DdsOptions& o) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::absolute(o.security_dir);
+  std::string file = o.identity;
+  for (char& c : file) {
+    if (c == '/') c = '.';
+  }
+  const fs::path cert = dir / "identities" / (file + ".cert.pem");
+  const fs::path key = dir / "identities" / (file + ".key.pem");
+  for (const auto& f : {dir / "ca.cert.pem", dir / "governance.p7s", dir / "permissions.p7s",
+                        cert, key}) {
+    if (!fs::exists(f)) {
+      throw ConfigError("DDS security: " + f.string() + " is missing (launch_scripts/" +
+                        "make_security.sh SCENARIO writes the identities of its members)");
+    }
+  }
+  const std::string pki = "dds.sec.auth.builtin.PKI-DH.";
+  const std::string acl = "dds.sec.access.builtin.Access-Permissions.";
+  return {{"dds.sec.auth.plugin", "builtin.PKI-DH"},
+          {pki + "identity_ca", "file://" + (dir / "ca.cert.pem").string()},
+          {pki + "identity_certificate", "file://" + cert.string()},
+          {pki + "private_key", "file://" + key.string()},
+          {"dds.sec.access.plugin", "builtin.Access-Permissions"},
+          {acl + "permissions_ca", "file://" + (dir / "ca.cert.pem").string()},
+          {acl + "governance", "file://" + (dir / "governance.p7s").string()},
+          {acl + "permissions", "file://" + (dir / "permissions.p7s").string()},
+          {"dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC"}};
+}
+
 Participant::Participant(const DdsOptions& options) : options_(options) {
   load_profiles(options_.profiles_file);
   if (!options_.discovery_server.empty()) {
@@ -55,8 +84,24 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
   const char* profile =
       options_.transport == "udp" ? "syndds_participant_udp" : "syndds_participant";
   auto* factory = fdds::DomainParticipantFactory::get_instance();
-  participant_ = factory->create_participant_with_profile(
-      static_cast<fdds::DomainId_t>(options_.domain_id), profile, this, fdds::StatusMask::none());
+  if (options_.security_dir.empty()) {
+    participant_ = factory->create_participant_with_profile(
+        static_cast<fdds::DomainId_t>(options_.domain_id), profile, this,
+        fdds::StatusMask::none());
+  } else {
+    // The profile's QoS plus the security plugins with this member's identity (set in code:
+    // each process has its own certificate).
+    fdds::DomainParticipantQos qos;
+    if (factory->get_participant_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
+      throw ConfigError(std::string("no participant profile ") + profile + " in " +
+                        options_.profiles_file);
+    }
+    for (const auto& [name, value] : security_properties(options_)) {
+      qos.properties().properties().emplace_back(name, value);
+    }
+    participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(options_.domain_id),
+                                               qos, this, fdds::StatusMask::none());
+  }
   if (!participant_) {
     throw ConfigError("cannot create a DDS participant on domain " +
                       std::to_string(options_.domain_id) + " with profile " + profile);

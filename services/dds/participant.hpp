@@ -41,7 +41,15 @@ struct DdsOptions {
   std::string transport = "default";  // default (shared memory + UDP) | udp
   std::string discovery_server;  // "ADDR:PORT" of a Fast DDS discovery server; empty: multicast
   std::string profiles_file;     // QoS profiles XML (config/dds/profiles.xml)
+  // DDS Security (launch_scripts/make_security.sh): the folder with ca.cert.pem,
+  // governance.p7s, permissions.p7s and identities/; empty: no security.
+  std::string security_dir;
+  std::string identity;  // whose certificate: a member id ("vehicle/a") or "coordinator"
 };
+
+/// The participant properties that turn on DDS Security with `options.identity`'s certificate
+/// from `options.security_dir`; ConfigError naming a missing file.
+std::vector<std::pair<std::string, std::string>> security_properties(const DdsOptions& options);
 
 /// Topic names, defined once. Protocol topics and one per data topic.
 namespace topics {

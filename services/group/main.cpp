@@ -55,6 +55,10 @@ int main(int argc, char** argv) {
       if (!seen.insert(m).second) throw ConfigError("--member " + m + " given twice");
     }
     const auto dds = service::dds_options(common, s);
+    if (!dds.security_dir.empty()) {
+      // Permissions are per participant, and a group's members share one.
+      throw ConfigError("DDS security needs one process per member (processes: per_member)");
+    }
     const bool resume = !common.resume_from.empty() || common.rejoin;
     const record::RecorderOptions ro{output, dds.run_id, "distributed", resume};
     std::vector<proto::AgentPtr> agents;

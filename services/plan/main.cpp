@@ -79,6 +79,9 @@ int main(int argc, char** argv) {
     if (common.transport) shared += " --transport " + *common.transport;
     if (common.discovery_server) shared += " --discovery-server " + quote(*common.discovery_server);
     if (!common.dds_profiles.empty()) shared += " --dds-profiles " + quote(common.dds_profiles);
+    if (!common.security_dir.empty()) {
+      shared += " --security-dir " + quote(fs::absolute(common.security_dir).string());
+    }
     if (common.log_level != "info") shared += " --log-level " + common.log_level;
     // Checkpoints go to the run directory (docs/checkpoints.md); a resumed run starts there.
     const std::string run_dir = quote(fs::absolute(output).string());

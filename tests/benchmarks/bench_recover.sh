@@ -47,7 +47,7 @@ for t in $(seq 1 "$TRIALS"); do
   "$ROOT/launch_scripts/run_scenario.sh" "$SCENARIO" --output "$out" > "$WORK/launcher$t.log" 2>&1 &
   launcher=$!
   for _ in $(seq 1 1200); do
-    rows=$(wc -l < "$out/vehicles.csv" 2>/dev/null || echo 0)
+    rows=0; [ -f "$out/vehicles.csv" ] && rows=$(wc -l < "$out/vehicles.csv")
     [ "$rows" -gt $(( frame * per_frame + 1 )) ] && break
     kill -0 $launcher 2>/dev/null || break
     sleep 0.05
@@ -69,7 +69,7 @@ for t in $(seq 1 "$TRIALS"); do
     bad=1
     tail -n 3 "$WORK/launcher$t.log"
   fi
-  printf 'trial %2d: killed %-14s after frame %4d; rolled back to %s in %s s; %s\n' \
+  printf 'trial %2d: killed %-14s once frame %4d was recorded; rolled back to %s, %s s after the kill; %s\n' \
     "$t" "$victim" "$frame" "$to" "$secs" "$result"
 done
 exit $bad
