@@ -26,7 +26,7 @@ PACKAGES=(
   libtorch-dev pybind11-dev python3-dev
   cyclonedds-dev cyclonedds-tools
   python3 python3-matplotlib python3-numpy
-  iproute2 util-linux procps nftables
+  iproute2 util-linux procps nftables openssl bc
 )
 
 if [ "$INSTALL" = 1 ]; then

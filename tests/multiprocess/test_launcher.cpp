@@ -191,4 +191,55 @@ TEST(Launcher, KilledRecorderIsReportedAsAnIncompleteRecording) {
 }
 
 }  // namespace
+
+// DDS Security (launch_scripts/make_security.sh): a run in which every process carries its
+// member's certificate gives the same results as a plain one; a process without one is never
+// heard, so the run cannot start and the coordinator names it.
+namespace {
+
+fs::path make_security(const TestRun& run, const std::string& scenario) {
+  const fs::path dir = run.dir / "security";
+  const std::string cmd = "SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
+                          "/launch_scripts/make_security.sh " + scenario + " --output " +
+                          dir.string() + " > " + (run.dir / "security.log").string() + " 2>&1";
+  if (std::system(cmd.c_str()) != 0) {
+    throw std::runtime_error("make_security.sh failed: " + read_file(run.dir / "security.log"));
+  }
+  return dir;
+}
+
+}  // namespace
+
+TEST(SecureRun, IsByteIdenticalToAPlainRun) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  const fs::path security = make_security(run, scenario);
+  auto launcher = start_launcher(run, scenario, "--security-dir " + security.string());
+  ASSERT_EQ(launcher->wait(120), std::optional<int>(0)) << launcher->log();
+  EXPECT_EQ(read_file(run.dir / "out" / "vehicles.csv"), single_process_csv(run, scenario, ""));
+  // Every process ran with its own identity (the plan passes the folder to each).
+  for (const auto& p : plan(run, scenario, (run.dir / "plan").string(),
+                            "--security-dir " + security.string())) {
+    EXPECT_NE(p.command.find("--security-dir"), std::string::npos) << p.member;
+  }
+}
+
+TEST(SecureRun, AProcessWithoutACertificateIsNeverHeard) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  const fs::path security = make_security(run, scenario);
+  const std::string flag = " --security-dir " + security.string();
+  auto processes = start_all(
+      run, plan(run, scenario, (run.dir / "out").string(), flag), [&](const Planned& p) {
+        std::string c = p.command;
+        if (p.member == "vehicle/b") c.erase(c.find(flag), flag.size());
+        return c;
+      });
+  const auto codes = wait_all(processes, 90);
+  ASSERT_EQ(codes[0], 2) << describe_logs(processes);  // the coordinator aborted
+  EXPECT_NE(processes[0]->log().find("join timeout after 20 s: missing vehicle/b"),
+            std::string::npos)
+      << processes[0]->log();
+}
+
 }  // namespace syndds::test
