@@ -112,58 +112,48 @@ void TachometerSensor::update(const vehicle::VehicleSnapshot& state) {
 
 // ---- Checkpoints ---------------------------------------------------------------------------
 
-void save_sample(core::StateWriter& w, const GpsSample& s) {
-  w.io(s.sensor_id);
-  w.io(s.stamp);
-  w.io(s.position.lat_deg);
-  w.io(s.position.lon_deg);
-  w.io(s.position.alt_m);
-  w.io(s.enu_m);
-  w.io(s.true_enu_m);
+// One field list per sample type, for both directions (a writer only reads the sample).
+template <typename Archive>
+void sample_fields(Archive& a, GpsSample& s) {
+  a.io(s.sensor_id);
+  a.io(s.stamp);
+  a.io(s.position.lat_deg);
+  a.io(s.position.lon_deg);
+  a.io(s.position.alt_m);
+  a.io(s.enu_m);
+  a.io(s.true_enu_m);
 }
-void load_sample(core::StateReader& r, GpsSample& s) {
-  r.io(s.sensor_id);
-  r.io(s.stamp);
-  r.io(s.position.lat_deg);
-  r.io(s.position.lon_deg);
-  r.io(s.position.alt_m);
-  r.io(s.enu_m);
-  r.io(s.true_enu_m);
+template <typename Archive>
+void sample_fields(Archive& a, ImuSample& s) {
+  a.io(s.sensor_id);
+  a.io(s.stamp);
+  a.io(s.accel_mps2);
+  a.io(s.gyro_rad_s);
 }
-void save_sample(core::StateWriter& w, const ImuSample& s) {
-  w.io(s.sensor_id);
-  w.io(s.stamp);
-  w.io(s.accel_mps2);
-  w.io(s.gyro_rad_s);
+template <typename Archive>
+void sample_fields(Archive& a, MagnetometerSample& s) {
+  a.io(s.sensor_id);
+  a.io(s.stamp);
+  a.io(s.heading_rad);
+  a.io(s.field_ut);
 }
-void load_sample(core::StateReader& r, ImuSample& s) {
-  r.io(s.sensor_id);
-  r.io(s.stamp);
-  r.io(s.accel_mps2);
-  r.io(s.gyro_rad_s);
+template <typename Archive>
+void sample_fields(Archive& a, TachometerSample& s) {
+  a.io(s.sensor_id);
+  a.io(s.stamp);
+  a.io(s.wheel_spin_rad_s);
 }
-void save_sample(core::StateWriter& w, const MagnetometerSample& s) {
-  w.io(s.sensor_id);
-  w.io(s.stamp);
-  w.io(s.heading_rad);
-  w.io(s.field_ut);
-}
-void load_sample(core::StateReader& r, MagnetometerSample& s) {
-  r.io(s.sensor_id);
-  r.io(s.stamp);
-  r.io(s.heading_rad);
-  r.io(s.field_ut);
-}
-void save_sample(core::StateWriter& w, const TachometerSample& s) {
-  w.io(s.sensor_id);
-  w.io(s.stamp);
-  w.io(s.wheel_spin_rad_s);
-}
-void load_sample(core::StateReader& r, TachometerSample& s) {
-  r.io(s.sensor_id);
-  r.io(s.stamp);
-  r.io(s.wheel_spin_rad_s);
-}
+
+#define SYNDDS_SAMPLE_STATE_(TYPE)                                            \
+  void save_sample(core::StateWriter& w, const TYPE& s) {                     \
+    sample_fields(w, const_cast<TYPE&>(s));                                   \
+  }                                                                           \
+  void load_sample(core::StateReader& r, TYPE& s) { sample_fields(r, s); }
+SYNDDS_SAMPLE_STATE_(GpsSample)
+SYNDDS_SAMPLE_STATE_(ImuSample)
+SYNDDS_SAMPLE_STATE_(MagnetometerSample)
+SYNDDS_SAMPLE_STATE_(TachometerSample)
+#undef SYNDDS_SAMPLE_STATE_
 
 // Configuration (rates, noise levels, mounts, the geodetic converter, the magnetometer's
 // world field) is rebuilt from the rig; only what the runs changed is written.
