@@ -8,6 +8,8 @@
 #                                            # (off: nftables drops every multicast packet a
 #                                            # host sends or receives, counted; needs nft)
 #   multicast_dropped h1                     # packets the host's rule dropped so far
+#   hosts_loss PERCENT                       # every host drops PERCENT % of the packets it
+#                                            # sends to the others, at random (nftables numgen)
 #   on_host h1 LOG command...                # in the background; $! is its pid
 #   hosts_down                               # also on EXIT if the caller traps it
 #
@@ -56,6 +58,17 @@ multicast_dropped() {  # host: packets its nftables rules dropped (both directio
   ip netns exec "$NETNS_TAG$1" nft list table inet syndds_nomulticast 2> /dev/null |
     awk '/counter packets/ {for (i = 1; i < NF; ++i) if ($i == "packets") n += $(i + 1)}
          END {print n + 0}'
+}
+
+hosts_loss() {  # percent: random loss of what each host sends on its link (not within a host)
+  local h
+  for h in "${NETNS_HOSTS[@]}"; do
+    ip netns exec "$NETNS_TAG$h" nft -f - <<NFT
+table inet syndds_loss {
+  chain out { type filter hook output priority 0; oifname "eth0" numgen random mod 100 < $1 counter drop; }
+}
+NFT
+  done
 }
 
 on_host() {  # host log command... : run in the host's network namespace, /dev/shm and CPUs
