@@ -4,11 +4,10 @@
 #include <algorithm>
 #include <optional>
 
-#include "core/error.hpp"
-#include "record/checkpoint.hpp"
-
 #include "common/service_cli.hpp"
+#include "core/error.hpp"
 #include "dds/coordinator_service.hpp"
+#include "record/checkpoint.hpp"
 
 namespace service = syndds::service;
 namespace sdds = syndds::dds;
