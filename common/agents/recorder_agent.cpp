@@ -598,6 +598,75 @@ std::vector<CsvFile*> RecorderAgent::files() const {
           imu_.get(),      compass_.get(),  wheel_speeds_.get(), v2v_.get()};
 }
 
+namespace {
+
+// The recorder's state, one field list per record for saving and loading (a writer only
+// reads what it is given).
+template <typename Archive>
+void totals_fields(Archive& a, VehicleTotals& t) {
+  a.io(t.distance_m);
+  a.io(t.speed_sum_mps);
+  a.io(t.max_speed_mps);
+  a.io(t.samples);
+  a.io(t.collisions);
+  std::uint64_t n = t.events.size();
+  a.io(n);
+  if constexpr (std::is_same_v<Archive, core::StateWriter>) {
+    for (const auto& [kind, count] : t.events) {
+      a.io(kind);
+      a.io(count);
+    }
+  } else {
+    t.events.clear();
+    for (std::uint64_t k = 0; k < n; ++k) {
+      const auto kind = a.template get<std::string>();
+      a.io(t.events[kind]);
+    }
+  }
+  a.io(t.last_position);
+}
+
+template <typename Archive>
+void point_fields(Archive& a, convoy::TrackPoint& p) {
+  a.io(p.time_s);
+  a.io(p.position);
+  a.io(p.speed_mps);
+}
+
+template <typename Archive>
+void loss_fields(Archive& a, MemberLoss& l) {
+  a.io(l.member);
+  a.io(l.frame);
+  a.io(l.time_s);
+}
+
+// A list: its length, then each element's fields.
+template <typename Archive, typename T, typename F>
+void list_io(Archive& a, std::vector<T>& list, F&& fields) {
+  std::uint64_t n = list.size();
+  a.io(n);
+  if constexpr (std::is_same_v<Archive, core::StateReader>) list.assign(n, T{});
+  for (auto& x : list) fields(a, x);
+}
+
+// A map by name: its size, then each key and the value's fields (loading replaces the map).
+template <typename Archive, typename V, typename F>
+void map_io(Archive& a, std::map<std::string, V>& map, F&& fields) {
+  std::uint64_t n = map.size();
+  a.io(n);
+  if constexpr (std::is_same_v<Archive, core::StateWriter>) {
+    for (auto& [key, value] : map) {
+      a.io(key);
+      fields(value);
+    }
+  } else {
+    map.clear();
+    for (std::uint64_t k = 0; k < n; ++k) fields(map[a.template get<std::string>()]);
+  }
+}
+
+}  // namespace
+
 void RecorderAgent::save_state(core::StateWriter& w) {
   if (!failure_.empty()) throw WriteError("no checkpoint of a failed recorder: " + failure_);
   w.begin("recorder", 1);
@@ -608,37 +677,10 @@ void RecorderAgent::save_state(core::StateWriter& w) {
     w.io(f != nullptr);
     if (f) w.io(f->size());
   }
-  w.io(static_cast<std::uint64_t>(totals_.size()));
-  for (const auto& [id, t] : totals_) {
-    w.io(id);
-    w.io(t.distance_m);
-    w.io(t.speed_sum_mps);
-    w.io(t.max_speed_mps);
-    w.io(t.samples);
-    w.io(t.collisions);
-    w.io(static_cast<std::uint64_t>(t.events.size()));
-    for (const auto& [kind, n] : t.events) {
-      w.io(kind);
-      w.io(n);
-    }
-    w.io(t.last_position);
-  }
-  w.io(static_cast<std::uint64_t>(tracks_.size()));
-  for (const auto& [id, track] : tracks_) {
-    w.io(id);
-    w.io(static_cast<std::uint64_t>(track.size()));
-    for (const auto& p : track) {
-      w.io(p.time_s);
-      w.io(p.position);
-      w.io(p.speed_mps);
-    }
-  }
-  w.io(static_cast<std::uint64_t>(losses_.size()));
-  for (const auto& l : losses_) {
-    w.io(l.member);
-    w.io(l.frame);
-    w.io(l.time_s);
-  }
+  map_io(w, totals_, [&](VehicleTotals& t) { totals_fields(w, t); });
+  map_io(w, tracks_,
+         [&](convoy::Track& track) { list_io(w, track, point_fields<core::StateWriter>); });
+  list_io(w, losses_, loss_fields<core::StateWriter>);
   w.io(terrain_bytes_);
   w.io(terrain_vertices_);
   w.io(terrain_max_frame_bytes_);
@@ -665,40 +707,10 @@ void RecorderAgent::load_state(core::StateReader& r) {
       r.fail(e.what());
     }
   }
-  totals_.clear();
-  const auto n_totals = r.get<std::uint64_t>();
-  for (std::uint64_t i = 0; i < n_totals; ++i) {
-    VehicleTotals& t = totals_[r.get<std::string>()];
-    r.io(t.distance_m);
-    r.io(t.speed_sum_mps);
-    r.io(t.max_speed_mps);
-    r.io(t.samples);
-    r.io(t.collisions);
-    const auto n_events = r.get<std::uint64_t>();
-    for (std::uint64_t k = 0; k < n_events; ++k) {
-      const auto kind = r.get<std::string>();
-      r.io(t.events[kind]);
-    }
-    r.io(t.last_position);
-  }
-  tracks_.clear();
-  const auto n_tracks = r.get<std::uint64_t>();
-  for (std::uint64_t i = 0; i < n_tracks; ++i) {
-    convoy::Track& track = tracks_[r.get<std::string>()];
-    track.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
-    for (auto& p : track) {
-      r.io(p.time_s);
-      r.io(p.position);
-      r.io(p.speed_mps);
-    }
-  }
-  losses_.clear();
-  losses_.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
-  for (auto& l : losses_) {
-    r.io(l.member);
-    r.io(l.frame);
-    r.io(l.time_s);
-  }
+  map_io(r, totals_, [&](VehicleTotals& t) { totals_fields(r, t); });
+  map_io(r, tracks_,
+         [&](convoy::Track& track) { list_io(r, track, point_fields<core::StateReader>); });
+  list_io(r, losses_, loss_fields<core::StateReader>);
   r.io(terrain_bytes_);
   r.io(terrain_vertices_);
   r.io(terrain_max_frame_bytes_);

@@ -2,6 +2,7 @@
 // Small, stable (platform-independent) hashes used for fingerprints and determinism checks.
 #include <cstdint>
 #include <cstring>
+#include <string>
 #include <string_view>
 
 namespace syndds {
@@ -35,6 +36,14 @@ inline std::uint64_t splitmix64(std::uint64_t x) {
   x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
   x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
   return x ^ (x >> 31);
+}
+
+/// A 64-bit value as 16 lower-case hex digits (fingerprints, checksums).
+inline std::string hex64(std::uint64_t v) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out(16, '0');
+  for (int i = 15; i >= 0; --i, v >>= 4) out[static_cast<std::size_t>(i)] = kDigits[v & 0xf];
+  return out;
 }
 
 inline std::uint64_t fnv1a64(std::string_view text) {

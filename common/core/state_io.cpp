@@ -9,12 +9,6 @@ namespace {
 
 constexpr std::string_view kMagic = "syndds-state 1\n";
 
-std::string hex64(std::uint64_t v) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-  return buf;
-}
-
 }  // namespace
 
 void StateWriter::begin(std::string_view name, std::uint32_t version) {

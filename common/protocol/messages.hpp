@@ -22,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/hash.hpp"
 #include "core/math.hpp"
 #include "protocol/fields.hpp"
 
@@ -30,10 +31,7 @@ namespace syndds::proto {
 inline constexpr std::int32_t kProtocolVersion = 3;
 /// A scenario fingerprint as every log shows it (16 hex digits).
 inline std::string fingerprint_hex(std::uint64_t f) {
-  static constexpr char kDigits[] = "0123456789abcdef";
-  std::string out(16, '0');
-  for (int i = 15; i >= 0; --i, f >>= 4) out[static_cast<std::size_t>(i)] = kDigits[f & 0xf];
-  return out;
+  return hex64(f);
 }
 /// Ends every fingerprint-mismatch message: how to find the file that differs.
 inline constexpr const char* kFingerprintHint =

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/hash.hpp"
 #include "core/state_io.hpp"
 #include "protocol/sample_state.hpp"
 #include "record/run_files.hpp"
@@ -23,12 +24,6 @@ std::string read_all(const fs::path& path) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
-}
-
-std::string hex(std::uint64_t v) {
-  char buf[19];
-  std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
-  return buf;
 }
 
 }  // namespace
@@ -84,8 +79,8 @@ proto::FrameSamples read_member_checkpoint(const fs::path& run_dir, std::int64_t
   }
   const auto saved_fingerprint = r.get<std::uint64_t>();
   if (saved_fingerprint != fingerprint) {
-    r.fail("written for scenario fingerprint " + hex(saved_fingerprint) + "; this run's is " +
-           hex(fingerprint) + " (a resumed run needs the same scenario files and overrides)");
+    r.fail("written for scenario fingerprint 0x" + hex64(saved_fingerprint) + "; this run's is 0x" +
+           hex64(fingerprint) + " (a resumed run needs the same scenario files and overrides)");
   }
   agent.load_state(r);
   proto::FrameSamples inputs = proto::load_samples(r);
@@ -99,7 +94,7 @@ void mark_checkpoint_complete(const fs::path& run_dir, const CheckpointInfo& inf
   out << YAML::BeginMap;
   out << YAML::Key << "frame" << YAML::Value << info.frame;
   out << YAML::Key << "sim_time_s" << YAML::Value << info.sim_time_s;
-  out << YAML::Key << "fingerprint" << YAML::Value << hex(info.fingerprint);
+  out << YAML::Key << "fingerprint" << YAML::Value << "0x" + hex64(info.fingerprint);
   out << YAML::Key << "members" << YAML::Value << YAML::BeginSeq;
   for (const auto& m : info.members) {
     out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << m.member_id

@@ -28,11 +28,6 @@ std::uint64_t params_fingerprint(const VehicleParams& p) {
   return h.value();
 }
 
-std::string hex(std::uint64_t v) {
-  char buf[19];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-  return buf;
-}
 }  // namespace
 
 DriverInputs clamp_inputs(const DriverInputs& in) {
@@ -125,9 +120,9 @@ void BicycleModel::load_state(core::StateReader& r) {
   const auto name = r.get<std::string>();
   const auto fingerprint = r.get<std::uint64_t>();
   if (fingerprint != params_fingerprint(params_)) {
-    r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex(fingerprint) +
+    r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex64(fingerprint) +
            "; this model is vehicle '" + params_.name + "' with " +
-           hex(params_fingerprint(params_)) + ": their params differ");
+           hex64(params_fingerprint(params_)) + ": their params differ");
   }
   // Read into a copy and take it only once the whole section has been read: a state that
   // does not fit leaves the model as it was.

@@ -141,12 +141,21 @@ std::uint64_t params_fingerprint(const VehicleParams& p) {
   return h.value();
 }
 
-std::string hex(std::uint64_t v) {
-  char buf[19];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-  return buf;
-}
+}  // namespace
 
+namespace {
+// One field list of a wheel's diagnostics for saving (D const) and loading.
+template <typename Archive, typename D>
+void diagnostics_fields(Archive& a, D& d) {
+  a.io(d.suspension_compression_m);
+  a.io(d.spring_force_n);
+  a.io(d.tire_normal_force_n);
+  a.io(d.tire_deflection_m);
+  a.io(d.slip_ratio);
+  a.io(d.slip_angle_rad);
+  a.io(d.drive_torque_nm);
+  a.io(d.in_contact);
+}
 }  // namespace
 
 struct OdeVehicleModel::Impl {
@@ -842,16 +851,7 @@ struct OdeVehicleModel::Impl {
     w.end();
 
     w.begin("wheel_diagnostics", 1);
-    for (const WheelDiagnostics& d : diag) {
-      w.io(d.suspension_compression_m);
-      w.io(d.spring_force_n);
-      w.io(d.tire_normal_force_n);
-      w.io(d.tire_deflection_m);
-      w.io(d.slip_ratio);
-      w.io(d.slip_angle_rad);
-      w.io(d.drive_torque_nm);
-      w.io(d.in_contact);
-    }
+    for (const WheelDiagnostics& d : diag) diagnostics_fields(w, d);
     w.end();
 
     w.begin("collisions", 1);
@@ -881,8 +881,8 @@ struct OdeVehicleModel::Impl {
     const auto name = r.get<std::string>();
     const auto params_fp = r.get<std::uint64_t>();
     if (params_fp != params_fingerprint(p)) {
-      r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex(params_fp) +
-             "; this model is vehicle '" + p.name + "' with " + hex(params_fingerprint(p)) +
+      r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex64(params_fp) +
+             "; this model is vehicle '" + p.name + "' with " + hex64(params_fingerprint(p)) +
              ": their params differ");
     }
     if (r.get<std::uint64_t>() != placement_fingerprint) {
@@ -937,16 +937,7 @@ struct OdeVehicleModel::Impl {
 
     std::array<WheelDiagnostics, 4> new_diag;
     r.begin("wheel_diagnostics", 1, 1);
-    for (WheelDiagnostics& d : new_diag) {
-      r.io(d.suspension_compression_m);
-      r.io(d.spring_force_n);
-      r.io(d.tire_normal_force_n);
-      r.io(d.tire_deflection_m);
-      r.io(d.slip_ratio);
-      r.io(d.slip_angle_rad);
-      r.io(d.drive_torque_nm);
-      r.io(d.in_contact);
-    }
+    for (WheelDiagnostics& d : new_diag) diagnostics_fields(r, d);
     r.end();
 
     r.begin("collisions", 1, 1);

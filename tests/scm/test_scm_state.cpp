@@ -4,6 +4,8 @@
 // contact state; the encoding is sparse; a state of another grid or soil is refused.
 #include <gtest/gtest.h>
 
+#include "../core/state_test_util.hpp"
+
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -139,19 +141,6 @@ void expect_same_stats(const ScmTerrain& a, const ScmTerrain& b, int frame) {
   EXPECT_EQ(x.bulldozing_domain, y.bulldozing_domain) << "frame " << frame;
 }
 
-template <typename Fn>
-void expect_state_error(Fn&& fn, const std::vector<std::string>& parts) {
-  try {
-    fn();
-    ADD_FAILURE() << "no StateError";
-  } catch (const core::StateError& e) {
-    for (const auto& p : parts) {
-      EXPECT_NE(std::string(e.what()).find(p), std::string::npos)
-          << "'" << p << "' not in: " << e.what();
-    }
-  }
-}
-
 }  // namespace
 
 TEST(ScmState, ACopyResumedFromACheckpointContinuesBitForBit) {
@@ -242,7 +231,7 @@ TEST(ScmState, AStateOfAnotherGridOrSoilIsRefusedByName) {
     ScmParams p = state_params();
     p.grid.spacing_m = 0.1;
     ScmTerrain other(p);
-    expect_state_error([&] { load(other, bytes); },
+    syndds::test::expect_state_error([&] { load(other, bytes); },
                        {"soil.state", "scm_terrain", "another grid or soil",
                         "grid spacing_m is 0.05 in the state and 0.1 in this terrain"});
   }
@@ -250,19 +239,19 @@ TEST(ScmState, AStateOfAnotherGridOrSoilIsRefusedByName) {
     ScmParams p = state_params();
     p.grid.x_max_m = 8.0;
     ScmTerrain other(p);
-    expect_state_error([&] { load(other, bytes); }, {"grid x_max_m is 6 in the state and 8"});
+    syndds::test::expect_state_error([&] { load(other, bytes); }, {"grid x_max_m is 6 in the state and 8"});
   }
   {
     ScmParams p = state_params();
     p.soil = preset("soft").soil;
     ScmTerrain other(p);
-    expect_state_error([&] { load(other, bytes); }, {"soil bekker_kphi"});
+    syndds::test::expect_state_error([&] { load(other, bytes); }, {"soil bekker_kphi"});
   }
   {
     ScmParams p = state_params();
     p.bulldozing.enabled = false;
     ScmTerrain other(p);
-    expect_state_error([&] { load(other, bytes); }, {"bulldozing enabled is 1 in the state and 0"});
+    syndds::test::expect_state_error([&] { load(other, bytes); }, {"bulldozing enabled is 1 in the state and 0"});
   }
   {
     // Threads and the interest radius do not change results: such a state loads.
@@ -282,7 +271,7 @@ TEST(ScmState, ATruncatedOrDamagedStateIsRefused) {
   const std::string bytes = save(a.t1);
   {
     ScmTerrain t(state_params());
-    expect_state_error([&] { load(t, bytes.substr(0, bytes.size() / 2)); },
+    syndds::test::expect_state_error([&] { load(t, bytes.substr(0, bytes.size() / 2)); },
                        {"soil.state", "section 'scm_terrain' claims"});
   }
   {
@@ -291,7 +280,7 @@ TEST(ScmState, ATruncatedOrDamagedStateIsRefused) {
     w.begin("vehicle", 1);
     w.end();
     ScmTerrain t(state_params());
-    expect_state_error([&] { load(t, w.bytes()); }, {"expected section 'scm_terrain', found 'vehicle'"});
+    syndds::test::expect_state_error([&] { load(t, w.bytes()); }, {"expected section 'scm_terrain', found 'vehicle'"});
   }
 }
 

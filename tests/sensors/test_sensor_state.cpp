@@ -5,6 +5,8 @@
 // in flight, V2V drops and latency.
 #include <gtest/gtest.h>
 
+#include "../core/state_test_util.hpp"
+
 #include <cmath>
 #include <string>
 #include <vector>
@@ -104,19 +106,6 @@ void load(T& x, const std::string& bytes) {
   core::StateReader r(bytes, "sensors.state");
   x.load_state(r);
   EXPECT_TRUE(r.at_end());
-}
-
-template <typename Fn>
-void expect_state_error(Fn&& fn, const std::vector<std::string>& parts) {
-  try {
-    fn();
-    ADD_FAILURE() << "no StateError";
-  } catch (const core::StateError& e) {
-    for (const auto& p : parts) {
-      EXPECT_NE(std::string(e.what()).find(p), std::string::npos)
-          << "'" << p << "' not in: " << e.what();
-    }
-  }
 }
 
 /// A vehicle process's interoceptive sensors and V2V, frame by frame as the vehicle agent
@@ -261,31 +250,31 @@ TEST(SensorState, AStateOfAnotherVehicleOrRigIsRefused) {
   {
     VehicleSensors other(default_rig(), "other", 42, kStep, InteroceptiveRun::kFrame,
                          SensorSet::interoceptive);
-    expect_state_error([&] { load(other, bytes); },
+    syndds::test::expect_state_error([&] { load(other, bytes); },
                        {"sensors.state", "vehicle_sensors", "vehicle 'ego', not 'other'"});
   }
   {
     SensorRig rig = default_rig();
     rig.gps[0].rate_hz = 20.0;
     VehicleSensors other(rig, "ego", 42, kStep, InteroceptiveRun::kFrame, SensorSet::interoceptive);
-    expect_state_error([&] { load(other, bytes); },
+    syndds::test::expect_state_error([&] { load(other, bytes); },
                        {"section 'gps'", "sensor 'gps' ran on another schedule"});
   }
   {
     SensorRig rig = default_rig();
     rig.imus.clear();
     VehicleSensors other(rig, "ego", 42, kStep, InteroceptiveRun::kFrame, SensorSet::interoceptive);
-    expect_state_error([&] { load(other, bytes); }, {"the state has 1 imu sensors, this rig 0"});
+    syndds::test::expect_state_error([&] { load(other, bytes); }, {"the state has 1 imu sensors, this rig 0"});
   }
   {
     VehicleSensors fresh(default_rig(), "ego", 42, kStep, InteroceptiveRun::kFrame,
                          SensorSet::interoceptive);
-    expect_state_error([&] { load(fresh, bytes.substr(0, bytes.size() - 3)); },
+    syndds::test::expect_state_error([&] { load(fresh, bytes.substr(0, bytes.size() - 3)); },
                        {"sensors.state", "section 'vehicle_sensors' claims"});
   }
   {
     convoy::V2VBroadcaster other({10.0, 0.03, 0.3}, "ego", "vehicle/ego", 0.467, 42);
-    expect_state_error([&] { load(other, save(a.v2v)); }, {"section 'v2v'", "(rate_hz 20, latency_s 0.03, drop_probability 0.3)",
+    syndds::test::expect_state_error([&] { load(other, save(a.v2v)); }, {"section 'v2v'", "(rate_hz 20, latency_s 0.03, drop_probability 0.3)",
                         "this one's (rate_hz 10,"});
   }
 }
