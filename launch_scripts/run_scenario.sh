@@ -172,8 +172,8 @@ while :; do
       # Lost while the run goes on: start it again; it rejoins from the coordinator's rollback.
       restarts[$i]=$((restarts[$i] + 1))
       echo "run_scenario: ${names[$i]} was killed by signal $((code - 128)); restarting it (${restarts[$i]} of at most $MAX_RESTARTS)" >&2
-      # Its Fast DDS shared-memory files would keep the new process from opening its ports.
-      command -v fastdds > /dev/null && fastdds shm clean > /dev/null 2>&1
+      # (It runs over UDP: the dead process's shared-memory ports stay behind, and `fastdds shm
+      # clean` does not see them; services/common/service_cli.cpp, --rejoin.)
       log="$OUTPUT/logs/${names[$i]//\//_}.restart${restarts[$i]}.log"
       ( eval "exec ${cmds[$i]} --rejoin" ) > "$log" 2>&1 &
       pids[$i]=$!
