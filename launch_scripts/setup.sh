@@ -27,6 +27,7 @@ PACKAGES=(
   cyclonedds-dev cyclonedds-tools
   python3 python3-matplotlib python3-numpy
   iproute2 util-linux procps nftables openssl bc
+  libcivetweb-dev chromium
 )
 
 if [ "$INSTALL" = 1 ]; then
@@ -41,6 +42,19 @@ if [ "$INSTALL" = 1 ]; then
     $SUDO apt-get update -q
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
   fi
+fi
+
+# The viewer's page (docs/viewer.md): three.js, and playwright-core for its browser tests, from
+# npm at the versions package-lock.json pins. Node.js from Debian when there is none.
+if [ "$INSTALL" = 1 ] && ! command -v npm > /dev/null; then
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends nodejs npm
+fi
+WEB="$ROOT/services/viewer/web"
+if [ ! -f "$WEB/node_modules/.package-lock.json" ] || [ "$WEB/package-lock.json" -nt "$WEB/node_modules/.package-lock.json" ]; then
+  echo "setup: installing the viewer's npm packages in services/viewer/web"
+  (cd "$WEB" && npm ci --no-audit --no-fund --loglevel=error)
 fi
 
 echo "setup: building syndds (Release) in $BUILD_DIR with $JOBS jobs"

@@ -33,7 +33,7 @@ while IFS= read -r scenario; do
         --config-dir "$ROOT/config" --quiet --log-level warn > "$dir.log" 2>&1; then
     echo "check_identical: $rel failed (log below)" >&2; cat "$dir.log" >&2; exit 2
   fi
-  (cd "$dir" && find . -type f \( -name '*.csv' -o -name '*.png' -o -name 'terrain_images.json' \
+  (cd "$dir" && find . -type f \( -name '*.csv' -o -name '*.png' -o -name 'terrain_images.json' -o -name 'scene.json' \
       -o -name 'convoy.json' -o -name 'metrics.json' \) | LC_ALL=C sort | while IFS= read -r f; do
      # terrain_images.json names its images by path: the run directory's own path is not a result
      echo "$rel ${f#./} $(sed "s#$dir/##g" "$f" | sha256sum | cut -c1-16)"; done) >> "$OUT"

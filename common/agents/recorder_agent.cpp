@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "protocol/vertex_codec.hpp"
 #include "scm/scm_images.hpp"
+#include "viewer/scene.hpp"
 
 namespace syndds::record {
 namespace fs = std::filesystem;
@@ -31,6 +32,14 @@ const std::vector<std::string> kVehicleColumns = {
 const std::vector<std::string> kCommandColumns = {"frame",    "time_s",  "vehicle", "source",
                                                   "steering", "throttle", "braking", "rejected"};
 const std::vector<std::string> kEventColumns = {"frame", "time_s", "kind", "vehicle", "detail"};
+// wheels.csv: what a replay needs to draw the wheels (docs/outputs.md); 0 FL, 1 FR, 2 RL, 3 RR.
+const std::vector<std::string> kWheelColumns = {"frame", "vehicle", "wheel", "x",  "y", "z",
+                                                "qw",    "qx",      "qy",    "qz", "spin_rad_s"};
+// terrain_changes.csv: soil vertices (x = i * spacing, y = j * spacing) whose surface height
+// changed since the previous snapshot, with their height at `frame`.
+const std::vector<std::string> kTerrainChangeColumns = {"frame", "i", "j", "height"};
+// Snapshots of the soil for replay, in simulated seconds.
+constexpr double kTerrainSnapshotS = 0.25;
 const std::vector<std::string> kV2VColumns = {
     "frame",         "vehicle",    "sequence",  "sensor_time_s", "latitude_deg",
     "longitude_deg", "altitude_m", "speed_mps", "heading_rad"};
@@ -212,6 +221,15 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   vehicles_ = std::make_unique<CsvFile>(dir / "vehicles.csv", kVehicleColumns, open);
   commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns, open);
   events_ = std::make_unique<CsvFile>(dir / "events.csv", kEventColumns, open);
+  wheels_ = std::make_unique<CsvFile>(dir / "wheels.csv", kWheelColumns, open);
+  if (soil_) {
+    terrain_changes_ =
+        std::make_unique<CsvFile>(dir / "terrain_changes.csv", kTerrainChangeColumns, open);
+    terrain_every_ = std::max<std::int64_t>(
+        1, std::llround(kTerrainSnapshotS / scenario.time.heartbeat_s));
+  }
+  // What a viewer draws the world from (docs/viewer.md): derived from the scenario alone.
+  write_file_atomically(dir / "scene.json", viewer::scene_json(scenario).dump() + "\n");
   bool interoceptive = false;
   for (const auto& v : scenario.vehicles) interoceptive = interoceptive || v.has_interoceptive_sensors();
   if (interoceptive) {
@@ -260,7 +278,7 @@ void RecorderAgent::guarded(F&& write) {
 void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                          proto::FrameSamples& outputs) {
   guarded([&] {
-    if (ctx.frame > 0) record(inputs);  // inputs are stamped ctx.frame - 1
+    if (ctx.frame > 0) record(inputs, ctx.frame - 1);  // inputs are stamped ctx.frame - 1
     // Members lost since the last frame (on_member_loss: continue): gone from this frame on.
     for (const auto& member : ctx.departed) {
       losses_.push_back({member, ctx.frame, ctx.sim_time_s});
@@ -280,10 +298,11 @@ void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& 
   if (failure_.empty()) {
     try {
       guarded([&] {
-        if (!final_inputs.empty()) {
-          record(final_inputs);
-          commit();
+        if (!final_inputs.empty()) record(final_inputs, end.control.final_frame);
+        if (terrain_changes_ && !changed_vertices_.empty()) {
+          record_terrain_changes(std::max<std::int64_t>(last_frame_, pending_frame_));
         }
+        commit();
         if (!followers_.empty()) {
           write_convoy_report();
           write_metrics();
@@ -323,7 +342,7 @@ void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& 
   }
 }
 
-void RecorderAgent::record(const proto::FrameSamples& samples) {
+void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t frame) {
   for (const auto& s : samples.vehicle_states) {
     const double speed = s.linear_velocity.norm();
     const auto& p = s.pose.position;
@@ -339,6 +358,12 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     t.max_speed_mps = std::max(t.max_speed_mps, speed);
     ++t.samples;
     pending_frame_ = std::max(pending_frame_, s.frame);
+    for (std::size_t w = 0; w < s.wheels.size(); ++w) {
+      const auto& wp = s.wheels[w].pose.position;
+      const auto& wq = s.wheels[w].pose.orientation;
+      wheels_->row(s.frame, s.vehicle_id, w, wp.x(), wp.y(), wp.z(), wq.w(), wq.x(), wq.y(),
+                   wq.z(), Sig{s.wheels[w].spin_rad_s, 6});
+    }
     if (!followers_.empty()) {
       tracks_[s.vehicle_id].push_back({s.sim_time_s, Vec2(p.x(), p.y()), speed});
     }
@@ -370,13 +395,23 @@ void RecorderAgent::record(const proto::FrameSamples& samples) {
     std::uint64_t frame_bytes = 0;
     for (const auto& d : samples.terrain_deformations) {
       soil_->apply_remote_changes(d.source_index, agents::from_messages(d.vertices));
+      for (const auto& v : d.vertices) changed_vertices_.emplace(v.j, v.i);
       // The vertex lists as they travel (packed), and how many records they hold.
       frame_bytes += proto::packed_size(d.vertices);
       terrain_vertices_ += d.vertices.size();
     }
     terrain_bytes_ += frame_bytes;
     terrain_max_frame_bytes_ = std::max(terrain_max_frame_bytes_, frame_bytes);
+    if (frame % terrain_every_ == 0) record_terrain_changes(frame);
   }
+}
+
+void RecorderAgent::record_terrain_changes(std::int64_t frame) {
+  // Every list of the frame is merged: these are the heights every vehicle's copy has.
+  for (const auto& [j, i] : changed_vertices_) {
+    terrain_changes_->row(frame, i, j, soil_->vertex_height(i, j));
+  }
+  changed_vertices_.clear();
 }
 
 void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
@@ -403,8 +438,9 @@ void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
 }
 
 void RecorderAgent::commit() {
-  commit_rows({vehicles_.get(), commands_.get(), events_.get(), gps_.get(), imu_.get(),
-               compass_.get(), wheel_speeds_.get(), v2v_.get()});
+  commit_rows({vehicles_.get(), commands_.get(), events_.get(), wheels_.get(),
+               terrain_changes_.get(), gps_.get(), imu_.get(), compass_.get(), wheel_speeds_.get(),
+               v2v_.get()});
   last_frame_ = pending_frame_;
 }
 
@@ -594,8 +630,10 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
 namespace syndds::record {
 
 std::vector<CsvFile*> RecorderAgent::files() const {
-  return {vehicles_.get(), commands_.get(), events_.get(), gps_.get(),
-          imu_.get(),      compass_.get(),  wheel_speeds_.get(), v2v_.get()};
+  return {vehicles_.get(), commands_.get(),     events_.get(),
+          wheels_.get(),   terrain_changes_.get(), gps_.get(),
+          imu_.get(),      compass_.get(),      wheel_speeds_.get(),
+          v2v_.get()};
 }
 
 namespace {
@@ -669,7 +707,7 @@ void map_io(Archive& a, std::map<std::string, V>& map, F&& fields) {
 
 void RecorderAgent::save_state(core::StateWriter& w) {
   if (!failure_.empty()) throw WriteError("no checkpoint of a failed recorder: " + failure_);
-  w.begin("recorder", 1);
+  w.begin("recorder", 2);
   for (CsvFile* f : files()) {
     if (f && f->has_pending()) {
       throw std::logic_error(f->path().string() + ": rows not committed at a checkpoint");
@@ -688,11 +726,14 @@ void RecorderAgent::save_state(core::StateWriter& w) {
   w.io(pending_frame_);
   w.io(soil_ != nullptr);
   if (soil_) soil_->save_state(w);
+  std::vector<std::int32_t> changed;  // (j, i) pairs, in order
+  for (const auto& [j, i] : changed_vertices_) changed.insert(changed.end(), {j, i});
+  w.io(changed);
   w.end();
 }
 
 void RecorderAgent::load_state(core::StateReader& r) {
-  r.begin("recorder", 1);
+  r.begin("recorder", 2);
   for (CsvFile* f : files()) {
     const bool has = r.get<bool>();
     if (has != (f != nullptr)) {
@@ -718,6 +759,11 @@ void RecorderAgent::load_state(core::StateReader& r) {
   r.io(pending_frame_);
   if (r.get<bool>() != (soil_ != nullptr)) r.fail("the soil copy does not match the terrain");
   if (soil_) soil_->load_state(r);
+  std::vector<std::int32_t> changed;
+  r.io(changed);
+  if (changed.size() % 2 != 0) r.fail("changed soil vertices: an odd number of indices");
+  changed_vertices_.clear();
+  for (std::size_t k = 0; k < changed.size(); k += 2) changed_vertices_.emplace(changed[k], changed[k + 1]);
   r.end();
 }
 

@@ -5,12 +5,15 @@
 // recorder itself (a full disk) fails the frame, which ends the run with the reason. summary.json
 // is rewritten (atomically) about once a second while the run goes on, so a recorder that is
 // killed still says how far it got. Files (docs/outputs.md): vehicles.csv, commands.csv,
-// events.csv, summary.json, summary.txt, with followers convoy.json and metrics.json, and on
-// deformable terrain terrain_height.png, terrain_rut.png, terrain_images.json.
+// events.csv, wheels.csv, scene.json, summary.json, summary.txt, with followers convoy.json and
+// metrics.json, and on deformable terrain terrain_changes.csv, terrain_height.png,
+// terrain_rut.png, terrain_images.json.
 #include <chrono>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
+#include <utility>
 
 #include "convoy/convoy_report.hpp"
 #include "metrics/deviation.hpp"
@@ -96,7 +99,9 @@ class RecorderAgent final : public proto::Agent {
   const std::vector<MemberLoss>& losses() const { return losses_; }
 
  private:
-  void record(const proto::FrameSamples& samples);
+  void record(const proto::FrameSamples& samples, std::int64_t frame);
+  /// terrain_changes.csv: the soil vertices changed since the last snapshot, at `frame`.
+  void record_terrain_changes(std::int64_t frame);
   void record_sensors(const proto::FrameSamples& samples);
   /// Writes the rows gathered since the last commit, in every file, as one unit.
   void commit();
@@ -120,6 +125,10 @@ class RecorderAgent final : public proto::Agent {
   std::unique_ptr<CsvFile> vehicles_;
   std::unique_ptr<CsvFile> commands_;
   std::unique_ptr<CsvFile> events_;
+  std::unique_ptr<CsvFile> wheels_;  // every wheel's pose and spin, every frame (replay)
+  std::unique_ptr<CsvFile> terrain_changes_;  // deformable terrain: soil heights at intervals
+  std::int64_t terrain_every_ = 1;             // frames between terrain_changes.csv snapshots
+  std::set<std::pair<std::int32_t, std::int32_t>> changed_vertices_;  // (j, i) since then
   // Interoceptive sensor samples (only when some vehicle carries such sensors).
   std::unique_ptr<CsvFile> gps_;
   std::unique_ptr<CsvFile> imu_;

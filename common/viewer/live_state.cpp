@@ -1,0 +1,165 @@
+#include "viewer/live_state.hpp"
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+
+namespace syndds::viewer {
+namespace {
+
+// Frames kept for the real-time factor: about the last two seconds of a run at 100 frames/s.
+constexpr std::size_t kRateWindow = 200;
+
+std::uint64_t vertex_key(std::int32_t i, std::int32_t j) {
+  return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) |
+         static_cast<std::uint32_t>(j);
+}
+
+nlohmann::json pose_json(const Pose& p) {
+  return {p.position.x(),    p.position.y(),    p.position.z(),   p.orientation.w(),
+          p.orientation.x(), p.orientation.y(), p.orientation.z()};
+}
+
+}  // namespace
+
+void LiveState::on_vehicle_state(const proto::VehicleStateMsg& s) {
+  std::lock_guard lock(mutex_);
+  Vehicle& v = vehicles_[s.vehicle_id];
+  if (v.change != 0 && s.frame < v.state.frame) return;
+  v.state = s;
+  v.change = ++vehicle_changes_;
+}
+
+void LiveState::on_terrain(const std::vector<proto::TerrainVertexMsg>& vertices) {
+  std::lock_guard lock(mutex_);
+  for (const auto& x : vertices) {
+    const std::uint64_t key = vertex_key(x.i, x.j);
+    Vertex& v = soil_[key];
+    v.i = x.i;
+    v.j = x.j;
+    v.height = x.height;
+    v.change = ++soil_changes_;
+    soil_log_.emplace_back(v.change, key);
+  }
+  if (soil_log_.size() > 2 * soil_.size() + 4096) compact_soil();
+}
+
+void LiveState::compact_soil() {
+  // Keep only each vertex's newest change, in change order: a cursor anywhere in the old log
+  // still gets every vertex whose newest change it has not seen.
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> kept;
+  kept.reserve(soil_.size());
+  for (const auto& [change, key] : soil_log_) {
+    if (soil_.at(key).change == change) kept.emplace_back(change, key);
+  }
+  soil_log_ = std::move(kept);
+}
+
+void LiveState::on_frame(std::int64_t frame, double sim_time_s, double wall_s) {
+  std::lock_guard lock(mutex_);
+  if (frame <= frame_) return;
+  frame_ = frame;
+  sim_time_s_ = sim_time_s;
+  recent_.emplace_back(wall_s, sim_time_s);
+  if (recent_.size() > kRateWindow) recent_.erase(recent_.begin());
+}
+
+void LiveState::on_member(const proto::MemberAnnounceMsg& m, double) {
+  std::lock_guard lock(mutex_);
+  Member next{std::string(proto::to_string(m.kind)), m.host, m.pid};
+  auto it = members_.find(m.member_id);
+  if (it != members_.end() && it->second.kind == next.kind && it->second.host == next.host &&
+      it->second.pid == next.pid) {
+    return;
+  }
+  members_[m.member_id] = std::move(next);
+  ++member_changes_;
+}
+
+void LiveState::on_run_end(const proto::RunControlMsg& c) {
+  std::lock_guard lock(mutex_);
+  status_ = std::string(proto::to_string(c.status));
+  reason_ = c.reason;
+}
+
+std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* more) {
+  std::lock_guard lock(mutex_);
+  nlohmann::json u = {{"type", "update"}, {"frame", frame_}, {"sim_time_s", sim_time_s_}};
+  if (recent_.size() >= 2 && recent_.back().second > recent_.front().second) {
+    u["real_time_factor"] = (recent_.back().first - recent_.front().first) /
+                            (recent_.back().second - recent_.front().second);
+  } else {
+    u["real_time_factor"] = nullptr;
+  }
+  nlohmann::json vehicles = nlohmann::json::array();
+  for (const auto& [id, v] : vehicles_) {
+    if (v.change <= cursor.vehicles) continue;
+    const auto& s = v.state;
+    nlohmann::json wheels = nlohmann::json::array();
+    for (const auto& w : s.wheels) {
+      auto pose = pose_json(w.pose);
+      pose.push_back(w.spin_rad_s);
+      wheels.push_back(pose);
+    }
+    vehicles.push_back({{"id", id},
+                        {"frame", s.frame},
+                        {"time_s", s.sim_time_s},
+                        {"pose", pose_json(s.pose)},
+                        {"wheels", wheels},
+                        {"speed_mps", s.linear_velocity.norm()},
+                        {"steering", s.steering},
+                        {"throttle", s.throttle},
+                        {"braking", s.braking},
+                        {"gear", s.gear},
+                        {"engine_speed_rpm", s.engine_speed_rpm}});
+  }
+  cursor.vehicles = vehicle_changes_;
+  u["vehicles"] = vehicles;
+  // Soil: the log is in change order; start after the cursor.
+  auto it = std::upper_bound(soil_log_.begin(), soil_log_.end(),
+                             std::make_pair(cursor.terrain, ~std::uint64_t{0}));
+  nlohmann::json soil = nlohmann::json::array();
+  std::size_t sent = 0;
+  for (; it != soil_log_.end() && sent < max_vertices; ++it) {
+    const Vertex& v = soil_.at(it->second);
+    cursor.terrain = it->first;
+    if (v.change != it->first) continue;  // a newer change of this vertex comes later
+    soil.push_back({v.i, v.j, v.height});
+    ++sent;
+  }
+  if (it == soil_log_.end()) cursor.terrain = soil_changes_;
+  if (more) *more = it != soil_log_.end();
+  u["soil"] = soil;
+  if (cursor.members < member_changes_) {
+    nlohmann::json members = nlohmann::json::array();
+    for (const auto& [id, m] : members_) {
+      members.push_back({{"id", id}, {"kind", m.kind}, {"host", m.host}, {"pid", m.pid}});
+    }
+    u["members"] = members;
+    cursor.members = member_changes_;
+  }
+  u["status"] = status_;
+  if (!reason_.empty()) u["reason"] = reason_;
+  return u.dump();
+}
+
+std::int64_t LiveState::frame() const {
+  std::lock_guard lock(mutex_);
+  return frame_;
+}
+
+bool LiveState::ended() const {
+  std::lock_guard lock(mutex_);
+  return status_ != "running";
+}
+
+std::size_t LiveState::soil_vertices() const {
+  std::lock_guard lock(mutex_);
+  return soil_.size();
+}
+
+std::size_t LiveState::soil_log_size() const {
+  std::lock_guard lock(mutex_);
+  return soil_log_.size();
+}
+
+}  // namespace syndds::viewer

@@ -1,0 +1,592 @@
+// syndds viewer page (docs/viewer.md): draws a scene document (/api/scene) and either a recorded
+// run (/run/*.csv, replay with a time slider) or a live run (WebSocket /live). World frame:
+// x east, y north, z up (three.js is told that z is up).
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+
+const $ = (id) => document.getElementById(id);
+const SOIL_TILE = 64;          // soil vertices per tile side (a mesh per deformed tile)
+const RUT_COLOUR_MAX_M = 0.10; // depth at the end of the colour ramp
+
+function fail(message) {
+  $('error').style.display = 'block';
+  $('error').textContent = message;
+  window.syndds.error = message;
+}
+
+// ---- CSV (as the recorder writes it: a header, RFC 4180 quotes on text cells) ----
+function parseCsvLine(line) {
+  if (line.indexOf('"') < 0) return line.split(',');
+  const out = []; let cell = ''; let quoted = false;
+  for (let k = 0; k < line.length; ++k) {
+    const c = line[k];
+    if (quoted) {
+      if (c === '"' && line[k + 1] === '"') { cell += '"'; ++k; }
+      else if (c === '"') quoted = false;
+      else cell += c;
+    } else if (c === '"') quoted = true;
+    else if (c === ',') { out.push(cell); cell = ''; }
+    else cell += c;
+  }
+  out.push(cell);
+  return out;
+}
+function parseCsv(text) {
+  const lines = text.split('\n').filter((l) => l.length > 0);
+  const header = parseCsvLine(lines[0] || '');
+  const col = Object.fromEntries(header.map((h, k) => [h, k]));
+  return { col, rows: lines.slice(1).map(parseCsvLine) };
+}
+async function fetchText(url) {
+  const r = await fetch(url);
+  if (!r.ok) throw new Error(`${url}: ${r.status}`);
+  return r.text();
+}
+
+// ---- world ----
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+$('view').appendChild(renderer.domElement);
+const scene3 = new THREE.Scene();
+scene3.background = new THREE.Color(0x9fb9d6);
+const camera = new THREE.PerspectiveCamera(50, 1, 0.1, 5000);
+camera.up.set(0, 0, 1);
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.enableDamping = false;
+scene3.add(new THREE.HemisphereLight(0xdfe8f5, 0x6b5a45, 1.2));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+sun.position.set(0.5, -0.7, 1.0);
+scene3.add(sun);
+
+const state = {
+  scene: null, mode: 'replay', frame: 0, vehicles: new Map(), selected: null, view: 'follow',
+  soil: null, rtf: null, status: '-', members: [], lastDraw: {},
+};
+window.syndds = { ready: false, error: null, state };
+
+function colourOf(c) { return new THREE.Color(c[0], c[1], c[2]); }
+
+function buildTerrain(t, soil) {
+  const g = new THREE.BufferGeometry();
+  const pos = new Float32Array(t.nx * t.ny * 3);
+  for (let r = 0; r < t.ny; ++r) {
+    for (let c = 0; c < t.nx; ++c) {
+      const k = r * t.nx + c;
+      pos[3 * k] = t.x_min + (t.x_max - t.x_min) * c / (t.nx - 1);
+      pos[3 * k + 1] = t.y_min + (t.y_max - t.y_min) * r / (t.ny - 1);
+      pos[3 * k + 2] = t.heights[k];
+    }
+  }
+  const idx = [];
+  for (let r = 0; r + 1 < t.ny; ++r) {
+    for (let c = 0; c + 1 < t.nx; ++c) {
+      const a = r * t.nx + c, b = a + 1, d = a + t.nx, e = d + 1;
+      idx.push(a, b, e, a, e, d);
+    }
+  }
+  g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
+  g.setIndex(idx);
+  g.computeVertexNormals();
+  const colour = soil ? 0x8a6a45 : 0x7d8a5f;
+  // Pushed back so that the soil tiles drawn over it win where both are at the same height.
+  const m = new THREE.MeshLambertMaterial({ color: colour, polygonOffset: true,
+    polygonOffsetFactor: 2, polygonOffsetUnits: 2 });
+  const mesh = new THREE.Mesh(g, m);
+  scene3.add(mesh);
+  // A grid every 10 m for scale.
+  const grid = new THREE.GridHelper(Math.max(t.x_max - t.x_min, t.y_max - t.y_min),
+    Math.round(Math.max(t.x_max - t.x_min, t.y_max - t.y_min) / 10), 0x555555, 0x777777);
+  grid.rotation.x = Math.PI / 2;
+  grid.position.set((t.x_min + t.x_max) / 2, (t.y_min + t.y_max) / 2, (t.heights[0] ?? 0) + 0.01);
+  grid.material.transparent = true; grid.material.opacity = 0.25;
+  if (t.nx === 2) scene3.add(grid);
+}
+
+// ---- deformable soil: a mesh at the soil's own spacing per tile that has deformed ----
+class Soil {
+  constructor(info) {
+    this.d = info.spacing_m; this.base = info.base_height_m; this.info = info;
+    this.tiles = new Map(); this.dirty = new Set(); this.values = new Map();
+    this.material = new THREE.MeshLambertMaterial({ vertexColors: true });
+    this.maxDepth = 0;
+  }
+  key(ti, tj) { return ti + ',' + tj; }
+  tile(ti, tj) {
+    const k = this.key(ti, tj);
+    let t = this.tiles.get(k);
+    if (t) return t;
+    const n = SOIL_TILE + 1;
+    const pos = new Float32Array(n * n * 3), col = new Float32Array(n * n * 3);
+    for (let b = 0; b < n; ++b) {
+      for (let a = 0; a < n; ++a) {
+        const v = b * n + a, i = ti * SOIL_TILE + a, j = tj * SOIL_TILE + b;
+        pos[3 * v] = i * this.d; pos[3 * v + 1] = j * this.d;
+        pos[3 * v + 2] = this.values.get(i + ',' + j) ?? this.base;
+        this.paint(col, v, this.base - pos[3 * v + 2]);
+      }
+    }
+    const idx = [];
+    for (let b = 0; b < SOIL_TILE; ++b) {
+      for (let a = 0; a < SOIL_TILE; ++a) {
+        const p = b * n + a, q = p + 1, r = p + n, s = r + 1;
+        idx.push(p, q, s, p, s, r);
+      }
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
+    g.setAttribute('color', new THREE.BufferAttribute(col, 3));
+    g.setIndex(idx);
+    g.computeVertexNormals();
+    t = { mesh: new THREE.Mesh(g, this.material), ti, tj };
+    scene3.add(t.mesh);
+    this.tiles.set(k, t);
+    return t;
+  }
+  paint(col, v, depth) {
+    // Undisturbed soil brown; deeper ruts orange, red, then dark purple; raised rims lighter.
+    const stops = [[0.54, 0.42, 0.27], [0.79, 0.49, 0.17], [0.71, 0.17, 0.17], [0.23, 0.08, 0.31]];
+    let c;
+    if (depth <= 0) {
+      const u = Math.min(1, -depth / 0.05);
+      c = stops[0].map((x) => x + (0.85 - x) * u * 0.6);
+    } else {
+      const u = Math.min(1, depth / RUT_COLOUR_MAX_M) * 3;
+      const k = Math.min(2, Math.floor(u)), f = u - k;
+      c = stops[k].map((x, n) => x + (stops[k + 1][n] - x) * f);
+    }
+    col[3 * v] = c[0]; col[3 * v + 1] = c[1]; col[3 * v + 2] = c[2];
+  }
+  set(i, j, h) {
+    this.values.set(i + ',' + j, h);
+    this.maxDepth = Math.max(this.maxDepth, this.base - h);
+    const ti = Math.floor(i / SOIL_TILE), tj = Math.floor(j / SOIL_TILE);
+    // A vertex on a tile's edge belongs to the neighbours too.
+    for (const [a, b] of [[ti, tj], [ti - 1, tj], [ti, tj - 1], [ti - 1, tj - 1]]) {
+      const li = i - a * SOIL_TILE, lj = j - b * SOIL_TILE;
+      if (li < 0 || lj < 0 || li > SOIL_TILE || lj > SOIL_TILE) continue;
+      if ((a !== ti || b !== tj) && !this.tiles.has(this.key(a, b))) continue;
+      const t = this.tile(a, b);
+      const v = lj * (SOIL_TILE + 1) + li;
+      const g = t.mesh.geometry;
+      g.attributes.position.array[3 * v + 2] = h;
+      this.paint(g.attributes.color.array, v, this.base - h);
+      this.dirty.add(t);
+    }
+  }
+  reset() {
+    for (const t of this.tiles.values()) { scene3.remove(t.mesh); t.mesh.geometry.dispose(); }
+    this.tiles.clear(); this.dirty.clear(); this.values.clear(); this.maxDepth = 0;
+  }
+  flush() {
+    for (const t of this.dirty) {
+      const g = t.mesh.geometry;
+      g.attributes.position.needsUpdate = true;
+      g.attributes.color.needsUpdate = true;
+      g.computeVertexNormals();
+      g.computeBoundingSphere();
+    }
+    this.dirty.clear();
+  }
+}
+
+function buildObstacle(o) {
+  let g;
+  if (o.shape === 'sphere') g = new THREE.SphereGeometry(o.size[0], 24, 16);
+  else if (o.shape === 'cylinder') {
+    g = new THREE.CylinderGeometry(o.size[0], o.size[0], 2 * o.size[2], 24);
+    g.rotateX(Math.PI / 2);  // three's cylinders stand on y; ours on their local z
+  } else g = new THREE.BoxGeometry(2 * o.size[0], 2 * o.size[1], 2 * o.size[2]);
+  const m = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ color: colourOf(o.colour) }));
+  m.position.set(...o.position);
+  m.quaternion.set(o.orientation[1], o.orientation[2], o.orientation[3], o.orientation[0]);
+  scene3.add(m);
+}
+
+function groundAt(x, y) {
+  const t = state.scene.terrain;
+  const c = Math.min(t.nx - 1, Math.max(0, Math.round((x - t.x_min) / (t.x_max - t.x_min) * (t.nx - 1))));
+  const r = Math.min(t.ny - 1, Math.max(0, Math.round((y - t.y_min) / (t.y_max - t.y_min) * (t.ny - 1))));
+  return t.heights[r * t.nx + c];
+}
+
+function buildVehicle(v) {
+  const colour = colourOf(v.colour);
+  const body = new THREE.Group();
+  const he = v.chassis_half_extents;
+  const box = new THREE.Mesh(new THREE.BoxGeometry(2 * he[0], 2 * he[1], 2 * he[2]),
+    new THREE.MeshLambertMaterial({ color: colour }));
+  box.position.set(...v.chassis_centre);
+  body.add(box);
+  scene3.add(body);
+  const wheels = [];
+  for (let k = 0; k < 4; ++k) {
+    const w = new THREE.Group();
+    const tire = new THREE.Mesh(new THREE.CylinderGeometry(v.wheel_radius, v.wheel_radius, v.wheel_width, 24),
+      new THREE.MeshLambertMaterial({ color: 0x202020 }));
+    w.add(tire);
+    // A light spoke, so that a spinning wheel is seen to spin.
+    const spoke = new THREE.Mesh(new THREE.BoxGeometry(1.6 * v.wheel_radius, v.wheel_width * 1.02, 0.12 * v.wheel_radius),
+      new THREE.MeshLambertMaterial({ color: 0xbbbbbb }));
+    w.add(spoke);
+    scene3.add(w);
+    wheels.push(w);
+  }
+  // Planned path (dashed) and driven track.
+  if (v.path.length > 1) {
+    const pts = v.path.map((p) => new THREE.Vector3(p[0], p[1], groundAt(p[0], p[1]) + 0.15));
+    if (v.path_closed) pts.push(pts[0].clone());
+    const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(pts),
+      new THREE.LineDashedMaterial({ color: colour, dashSize: 1.0, gapSize: 0.7 }));
+    line.computeLineDistances();
+    scene3.add(line);
+  }
+  const trackGeom = new THREE.BufferGeometry();
+  const track = new THREE.Line(trackGeom, new THREE.LineBasicMaterial({ color: colour.clone().multiplyScalar(0.6) }));
+  scene3.add(track);
+  return { info: v, body, wheels, track, trackPoints: [], s: null };
+}
+
+function poseTo(obj, p) {
+  obj.position.set(p[0], p[1], p[2]);
+  obj.quaternion.set(p[4], p[5], p[6], p[3]);
+}
+
+// A vehicle's state: pose [x y z qw qx qy qz], wheels [[x y z qw qx qy qz spin] x4] or null.
+function showVehicle(id, s) {
+  const v = state.vehicles.get(id);
+  if (!v) return;
+  v.s = s;
+  poseTo(v.body, s.pose);
+  for (let k = 0; k < 4; ++k) {
+    if (s.wheels && s.wheels[k]) poseTo(v.wheels[k], s.wheels[k]);
+    else {
+      // Without recorded wheel poses: at their places on the chassis.
+      const local = new THREE.Vector3(...v.info.wheel_positions[k]).applyQuaternion(v.body.quaternion);
+      v.wheels[k].position.copy(v.body.position).add(local);
+      v.wheels[k].quaternion.copy(v.body.quaternion);
+    }
+  }
+}
+
+function setTrack(v, points) {
+  v.track.geometry.dispose();
+  v.track.geometry = new THREE.BufferGeometry().setFromPoints(points);
+}
+
+// ---- camera, panel ----
+function resize() {
+  const el = $('view');
+  renderer.setSize(el.clientWidth, el.clientHeight);
+  camera.aspect = el.clientWidth / Math.max(1, el.clientHeight);
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+
+function setView(mode) {
+  state.view = mode;
+  for (const b of ['follow', 'orbit', 'top']) $(b).classList.toggle('on', b === mode);
+  const t = state.scene.terrain;
+  if (mode === 'top') {
+    const cx = (t.x_min + t.x_max) / 2, cy = (t.y_min + t.y_max) / 2;
+    const side = Math.max(t.x_max - t.x_min, t.y_max - t.y_min);
+    camera.position.set(cx, cy - 0.01, side * 1.1);
+    controls.target.set(cx, cy, 0);
+  } else if (mode === 'orbit') {
+    const v = state.vehicles.get(state.selected);
+    const c = v ? v.body.position : new THREE.Vector3();
+    controls.target.copy(c);
+    camera.position.set(c.x - 25, c.y - 25, c.z + 20);
+  }
+  controls.update();
+}
+
+function followCamera() {
+  const v = state.vehicles.get(state.selected);
+  if (!v || state.view !== 'follow') return;
+  const back = new THREE.Vector3(-11, 0, 4.5).applyQuaternion(new THREE.Quaternion().setFromAxisAngle(
+    new THREE.Vector3(0, 0, 1), headingOf(v.body.quaternion)));
+  camera.position.copy(v.body.position).add(back);
+  controls.target.copy(v.body.position).add(new THREE.Vector3(0, 0, 1));
+  camera.lookAt(controls.target);
+}
+
+function headingOf(q) {
+  const fwd = new THREE.Vector3(1, 0, 0).applyQuaternion(q);
+  return Math.atan2(fwd.y, fwd.x);
+}
+
+function readout() {
+  const v = state.vehicles.get(state.selected);
+  const s = v && v.s;
+  const sc = state.scene;
+  $('r-time').textContent = `${(state.frame * sc.heartbeat_s).toFixed(2)} / ${sc.end_time_s.toFixed(1)} s (frame ${state.frame})`;
+  $('progress-bar').style.width = `${Math.min(100, 100 * state.frame / Math.max(1, sc.final_frame))}%`;
+  if (s) {
+    $('r-speed').textContent = `${s.speed.toFixed(2)} m/s (${(s.speed * 3.6).toFixed(1)} km/h)`;
+    $('r-gear').textContent = `${s.gear} / ${Math.round(s.rpm)} rpm`;
+    $('r-inputs').textContent = `${s.steering.toFixed(2)} / ${s.throttle.toFixed(2)} / ${s.braking.toFixed(2)}`;
+  }
+  $('r-rtf').textContent = state.rtf == null ? '-' : `${state.rtf.toFixed(2)} (wall / sim)`;
+  $('r-status').textContent = state.status;
+  if (state.soil) $('legend-max').textContent = RUT_COLOUR_MAX_M.toFixed(2);
+}
+
+function render() {
+  followCamera();
+  if (state.view !== 'follow') controls.update();
+  if (state.soil) state.soil.flush();
+  renderer.render(scene3, camera);
+}
+
+// Screen position (CSS pixels in the view) of each vehicle: what the tests check.
+function vehicleScreenPositions() {
+  const out = {};
+  const w = renderer.domElement.clientWidth, h = renderer.domElement.clientHeight;
+  for (const [id, v] of state.vehicles) {
+    const p = v.body.position.clone().project(camera);
+    out[id] = [(p.x + 1) / 2 * w, (1 - p.y) / 2 * h];
+  }
+  return out;
+}
+
+// ---- replay ----
+async function startReplay(info) {
+  const files = new Set(info.run_files || []);
+  const vcsv = parseCsv(await fetchText('/run/vehicles.csv'));
+  const c = vcsv.col;
+  const frames = [];  // per frame index: Map vehicle -> state
+  const frameIndex = new Map();
+  for (const r of vcsv.rows) {
+    const f = +r[c.frame];
+    let k = frameIndex.get(f);
+    if (k === undefined) { k = frames.length; frameIndex.set(f, k); frames.push({ frame: f, v: new Map() }); }
+    frames[k].v.set(r[c.vehicle], {
+      pose: [+r[c.x], +r[c.y], +r[c.z], +r[c.qw], +r[c.qx], +r[c.qy], +r[c.qz]], wheels: null,
+      speed: +r[c.speed_mps], steering: +r[c.steering], throttle: +r[c.throttle],
+      braking: +r[c.braking], gear: +r[c.gear], rpm: +r[c.engine_speed_rpm],
+    });
+  }
+  if (files.has('wheels.csv')) {
+    const w = parseCsv(await fetchText('/run/wheels.csv'));
+    const d = w.col;
+    for (const r of w.rows) {
+      const k = frameIndex.get(+r[d.frame]);
+      const s = k === undefined ? null : frames[k].v.get(r[d.vehicle]);
+      if (!s) continue;
+      if (!s.wheels) s.wheels = [];
+      s.wheels[+r[d.wheel]] = [+r[d.x], +r[d.y], +r[d.z], +r[d.qw], +r[d.qx], +r[d.qy], +r[d.qz], +r[d.spin_rad_s]];
+    }
+  }
+  // Soil snapshots: [{frame, i: Int32Array, j, h: Float64Array}] in frame order.
+  const snapshots = [];
+  if (state.soil && files.has('terrain_changes.csv')) {
+    const t = parseCsv(await fetchText('/run/terrain_changes.csv'));
+    const d = t.col;
+    let cur = null;
+    for (const r of t.rows) {
+      const f = +r[d.frame];
+      if (!cur || cur.frame !== f) { cur = { frame: f, i: [], j: [], h: [] }; snapshots.push(cur); }
+      cur.i.push(+r[d.i]); cur.j.push(+r[d.j]); cur.h.push(+r[d.height]);
+    }
+  }
+  // Camera frames saved by a sensor process: sensors/<vehicle>/frames.csv.
+  const cameraFrames = new Map();
+  for (const id of state.vehicles.keys()) {
+    try {
+      const t = parseCsv(await fetchText(`/run/sensors/${encodeURIComponent(id)}/frames.csv`));
+      const d = t.col;
+      cameraFrames.set(id, t.rows.filter((r) => r[d.file].endsWith('.png'))
+        .map((r) => ({ time: +r[d.time_s], file: r[d.file], sensor: r[d.sensor] })));
+    } catch (e) { /* no saved frames for this vehicle */ }
+  }
+  // Tracks: every recorded position, drawn up to the current frame.
+  const tracks = new Map();
+  for (const id of state.vehicles.keys()) tracks.set(id, []);
+  for (const fr of frames) {
+    for (const [id, s] of fr.v) {
+      const t = tracks.get(id);
+      if (t) t.push(new THREE.Vector3(s.pose[0], s.pose[1], s.pose[2] + 0.05));
+    }
+  }
+  let applied = -1;  // soil snapshots applied up to this frame
+  let snapIndex = 0;
+  const slider = $('slider');
+  slider.max = Math.max(0, frames.length - 1);
+  function show(k) {
+    k = Math.max(0, Math.min(frames.length - 1, k | 0));
+    const fr = frames[k];
+    if (!fr) return;
+    state.frame = fr.frame;
+    for (const [id, s] of fr.v) showVehicle(id, s);
+    for (const [id, v] of state.vehicles) setTrack(v, tracks.get(id).slice(0, k + 1));
+    if (state.soil) {
+      if (fr.frame < applied) { state.soil.reset(); applied = -1; snapIndex = 0; }
+      while (snapIndex < snapshots.length && snapshots[snapIndex].frame <= fr.frame) {
+        const s = snapshots[snapIndex++];
+        for (let n = 0; n < s.i.length; ++n) state.soil.set(s.i[n], s.j[n], s.h[n]);
+      }
+      applied = fr.frame;
+    }
+    const cams = cameraFrames.get(state.selected);
+    if (cams && cams.length) {
+      const t = fr.frame * state.scene.heartbeat_s;
+      let best = null;
+      for (const c of cams) { if (c.time <= t + 1e-9) best = c; else break; }
+      const img = $('camera');
+      if (best) {
+        const src = `/run/sensors/${encodeURIComponent(state.selected)}/${best.file}`;
+        if (img.getAttribute('src') !== src) img.src = src;
+        img.style.display = 'block';
+        $('camera-label').textContent = `${best.sensor} at ${best.time.toFixed(2)} s`;
+      }
+    } else { $('camera').style.display = 'none'; $('camera-label').textContent = ''; }
+    slider.value = k;
+    $('slider-time').textContent = `${(fr.frame * state.scene.heartbeat_s).toFixed(2)} s`;
+    readout();
+    render();
+  }
+  let playing = false, last = 0, pos = 0;
+  slider.addEventListener('input', () => { pos = +slider.value; show(pos); });
+  $('play').addEventListener('click', () => {
+    playing = !playing; $('play').textContent = playing ? 'pause' : 'play'; last = performance.now();
+  });
+  function tick(now) {
+    if (playing) {
+      const dt = (now - last) / 1000; last = now;
+      pos += dt * +$('speed').value / state.scene.heartbeat_s;
+      if (pos >= frames.length - 1) { pos = frames.length - 1; playing = false; $('play').textContent = 'play'; }
+      show(Math.floor(pos));
+    } else render();
+    requestAnimationFrame(tick);
+  }
+  try {
+    const s = JSON.parse(await fetchText('/run/summary.json'));
+    state.rtf = s.real_time_factor ?? null;
+    state.status = s.status + (s.reason ? `: ${s.reason}` : '');
+  } catch (e) { state.status = 'no summary'; }
+  window.syndds.frames = frames.length;
+  window.syndds.setFrameIndex = (k) => { pos = k; show(k); };
+  window.syndds.snapshots = snapshots.length;
+  show(0);
+  requestAnimationFrame(tick);
+}
+
+// ---- live ----
+function startLive() {
+  $('timeline').style.display = 'none';
+  $('view').style.bottom = '0'; $('panel').style.bottom = '0';
+  resize();
+  const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/live`;
+  const ws = new WebSocket(url);
+  ws.binaryType = 'blob';
+  window.syndds.updates = 0;
+  const lidarPoints = new THREE.Points(new THREE.BufferGeometry(),
+    new THREE.PointsMaterial({ color: 0x00e0ff, size: 0.12 }));
+  scene3.add(lidarPoints);
+  const select = () => { if (ws.readyState === 1) ws.send(JSON.stringify({ select: state.selected })); };
+  ws.onopen = select;
+  $('vehicle').addEventListener('change', select);
+  ws.onclose = () => { state.status += ' (viewer disconnected)'; readout(); };
+  ws.onmessage = (ev) => {
+    if (typeof ev.data !== 'string') {
+      const img = $('camera');
+      const old = img.src;
+      img.src = URL.createObjectURL(ev.data);
+      img.style.display = 'block';
+      $('camera-label').textContent = `camera of ${state.selected}`;
+      if (old.startsWith('blob:')) URL.revokeObjectURL(old);
+      window.syndds.images = (window.syndds.images || 0) + 1;
+      return;
+    }
+    const m = JSON.parse(ev.data);
+    if (m.type === 'points') {
+      const p = new Float32Array(m.xyz);
+      lidarPoints.geometry.dispose();
+      lidarPoints.geometry = new THREE.BufferGeometry();
+      lidarPoints.geometry.setAttribute('position', new THREE.BufferAttribute(p, 3));
+      drawLidar(p);
+      window.syndds.pointClouds = (window.syndds.pointClouds || 0) + 1;
+      return;
+    }
+    if (m.type !== 'update') return;
+    window.syndds.updates++;
+    state.frame = Math.max(0, m.frame);
+    state.rtf = m.real_time_factor;
+    state.status = m.status + (m.reason ? `: ${m.reason}` : '');
+    for (const u of m.vehicles) {
+      const s = { pose: u.pose, wheels: u.wheels.length ? u.wheels : null, speed: u.speed_mps,
+        steering: u.steering, throttle: u.throttle, braking: u.braking, gear: u.gear, rpm: u.engine_speed_rpm };
+      showVehicle(u.id, s);
+      const v = state.vehicles.get(u.id);
+      if (v) {
+        v.trackPoints.push(new THREE.Vector3(u.pose[0], u.pose[1], u.pose[2] + 0.05));
+        setTrack(v, v.trackPoints);
+      }
+    }
+    if (state.soil) for (const [i, j, h] of m.soil) state.soil.set(i, j, h);
+    if (m.members) {
+      state.members = m.members;
+      $('members').textContent = 'members\n' + m.members.map((x) => `  ${x.id} (${x.host} ${x.pid})`).join('\n');
+    }
+    readout();
+  };
+  function tick() { render(); requestAnimationFrame(tick); }
+  requestAnimationFrame(tick);
+}
+
+function drawLidar(p) {
+  const cv = $('lidar');
+  cv.style.display = 'block';
+  const g = cv.getContext('2d');
+  g.fillStyle = '#111'; g.fillRect(0, 0, cv.width, cv.height);
+  const v = state.vehicles.get(state.selected);
+  if (!v) return;
+  const c = v.body.position, yaw = headingOf(v.body.quaternion);
+  const cs = Math.cos(-yaw), sn = Math.sin(-yaw), scale = cv.width / 60;  // 30 m around
+  g.fillStyle = '#00e0ff';
+  for (let k = 0; k < p.length; k += 3) {
+    const dx = p[k] - c.x, dy = p[k + 1] - c.y;
+    const fx = cs * dx - sn * dy, fy = sn * dx + cs * dy;  // vehicle frame: x forward, y left
+    g.fillRect(cv.width / 2 - fy * scale, cv.height / 2 - fx * scale, 1.5, 1.5);
+  }
+  g.fillStyle = '#fff'; g.fillRect(cv.width / 2 - 2, cv.height / 2 - 3, 4, 6);
+}
+
+// ---- start ----
+async function main() {
+  const info = JSON.parse(await fetchText('/api/info'));
+  const sc = JSON.parse(await fetchText('/api/scene'));
+  if (sc.format !== 1) throw new Error(`scene format ${sc.format}: this page reads format 1`);
+  state.scene = sc; state.mode = info.mode;
+  $('mode').textContent = `${info.mode}: ${sc.name}`;
+  buildTerrain(sc.terrain, sc.soil);
+  if (sc.soil) state.soil = new Soil(sc.soil);
+  else $('legend').style.display = 'none';
+  for (const o of sc.obstacles) buildObstacle(o);
+  const select = $('vehicle');
+  for (const v of sc.vehicles) {
+    state.vehicles.set(v.id, buildVehicle(v));
+    const opt = document.createElement('option');
+    opt.value = opt.textContent = v.id;
+    select.appendChild(opt);
+    showVehicle(v.id, { pose: [...v.start, 1, 0, 0, 0], wheels: null, speed: 0, steering: 0,
+      throttle: 0, braking: 0, gear: 0, rpm: 0 });
+  }
+  state.selected = sc.vehicles.length ? sc.vehicles[0].id : null;
+  select.addEventListener('change', () => { state.selected = select.value; if (state.view !== 'follow') setView(state.view); });
+  for (const b of ['follow', 'orbit', 'top']) $(b).addEventListener('click', () => setView(b));
+  controls.addEventListener('start', () => { if (state.view === 'follow') setView('orbit'); });
+  resize();
+  setView('follow');
+  window.syndds.vehicleScreenPositions = vehicleScreenPositions;
+  window.syndds.setView = setView;
+  window.syndds.select = (id) => { select.value = id; select.dispatchEvent(new Event('change')); };
+  window.syndds.soilStats = () => state.soil
+    ? { tiles: state.soil.tiles.size, vertices: state.soil.values.size, maxDepth: state.soil.maxDepth }
+    : null;
+  if (info.mode === 'live') startLive();
+  else await startReplay(info);
+  window.syndds.ready = true;
+}
+
+main().catch((e) => fail(`viewer: ${e.message}`));
