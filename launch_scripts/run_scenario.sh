@@ -5,8 +5,13 @@
 #   launch_scripts/run_scenario.sh SCENARIO.yaml [--output DIR] [--duration S] [--realtime]
 #       [--single-process] [--processes per_member|per_vehicle|N] [--print-commands]
 #       [--domain D] [--run-id ID] [--transport default|udp] [--discovery-server ADDR:PORT]
-#       [--log-level LEVEL] [--security-dir DIR]
+#       [--log-level LEVEL] [--security-dir DIR] [--view [--view-port P] [--view-bind ADDR]]
 #   launch_scripts/run_scenario.sh SCENARIO.yaml --resume RUN_DIR [--from-frame K] [options]
+#
+# --view also starts the browser viewer (syndds_viewer, docs/viewer.md) on the live run and
+# prints its URL (port 8080 unless --view-port; 0: any free port; on 127.0.0.1 unless
+# --view-bind). It only reads: it takes no part in the barrier, and stopping it or the browser
+# changes nothing in the run. It is stopped when the run ends (view the record with view.sh).
 #
 # --processes overrides the scenario's process layout (docs/deployment.md, "Processes"): one
 # process per member (default), a vehicle with its controller and sensors in one process, or
@@ -39,6 +44,7 @@ for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_
 done
 
 OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=(); LAYOUT=(); RESUME=""; FROM=latest
+VIEW=0; VIEW_PORT=8080; VIEW_BIND=127.0.0.1
 while [ $# -gt 0 ]; do
   case "$1" in
     --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
@@ -51,6 +57,9 @@ while [ $# -gt 0 ]; do
     --realtime) PASS+=("$1") ;;
     --single-process) SINGLE=1 ;;
     --print-commands) PRINT=1 ;;
+    --view) VIEW=1 ;;
+    --view-port) [ $# -ge 2 ] || die "--view-port needs a port"; VIEW_PORT=$2; shift ;;
+    --view-bind) [ $# -ge 2 ] || die "--view-bind needs an address"; VIEW_BIND=$2; shift ;;
     -h|--help) usage; exit 0 ;;
     *) die "unknown option: $1 (see --help)" ;;
   esac
@@ -74,6 +83,8 @@ fi
 [ -n "$RUN_ID" ] || RUN_ID="${stem:0:40}-$stamp-$$"
 
 if [ "$SINGLE" = 1 ]; then
+  # One process has no DDS traffic to watch.
+  [ "$VIEW" = 0 ] || die "--view watches a distributed run; view a --single-process run afterwards with launch_scripts/view.sh OUTPUT"
   if [ "$PRINT" = 1 ]; then
     printf '%q ' "$BIN/syndds_sim" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" "${PASS[@]}"
     echo
@@ -115,6 +126,25 @@ fi
 mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
 : > "$OUTPUT/logs/pids"
 names=(); pids=(); codes=(); cmds=(); restarts=()
+# The viewer is not a member: the launcher neither waits for it nor cares how it ends.
+VIEW_PID=""
+stop_viewer() { [ -z "$VIEW_PID" ] || { kill -TERM "$VIEW_PID" 2>/dev/null; wait "$VIEW_PID" 2>/dev/null; VIEW_PID=""; }; }
+if [ "$VIEW" = 1 ]; then
+  [ -x "$BIN/syndds_viewer" ] || die "$BIN/syndds_viewer is missing: run launch_scripts/setup.sh first"
+  rm -f "$OUTPUT/logs/viewer.url"
+  "$BIN/syndds_viewer" "$SCENARIO" --run-id "$RUN_ID" --port "$VIEW_PORT" --bind "$VIEW_BIND" \
+      --url-file "$OUTPUT/logs/viewer.url" "${PASS[@]}" > "$OUTPUT/logs/viewer.log" 2>&1 &
+  VIEW_PID=$!
+  for _ in $(seq 100); do
+    [ -s "$OUTPUT/logs/viewer.url" ] || ! kill -0 "$VIEW_PID" 2>/dev/null && break
+    sleep 0.1
+  done
+  if [ -s "$OUTPUT/logs/viewer.url" ]; then
+    echo "run_scenario: viewer at $(cat "$OUTPUT/logs/viewer.url")"
+  else
+    echo "run_scenario: the viewer did not start (the run goes on): $(tail -n1 "$OUTPUT/logs/viewer.log")" >&2
+  fi
+fi
 # From here on no child may outlive the launcher: signals are noted and handled by the watch
 # loop below, and whatever ends the script kills what is still running.
 interrupted=0
@@ -124,7 +154,7 @@ kill_children() {
     [ -z "${codes[$i]}" ] && kill -KILL "${pids[$i]}" 2>/dev/null
   done
 }
-trap kill_children EXIT
+trap 'kill_children; stop_viewer' EXIT
 # The coordinator comes first in the plan. Starting stops as soon as the run has ended (the
 # coordinator exited: join timeout, bad configuration) or the user interrupted: with hundreds of
 # processes starting takes long, and nothing started after the end can take part.
@@ -222,6 +252,7 @@ while :; do
   sleep 0.1
 done
 trap - INT TERM HUP EXIT
+stop_viewer
 
 # A process killed by a signal leaves its Fast DDS shared-memory files behind, and new runs on
 # this machine then fail to open their ports for minutes: remove those of dead processes
@@ -248,6 +279,7 @@ if [ $interrupted = 0 ] && [ "$coordinator_code" = 0 ] && [ "$recorder_code" = 0
     fi
   done
   echo "output: $OUTPUT"
+  [ "$VIEW" = 0 ] || echo "replay: launch_scripts/view.sh $OUTPUT"
   exit 0
 fi
 [ -n "$failed" ] || failed="interrupted"

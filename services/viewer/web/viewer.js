@@ -212,11 +212,20 @@ function groundAt(x, y) {
 function buildVehicle(v) {
   const colour = colourOf(v.colour);
   const body = new THREE.Group();
-  const he = v.chassis_half_extents;
-  const box = new THREE.Mesh(new THREE.BoxGeometry(2 * he[0], 2 * he[1], 2 * he[2]),
-    new THREE.MeshLambertMaterial({ color: colour }));
-  box.position.set(...v.chassis_centre);
+  // The body between the wheels and above their axles (the collision box, drawn as it is,
+  // would hide them), with a cab over the rear part.
+  const he = v.chassis_half_extents, c = v.chassis_centre;
+  const halfTrack = Math.min(...v.wheel_positions.map((w) => Math.abs(w[1])));
+  const halfWidth = Math.max(0.3, Math.min(he[1], halfTrack - 0.5 * v.wheel_width - 0.05));
+  const top = c[2] + he[2], bottom = Math.min(top - 0.3, Math.max(c[2] - he[2], 0.1 * v.wheel_radius));
+  const material = new THREE.MeshLambertMaterial({ color: colour });
+  const box = new THREE.Mesh(new THREE.BoxGeometry(2 * he[0], 2 * halfWidth, top - bottom), material);
+  box.position.set(c[0], c[1], (top + bottom) / 2);
   body.add(box);
+  const cab = new THREE.Mesh(new THREE.BoxGeometry(1.0 * he[0], 1.8 * halfWidth, 0.5 * (top - bottom)),
+    new THREE.MeshLambertMaterial({ color: colour.clone().multiplyScalar(0.8) }));
+  cab.position.set(c[0] - 0.35 * he[0], c[1], top + 0.25 * (top - bottom));
+  body.add(cab);
   scene3.add(body);
   const wheels = [];
   for (let k = 0; k < 4; ++k) {
@@ -466,6 +475,11 @@ async function startReplay(info) {
   } catch (e) { state.status = 'no summary'; }
   window.syndds.frames = frames.length;
   window.syndds.setFrameIndex = (k) => { pos = k; show(k); };
+  window.syndds.setTime = (t) => {
+    const k = Number.isFinite(t) ? Math.round(t / state.scene.heartbeat_s) : frames.length - 1;
+    pos = Math.max(0, Math.min(frames.length - 1, k));
+    show(pos);
+  };
   window.syndds.snapshots = snapshots.length;
   show(0);
   requestAnimationFrame(tick);
@@ -580,12 +594,15 @@ async function main() {
   setView('follow');
   window.syndds.vehicleScreenPositions = vehicleScreenPositions;
   window.syndds.setView = setView;
+  window.syndds.setTime = () => {};  // replay only (set in startReplay)
+  window.syndds.redraw = () => { readout(); render(); };
   window.syndds.select = (id) => { select.value = id; select.dispatchEvent(new Event('change')); };
   window.syndds.soilStats = () => state.soil
     ? { tiles: state.soil.tiles.size, vertices: state.soil.values.size, maxDepth: state.soil.maxDepth }
     : null;
   if (info.mode === 'live') startLive();
   else await startReplay(info);
+  render();
   window.syndds.ready = true;
 }
 
