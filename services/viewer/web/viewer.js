@@ -154,7 +154,8 @@ class Soil {
       const k = Math.min(2, Math.floor(u)), f = u - k;
       c = stops[k].map((x, n) => x + (stops[k + 1][n] - x) * f);
     }
-    col[3 * v] = c[0]; col[3 * v + 1] = c[1]; col[3 * v + 2] = c[2];
+    // The stops are sRGB (as the base colour 0x8a6a45 is); vertex colours are linear.
+    col[3 * v] = c[0] ** 2.2; col[3 * v + 1] = c[1] ** 2.2; col[3 * v + 2] = c[2] ** 2.2;
   }
   set(i, j, h) {
     this.values.set(i + ',' + j, h);
