@@ -74,7 +74,9 @@ function buildTerrain(t, soil) {
       const k = r * t.nx + c;
       pos[3 * k] = t.x_min + (t.x_max - t.x_min) * c / (t.nx - 1);
       pos[3 * k + 1] = t.y_min + (t.y_max - t.y_min) * r / (t.ny - 1);
-      pos[3 * k + 2] = t.heights[k];
+      // Soil scenes: the patch is drawn by the soil's own meshes; the ground beneath stays
+      // out of sight below the deepest rut (it shows only beyond the patch).
+      pos[3 * k + 2] = t.heights[k] - (soil ? 0.5 : 0);
     }
   }
   const idx = [];
@@ -109,6 +111,42 @@ class Soil {
     this.tiles = new Map(); this.dirty = new Set(); this.values = new Map();
     this.material = new THREE.MeshLambertMaterial({ vertexColors: true });
     this.maxDepth = 0;
+    this.buildCover();
+  }
+  // The undeformed soil: one flat quad per tile of the visible patch; a tile's quad is taken out
+  // when the tile gets a mesh of its own (its ruts lie below the undeformed surface).
+  buildCover() {
+    const t = state.scene.terrain, span = SOIL_TILE * this.d, info = this.info;
+    const lo = (v, m) => Math.floor(Math.max(v, m) / span), hi = (v, m) => Math.ceil(Math.min(v, m) / span) - 1;
+    this.t0 = [lo(t.x_min, info.i_min * this.d), lo(t.y_min, info.j_min * this.d)];
+    this.t1 = [hi(t.x_max, info.i_max * this.d), hi(t.y_max, info.j_max * this.d)];
+    const nx = this.t1[0] - this.t0[0] + 1, ny = this.t1[1] - this.t0[1] + 1;
+    if (nx <= 0 || ny <= 0) return;
+    const pos = new Float32Array(nx * ny * 12);
+    this.coverIndex = new Uint32Array(nx * ny * 6);
+    for (let b = 0; b < ny; ++b) {
+      for (let a = 0; a < nx; ++a) {
+        const q = b * nx + a, x0 = (this.t0[0] + a) * span, y0 = (this.t0[1] + b) * span;
+        pos.set([x0, y0, this.base, x0 + span, y0, this.base, x0 + span, y0 + span, this.base,
+          x0, y0 + span, this.base], 12 * q);
+        this.coverIndex.set([4 * q, 4 * q + 1, 4 * q + 2, 4 * q, 4 * q + 2, 4 * q + 3], 6 * q);
+      }
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
+    g.setIndex(new THREE.BufferAttribute(this.coverIndex.slice(), 1));
+    g.computeVertexNormals();
+    this.cover = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ color: 0x8a6a45 }));
+    this.coverSize = [nx, ny];
+    scene3.add(this.cover);
+  }
+  showCover(ti, tj, on) {
+    if (!this.cover) return;
+    const a = ti - this.t0[0], b = tj - this.t0[1];
+    if (a < 0 || b < 0 || a >= this.coverSize[0] || b >= this.coverSize[1]) return;
+    const q = b * this.coverSize[0] + a, idx = this.cover.geometry.index;
+    for (let k = 0; k < 6; ++k) idx.array[6 * q + k] = on ? this.coverIndex[6 * q + k] : 0;
+    idx.needsUpdate = true;
   }
   key(ti, tj) { return ti + ',' + tj; }
   tile(ti, tj) {
@@ -139,6 +177,7 @@ class Soil {
     g.computeVertexNormals();
     t = { mesh: new THREE.Mesh(g, this.material), ti, tj };
     scene3.add(t.mesh);
+    this.showCover(ti, tj, false);
     this.tiles.set(k, t);
     return t;
   }
@@ -175,7 +214,9 @@ class Soil {
     }
   }
   reset() {
-    for (const t of this.tiles.values()) { scene3.remove(t.mesh); t.mesh.geometry.dispose(); }
+    for (const t of this.tiles.values()) {
+      scene3.remove(t.mesh); t.mesh.geometry.dispose(); this.showCover(t.ti, t.tj, true);
+    }
     this.tiles.clear(); this.dirty.clear(); this.values.clear(); this.maxDepth = 0;
   }
   flush() {
@@ -597,6 +638,43 @@ async function main() {
   window.syndds.setView = setView;
   window.syndds.setTime = () => {};  // replay only (set in startReplay)
   window.syndds.redraw = () => { readout(); render(); };
+  window.syndds.showVehicles = (on) => {
+    for (const v of state.vehicles.values()) { v.body.visible = on; for (const w of v.wheels) w.visible = on; }
+    render();
+  };
+  // Looks straight down at (x, y) from `height` metres (the free camera).
+  window.syndds.lookDown = (x, y, height) => {
+    setView('orbit');
+    controls.target.set(x, y, 0);
+    camera.position.set(x, y - 0.01, height);
+    controls.update();
+    render();
+  };
+  window.syndds.vehicleState = (id) => { const v = state.vehicles.get(id); return v && v.s; };
+  // What the view shows, for the tests: the share of pixels that are not sky, how many distinct
+  // colours there are, and the share of pixels that differ from the picture kept by keep=true.
+  let kept = null;
+  window.syndds.pictureStats = (keep = false) => {
+    render();
+    const src = renderer.domElement;
+    const c = document.createElement('canvas');
+    c.width = src.width; c.height = src.height;
+    const g = c.getContext('2d');
+    g.drawImage(src, 0, 0);
+    const d = g.getImageData(0, 0, c.width, c.height).data;
+    const sky = [0x9f, 0xb9, 0xd6], colours = new Set();
+    let notSky = 0, changed = 0;
+    for (let k = 0; k < d.length; k += 4) {
+      if (Math.abs(d[k] - sky[0]) + Math.abs(d[k + 1] - sky[1]) + Math.abs(d[k + 2] - sky[2]) > 12) ++notSky;
+      colours.add((d[k] >> 3) << 10 | (d[k + 1] >> 3) << 5 | (d[k + 2] >> 3));
+      if (kept && kept.length === d.length &&
+          Math.abs(d[k] - kept[k]) + Math.abs(d[k + 1] - kept[k + 1]) + Math.abs(d[k + 2] - kept[k + 2]) > 24) ++changed;
+    }
+    const n = d.length / 4;
+    const out = { notSky: notSky / n, colours: colours.size, changed: kept ? changed / n : null };
+    if (keep) kept = d;
+    return out;
+  };
   window.syndds.select = (id) => { select.value = id; select.dispatchEvent(new Event('change')); };
   window.syndds.soilStats = () => state.soil
     ? { tiles: state.soil.tiles.size, vertices: state.soil.values.size, maxDepth: state.soil.maxDepth }

@@ -1,0 +1,109 @@
+// The viewer in a real headless browser (Debian's chromium through playwright-core): one case
+// per invocation, run by tests/viewer/browser_tests.sh, which starts the programs.
+//   node browser_tests.mjs replay URL SHOT.png        default scenario, recorded
+//   node browser_tests.mjs ruts URL SHOT.png          scm_crossing, recorded
+//   node browser_tests.mjs live URL                   a live scm_crossing run
+//   node browser_tests.mjs watch URL                  a live run, until the browser is killed
+import assert from 'node:assert/strict';
+import { openViewer } from '../../tools/viewer_browser.mjs';
+
+const [kind, url, shot] = process.argv.slice(2);
+const log = (...a) => console.log(`browser_tests ${kind}:`, ...a);
+
+async function moveSlider(page, value) {
+  // As a person does: the slider's value changes and it says so.
+  await page.$eval('#slider', (el, v) => { el.value = String(v); el.dispatchEvent(new Event('input')); }, value);
+}
+
+async function replay() {
+  const { browser, page } = await openViewer(url);
+  try {
+    const info = await page.evaluate(() => ({
+      frames: window.syndds.frames, vehicles: [...window.syndds.state.vehicles.keys()] }));
+    log(JSON.stringify(info));
+    assert.deepEqual(info.vehicles.sort(), ['lead', 'loop', 'scurve']);
+    assert.ok(info.frames > 100, 'every recorded frame is loaded');
+    await page.evaluate(() => window.syndds.setView('top'));
+    await moveSlider(page, 0);
+    const before = await page.evaluate(() => window.syndds.vehicleScreenPositions());
+    await moveSlider(page, info.frames - 1);
+    const after = await page.evaluate(() => window.syndds.vehicleScreenPositions());
+    for (const id of info.vehicles) {
+      const moved = Math.hypot(after[id][0] - before[id][0], after[id][1] - before[id][1]);
+      log(`${id} moved ${moved.toFixed(1)} px on screen`);
+      assert.ok(moved > 20, `${id} moves when the slider moves`);
+    }
+    const readout = await page.textContent('#r-time');
+    assert.match(readout, /^\d+\.\d\d \/ \d+\.\d s/);
+    // The follow camera behind the lead vehicle, the run's tracks drawn: the picture.
+    await page.evaluate(() => { window.syndds.select('lead'); window.syndds.setView('follow'); });
+    await moveSlider(page, Math.floor(info.frames * 0.6));
+    const stats = await page.evaluate(() => window.syndds.pictureStats());
+    log(JSON.stringify(stats));
+    assert.ok(stats.notSky > 0.3 && stats.colours > 20, 'the picture shows the world');
+    await page.screenshot({ path: shot });
+  } finally {
+    await browser.close();
+  }
+}
+
+async function ruts() {
+  const { browser, page } = await openViewer(url);
+  try {
+    const frames = await page.evaluate(() => window.syndds.frames);
+    await page.evaluate(() => window.syndds.setView('top'));
+    // Straight down on the first vehicle's path, vehicles hidden: the same view at the start
+    // (undisturbed soil) and at the end differs where the wheels went.
+    await moveSlider(page, frames - 1);
+    const end = await page.evaluate(() => window.syndds.vehicleState('a1').pose);
+    await moveSlider(page, 0);
+    const start = await page.evaluate(() => window.syndds.vehicleState('a1').pose);
+    const cx = (start[0] + end[0]) / 2, cy = (start[1] + end[1]) / 2;
+    await page.evaluate(([x, y]) => { window.syndds.showVehicles(false); window.syndds.lookDown(x, y, 10); }, [cx, cy]);
+    const empty = await page.evaluate(() => window.syndds.pictureStats(true));
+    const settled = await page.evaluate(() => window.syndds.soilStats());  // wheels at rest
+    await moveSlider(page, frames - 1);
+    await page.evaluate(([x, y]) => window.syndds.lookDown(x, y, 10), [cx, cy]);
+    if (process.env.SYNDDS_DEBUG_SHOT) await page.screenshot({ path: process.env.SYNDDS_DEBUG_SHOT });
+    const soil = await page.evaluate(() => window.syndds.soilStats());
+    const rutted = await page.evaluate(() => window.syndds.pictureStats());
+    log(JSON.stringify({ settled, soil, empty, rutted }));
+    assert.ok(soil.maxDepth > 0.01, 'ruts deeper than 1 cm were replayed');
+    assert.ok(soil.vertices > 10 * settled.vertices, 'the soil deformed along the paths');
+    assert.ok(rutted.changed > 0.01, 'the ruts change the picture');
+    await page.evaluate(() => { window.syndds.showVehicles(true); window.syndds.select('a2'); window.syndds.setView('follow'); });
+    await moveSlider(page, Math.floor(frames / 2));
+    await page.screenshot({ path: shot });
+  } finally {
+    await browser.close();
+  }
+}
+
+async function live() {
+  const { browser, page } = await openViewer(url);
+  try {
+    // While the run goes on: states arrive, the soil deforms in the page, the clock advances.
+    await page.waitForFunction(() => window.syndds.updates > 0 && window.syndds.soilStats().vertices > 0,
+      null, { timeout: 60000 });
+    const first = await page.evaluate(() => window.syndds.state.frame);
+    await page.waitForFunction((f) => window.syndds.state.frame > f + 10, first, { timeout: 60000 });
+    const s = await page.evaluate(() => ({ frame: window.syndds.state.frame, soil: window.syndds.soilStats(),
+      status: window.syndds.state.status, members: window.syndds.state.members.length }));
+    log(JSON.stringify(s));
+    assert.equal(s.status, 'running');
+    assert.ok(s.soil.maxDepth > 0, 'ruts appear while the run goes on');
+  } finally {
+    await browser.close();
+  }
+}
+
+async function watch() {
+  const { page } = await openViewer(url);
+  await page.waitForFunction(() => window.syndds.updates > 0, null, { timeout: 60000 });
+  log('watching');
+  await new Promise(() => {});  // until killed
+}
+
+const cases = { replay, ruts, live, watch };
+if (!cases[kind]) { console.error(`unknown case ${kind}`); process.exit(1); }
+cases[kind]().then(() => log('passed'), (e) => { console.error(`browser_tests ${kind}: FAILED: ${e.message}`); process.exit(1); });

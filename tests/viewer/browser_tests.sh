@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# The viewer as a user meets it, in headless Chromium: one case per call (CTest runs each in its
+# own network namespace through tests/netns_exec.sh). Exit 77 (skipped) without chromium or the
+# npm packages (launch_scripts/setup.sh installs both).
+#   browser_tests.sh replay|ruts|live|kill OUT_DIR
+#     replay  the default scenario recorded: loads, the slider moves the vehicles, screenshot
+#     ruts    scm_crossing recorded: the ruts are replayed and change the picture, screenshot
+#     live    scm_crossing live with --view: ruts appear while it runs; vehicles.csv is
+#             byte-identical to the single-process run
+#     kill    the default scenario live: the viewer is killed (SIGKILL) while a browser watches;
+#             the run completes with vehicles.csv byte-identical to the single-process run
+set -euo pipefail
+CASE=$1; OUT=$2
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+BIN=${SYNDDS_BIN_DIR:-$ROOT/build/bin}
+CHROMIUM=${SYNDDS_CHROMIUM:-/usr/bin/chromium}
+[ -x "$CHROMIUM" ] || { echo "skipped: $CHROMIUM not installed"; exit 77; }
+[ -d "$ROOT/services/viewer/web/node_modules/playwright-core" ] ||
+  { echo "skipped: npm packages missing (launch_scripts/setup.sh)"; exit 77; }
+mkdir -p "$OUT"
+work=$(mktemp -d)
+vpid=""
+cleanup() { [ -z "$vpid" ] || kill "$vpid" 2>/dev/null || true; rm -rf "$work"; }
+trap cleanup EXIT
+export SYNDDS_BUILD_DIR=$(dirname "$BIN")
+
+# Waits (bounded) until file $1 is not empty.
+wait_file() {
+  for _ in $(seq 600); do [ -s "$1" ] && return 0; sleep 0.1; done
+  echo "browser_tests: $1 never appeared" >&2; return 1
+}
+replay_viewer() {  # $1 run directory
+  "$BIN/syndds_viewer" --replay "$1" --port 0 --url-file "$work/url" > "$work/viewer.log" 2>&1 &
+  vpid=$!
+  wait_file "$work/url"
+}
+single() {  # $1 scenario, $2 duration, $3 output
+  "$BIN/syndds_sim" "$ROOT/config/scenarios/$1.yaml" --output "$3" --duration "$2" --quiet --log-level warn
+}
+
+case "$CASE" in
+  replay)
+    single default 10 "$work/run"
+    replay_viewer "$work/run"
+    node "$ROOT/tests/viewer/browser_tests.mjs" replay "$(cat "$work/url")" "$OUT/viewer_default.png"
+    ;;
+  ruts)
+    single scm_crossing 8 "$work/run"
+    replay_viewer "$work/run"
+    node "$ROOT/tests/viewer/browser_tests.mjs" ruts "$(cat "$work/url")" "$OUT/viewer_scm_crossing.png"
+    ;;
+  live)
+    "$ROOT/launch_scripts/run_scenario.sh" "$ROOT/config/scenarios/scm_crossing.yaml" --duration 20 \
+        --realtime --view --view-port 0 --output "$work/live" > "$work/launcher.log" 2>&1 &
+    lpid=$!
+    wait_file "$work/live/logs/viewer.url"
+    node "$ROOT/tests/viewer/browser_tests.mjs" live "$(cat "$work/live/logs/viewer.url")"
+    wait "$lpid" || { cat "$work/launcher.log" >&2; exit 1; }
+    single scm_crossing 20 "$work/single"
+    cmp "$work/live/vehicles.csv" "$work/single/vehicles.csv"
+    cmp "$work/live/terrain_changes.csv" "$work/single/terrain_changes.csv"
+    echo "browser_tests live: vehicles.csv and terrain_changes.csv byte-identical with the viewer watching"
+    ;;
+  kill)
+    "$ROOT/launch_scripts/run_scenario.sh" "$ROOT/config/scenarios/default.yaml" --duration 12 \
+        --realtime --view --view-port 0 --output "$work/live" > "$work/launcher.log" 2>&1 &
+    lpid=$!
+    wait_file "$work/live/logs/viewer.url"
+    node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/live/logs/viewer.url")" > "$work/browser.log" 2>&1 &
+    bpid=$!
+    for _ in $(seq 600); do grep -q watching "$work/browser.log" && break; sleep 0.1; done
+    grep -q watching "$work/browser.log" || { cat "$work/browser.log" >&2; exit 1; }
+    # Mid-run: the browser and then the viewer die without a word.
+    kill -KILL "$bpid"; pkill -KILL -f "chromium.*--headless" || true
+    pkill -KILL -f "syndds_viewer .*$work/live" || true
+    wait "$lpid" || { cat "$work/launcher.log" >&2; exit 1; }
+    single default 12 "$work/single"
+    cmp "$work/live/vehicles.csv" "$work/single/vehicles.csv"
+    cmp "$work/live/commands.csv" "$work/single/commands.csv"
+    echo "browser_tests kill: the run completed byte-identical after its viewer and browser were killed"
+    ;;
+  *) echo "unknown case $CASE" >&2; exit 1 ;;
+esac
+echo "browser_tests $CASE: passed"

@@ -1,0 +1,353 @@
+// The viewer's parts without a browser: the scene document, the live state's latest-only
+// bookkeeping, and the HTTP/WebSocket server (civetweb's own client talks to it).
+#include <civetweb.h>
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "scenario/scenario.hpp"
+#include "viewer/live_state.hpp"
+#include "viewer/scene.hpp"
+#include "viewer/viewer_server.hpp"
+
+namespace fs = std::filesystem;
+using namespace syndds;
+
+namespace {
+
+const std::string kConfig = SYNDDS_TEST_CONFIG_DIR;
+
+proto::VehicleStateMsg state(const std::string& id, std::int64_t frame, double x) {
+  proto::VehicleStateMsg s;
+  s.vehicle_id = id;
+  s.frame = frame;
+  s.sim_time_s = frame * 0.01;
+  s.pose.position = Vec3(x, 0, 0.5);
+  s.wheels.resize(4);
+  return s;
+}
+
+std::vector<proto::TerrainVertexMsg> vertices(std::initializer_list<std::array<double, 3>> ijh) {
+  std::vector<proto::TerrainVertexMsg> out;
+  for (const auto& v : ijh) {
+    proto::TerrainVertexMsg m;
+    m.i = static_cast<std::int32_t>(v[0]);
+    m.j = static_cast<std::int32_t>(v[1]);
+    m.height = v[2];
+    out.push_back(m);
+  }
+  return out;
+}
+
+nlohmann::json update(viewer::LiveState& live, viewer::Cursor& c, std::size_t max = 1000,
+                      bool* more = nullptr) {
+  return nlohmann::json::parse(live.update(c, max, more));
+}
+
+}  // namespace
+
+TEST(Scene, DescribesTheDefaultScenarioCompletelyAndTheSameEveryTime) {
+  const auto s = scenario::load_scenario(kConfig + "/scenarios/default.yaml", {}, kConfig);
+  const auto scene = viewer::scene_json(s);
+  EXPECT_EQ(scene["format"], viewer::kSceneFormat);
+  ASSERT_EQ(scene["vehicles"].size(), s.vehicles.size());
+  for (std::size_t k = 0; k < s.vehicles.size(); ++k) {
+    const auto& v = scene["vehicles"][k];
+    EXPECT_EQ(v["id"], s.vehicles[k].id);
+    EXPECT_EQ(v["wheel_positions"].size(), 4u);
+    EXPECT_DOUBLE_EQ(v["wheel_radius"].get<double>(), s.vehicles[k].params.wheels.radius_m);
+    EXPECT_EQ(v["path"].size(), s.vehicles[k].controller.waypoints.size());
+  }
+  EXPECT_EQ(scene["obstacles"].size(), s.obstacles.size());
+  EXPECT_TRUE(scene["soil"].is_null());
+  // Every start, waypoint and obstacle is inside the terrain drawn.
+  const auto& t = scene["terrain"];
+  for (const auto& v : s.vehicles) {
+    for (const auto& w : v.controller.waypoints) {
+      EXPECT_GE(w.x(), t["x_min"].get<double>());
+      EXPECT_LE(w.x(), t["x_max"].get<double>());
+      EXPECT_GE(w.y(), t["y_min"].get<double>());
+      EXPECT_LE(w.y(), t["y_max"].get<double>());
+    }
+  }
+  EXPECT_EQ(t["heights"].size(), t["nx"].get<std::size_t>() * t["ny"].get<std::size_t>());
+  EXPECT_EQ(viewer::scene_json(s).dump(), scene.dump());
+}
+
+TEST(Scene, GivesTheSoilGridAndTheHillsHeights) {
+  const auto scm = scenario::load_scenario(kConfig + "/scenarios/scm_crossing.yaml", {}, kConfig);
+  const auto soil = viewer::scene_json(scm)["soil"];
+  ASSERT_TRUE(soil.is_object());
+  EXPECT_DOUBLE_EQ(soil["spacing_m"].get<double>(), scm.terrain.scm.grid.spacing_m);
+  EXPECT_LT(soil["i_min"].get<std::int64_t>(), soil["i_max"].get<std::int64_t>());
+  const auto hills = scenario::load_scenario(kConfig + "/scenarios/hills.yaml", {}, kConfig);
+  const auto t = viewer::scene_json(hills)["terrain"];
+  EXPECT_EQ(t["nx"], viewer::kMaxTerrainSamples);
+  const auto& h = t["heights"];
+  const auto [lo, hi] = std::minmax_element(h.begin(), h.end());
+  EXPECT_GT(hi->get<double>() - lo->get<double>(), 1.0);  // the hills are drawn
+}
+
+TEST(LiveState, AConnectionGetsOnlyTheNewestStateOfEachVehicle) {
+  viewer::LiveState live;
+  viewer::Cursor c;
+  for (int f = 0; f < 10; ++f) live.on_vehicle_state(state("a", f, f));
+  live.on_vehicle_state(state("a", 3, 99));  // older than what is held: ignored
+  auto u = update(live, c);
+  ASSERT_EQ(u["vehicles"].size(), 1u);
+  EXPECT_EQ(u["vehicles"][0]["frame"], 9);
+  EXPECT_DOUBLE_EQ(u["vehicles"][0]["pose"][0].get<double>(), 9.0);
+  EXPECT_EQ(u["vehicles"][0]["wheels"].size(), 4u);
+  EXPECT_TRUE(update(live, c)["vehicles"].empty());  // nothing new
+  live.on_vehicle_state(state("b", 10, 1));
+  u = update(live, c);
+  ASSERT_EQ(u["vehicles"].size(), 1u);
+  EXPECT_EQ(u["vehicles"][0]["id"], "b");
+}
+
+TEST(LiveState, ASlowConnectionGetsEachSoilVertexOnceWithItsNewestHeight) {
+  viewer::LiveState live;
+  viewer::Cursor fast, slow;
+  for (int round = 0; round < 50; ++round) {
+    live.on_terrain(vertices({{1, 1, -0.01 * round}, {2, 1, -0.02 * round}}));
+    (void)update(live, fast);
+  }
+  auto u = update(live, slow);
+  ASSERT_EQ(u["soil"].size(), 2u);
+  std::map<int, double> h;
+  for (const auto& v : u["soil"]) h[v[0].get<int>()] = v[2].get<double>();
+  EXPECT_DOUBLE_EQ(h[1], -0.49);
+  EXPECT_DOUBLE_EQ(h[2], -0.98);
+  EXPECT_TRUE(update(live, slow)["soil"].empty());
+  EXPECT_TRUE(update(live, fast)["soil"].empty());
+}
+
+TEST(LiveState, TheChangeLogStaysBoundedAndCompactionLosesNothing) {
+  viewer::LiveState live;
+  viewer::Cursor early;
+  live.on_terrain(vertices({{0, 0, 1.0}}));
+  (void)update(live, early);  // has seen the first change only
+  for (int round = 0; round < 2000; ++round) {
+    live.on_terrain(vertices({{0, 0, 2.0 + round}, {5, 5, 3.0 + round}, {7, 1, 4.0}}));
+  }
+  EXPECT_LE(live.soil_log_size(), 2 * live.soil_vertices() + 4096 + 3);
+  const auto u = update(live, early);
+  std::map<int, double> h;
+  for (const auto& v : u["soil"]) h[v[0].get<int>()] = v[2].get<double>();
+  EXPECT_EQ(h.size(), 3u);
+  EXPECT_DOUBLE_EQ(h[0], 2001.0);
+  EXPECT_DOUBLE_EQ(h[5], 2002.0);
+  EXPECT_DOUBLE_EQ(h[7], 4.0);
+}
+
+TEST(LiveState, LargeSoilChangesAreSentInPartsThatAddUp) {
+  viewer::LiveState live;
+  std::vector<proto::TerrainVertexMsg> many;
+  for (int i = 0; i < 250; ++i) many.push_back(vertices({{double(i), 0, -0.1}})[0]);
+  live.on_terrain(many);
+  viewer::Cursor c;
+  std::size_t total = 0, parts = 0;
+  bool more = true;
+  while (more) {
+    total += update(live, c, 100, &more)["soil"].size();
+    ++parts;
+  }
+  EXPECT_EQ(total, 250u);
+  EXPECT_EQ(parts, 3u);
+}
+
+TEST(LiveState, RealTimeFactorMembersAndTheEnd) {
+  viewer::LiveState live;
+  viewer::Cursor c;
+  EXPECT_TRUE(update(live, c)["real_time_factor"].is_null());
+  for (int f = 1; f <= 100; ++f) live.on_frame(f, f * 0.01, 10.0 + f * 0.02);  // 2x slower
+  auto u = update(live, c);
+  EXPECT_NEAR(u["real_time_factor"].get<double>(), 2.0, 1e-9);
+  EXPECT_EQ(u["frame"], 100);
+  proto::MemberAnnounceMsg m;
+  m.member_id = "vehicle/a";
+  m.host = "h1";
+  m.pid = 42;
+  live.on_member(m, 0.0);
+  u = update(live, c);
+  ASSERT_EQ(u["members"].size(), 1u);
+  EXPECT_EQ(u["members"][0]["kind"], "vehicle");
+  live.on_member(m, 1.0);  // the same again: no new list
+  EXPECT_FALSE(update(live, c).contains("members"));
+  EXPECT_FALSE(live.ended());
+  proto::RunControlMsg end;
+  end.status = proto::RunStatus::aborted;
+  end.reason = "member x lost";
+  live.on_run_end(end);
+  u = update(live, c);
+  EXPECT_EQ(u["status"], "aborted");
+  EXPECT_EQ(u["reason"], "member x lost");
+  EXPECT_TRUE(live.ended());
+}
+
+TEST(ViewerFiles, OnlyRegularFilesInsideTheRootAreServed) {
+  const fs::path root = fs::temp_directory_path() / ("syndds_viewer_files_" + std::to_string(::getpid()));
+  fs::create_directories(root / "sensors" / "a");
+  std::ofstream(root / "vehicles.csv") << "x\n";
+  std::ofstream(root / "sensors" / "a" / "frames.csv") << "y\n";
+  fs::create_symlink("/etc/hostname", root / "link");
+  EXPECT_EQ(viewer::file_inside(root, "vehicles.csv"), fs::canonical(root / "vehicles.csv"));
+  EXPECT_FALSE(viewer::file_inside(root, "sensors/a/frames.csv").empty());
+  // Out and back in is still inside.
+  EXPECT_FALSE(viewer::file_inside(root, "../" + root.filename().string() + "/vehicles.csv").empty());
+  EXPECT_TRUE(viewer::file_inside(root, "../../../../../../etc/passwd").empty());
+  EXPECT_TRUE(viewer::file_inside(root, "/etc/passwd").empty());  // taken as root/etc/passwd
+  EXPECT_TRUE(viewer::file_inside(root, "link").empty());   // leads outside
+  EXPECT_TRUE(viewer::file_inside(root, "sensors").empty());  // a folder
+  EXPECT_TRUE(viewer::file_inside(root, "missing.csv").empty());
+  fs::remove_all(root);
+}
+
+namespace {
+
+// A web root with a page and a stand-in of the three package (the server checks both exist).
+struct WebFixture {
+  fs::path dir = fs::temp_directory_path() / ("syndds_viewer_web_" + std::to_string(::getpid()));
+  WebFixture() {
+    fs::create_directories(dir / "web");
+    fs::create_directories(dir / "three" / "build");
+    fs::create_directories(dir / "run");
+    std::ofstream(dir / "web" / "index.html") << "<html>page</html>";
+    std::ofstream(dir / "three" / "build" / "three.module.js") << "export const x = 1;";
+    std::ofstream(dir / "three" / "package.json") << "{}";
+    std::ofstream(dir / "run" / "vehicles.csv") << "frame\n0\n";
+  }
+  ~WebFixture() { fs::remove_all(dir); }
+  viewer::ServerOptions options(bool replay) const {
+    viewer::ServerOptions o;
+    o.port = 0;
+    o.web_root = dir / "web";
+    o.three_dir = dir / "three";
+    if (replay) o.run_dir = dir / "run";
+    o.update_hz = 100;
+    return o;
+  }
+};
+
+// GET `path`: status and body.
+std::pair<int, std::string> get(int port, const std::string& path) {
+  char err[256] = {};
+  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err,
+                                 "GET %s HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n", path.c_str());
+  if (!c) return {0, err};
+  const int status = mg_get_response_info(c)->status_code;
+  std::string body;
+  char buf[4096];
+  int n;
+  while ((n = mg_read(c, buf, sizeof buf)) > 0) body.append(buf, n);
+  mg_close_connection(c);
+  return {status, body};
+}
+
+}  // namespace
+
+TEST(ViewerServer, ServesThePageTheSceneTheRunAndNothingElse) {
+  WebFixture web;
+  viewer::ViewerServer server(web.options(true), R"({"format":1})", nullptr, nullptr);
+  ASSERT_GT(server.port(), 0);
+  EXPECT_EQ(get(server.port(), "/").second, "<html>page</html>");
+  EXPECT_EQ(get(server.port(), "/api/scene").second, R"({"format":1})");
+  const auto info = nlohmann::json::parse(get(server.port(), "/api/info").second);
+  EXPECT_EQ(info["mode"], "replay");
+  EXPECT_EQ(info["run_files"], nlohmann::json::array({"vehicles.csv"}));
+  EXPECT_EQ(get(server.port(), "/run/vehicles.csv"), std::make_pair(200, std::string("frame\n0\n")));
+  EXPECT_EQ(get(server.port(), "/vendor/three/build/three.module.js").first, 200);
+  EXPECT_EQ(get(server.port(), "/vendor/three/package.json").first, 404);  // not the module
+  EXPECT_EQ(get(server.port(), "/run/../web/index.html").first, 404);
+  EXPECT_EQ(get(server.port(), "/run/%2e%2e/three/package.json").first, 404);
+  EXPECT_EQ(get(server.port(), "/run/missing.csv").first, 404);
+  EXPECT_EQ(get(server.port(), "/api/nothing").first, 404);
+}
+
+TEST(ViewerServer, RefusesAWebRootWithoutThePage) {
+  WebFixture web;
+  auto o = web.options(false);
+  o.web_root = web.dir / "three";
+  EXPECT_THROW(viewer::ViewerServer(o, "{}", nullptr, nullptr), ConfigError);
+  o = web.options(false);
+  o.three_dir = web.dir / "web";
+  EXPECT_THROW(viewer::ViewerServer(o, "{}", nullptr, nullptr), ConfigError);
+}
+
+namespace {
+
+struct WsInbox {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::vector<std::string> texts;
+  std::size_t binaries = 0;
+  bool closed = false;
+};
+
+int ws_data(mg_connection*, int bits, char* data, std::size_t len, void* user) {
+  auto* in = static_cast<WsInbox*>(user);
+  std::lock_guard lock(in->mutex);
+  if ((bits & 0x0f) == MG_WEBSOCKET_OPCODE_TEXT) in->texts.emplace_back(data, len);
+  if ((bits & 0x0f) == MG_WEBSOCKET_OPCODE_BINARY) ++in->binaries;
+  in->cv.notify_all();
+  return 1;
+}
+
+void ws_close(const mg_connection*, void* user) {
+  auto* in = static_cast<WsInbox*>(user);
+  std::lock_guard lock(in->mutex);
+  in->closed = true;
+  in->cv.notify_all();
+}
+
+}  // namespace
+
+TEST(ViewerServer, StreamsTheSceneThenLiveUpdatesAndTheSelectedCamera) {
+  WebFixture web;
+  viewer::LiveState live;
+  viewer::SensorStore sensors;
+  viewer::ViewerServer server(web.options(false), R"({"format":1})", &live, &sensors);
+  WsInbox inbox;
+  char err[256] = {};
+  mg_connection* c = mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err,
+                                                 "/live", nullptr, ws_data, ws_close, &inbox);
+  ASSERT_NE(c, nullptr) << err;
+  const std::string select = R"({"select":"a"})";
+  mg_websocket_client_write(c, MG_WEBSOCKET_OPCODE_TEXT, select.data(), select.size());
+  live.on_vehicle_state(state("a", 5, 1.0));
+  live.on_terrain(vertices({{3, 4, -0.05}}));
+  sensors.set_image("a", {"cam", 5, std::string("\xff\xd8jpeg", 6), 0});
+  sensors.set_image("b", {"cam", 5, "other vehicle", 0});
+  const auto got = [&](auto pred) {
+    std::unique_lock lock(inbox.mutex);
+    return inbox.cv.wait_for(lock, std::chrono::seconds(10), [&] { return pred(); });
+  };
+  ASSERT_TRUE(got([&] {
+    bool vehicle = false, soil = false;
+    for (const auto& t : inbox.texts) {
+      const auto m = nlohmann::json::parse(t);
+      if (m["type"] != "update") continue;
+      vehicle = vehicle || !m["vehicles"].empty();
+      soil = soil || !m["soil"].empty();
+    }
+    return vehicle && soil && inbox.binaries >= 1;
+  }));
+  {
+    std::lock_guard lock(inbox.mutex);
+    EXPECT_EQ(nlohmann::json::parse(inbox.texts.front())["type"], "scene");
+    EXPECT_EQ(inbox.binaries, 1u);  // vehicle a's image, once
+  }
+  EXPECT_EQ(server.connections(), 1u);
+  mg_close_connection(c);
+  for (int k = 0; k < 100 && server.connections() > 0; ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(server.connections(), 0u);
+}
