@@ -338,9 +338,19 @@ function setView(mode) {
   for (const b of ['follow', 'orbit', 'top']) $(b).classList.toggle('on', b === mode);
   const t = state.scene.terrain;
   if (mode === 'top') {
-    const cx = (t.x_min + t.x_max) / 2, cy = (t.y_min + t.y_max) / 2;
-    const side = Math.max(t.x_max - t.x_min, t.y_max - t.y_min);
-    camera.position.set(cx, cy - 0.01, side * 1.1);
+    // Straight down on everything the vehicles drive: their paths, tracks and positions.
+    const box = new THREE.Box3();
+    for (const v of state.vehicles.values()) {
+      box.expandByPoint(v.body.position);
+      for (const p of v.info.path) box.expandByPoint(new THREE.Vector3(p[0], p[1], 0));
+      const pos = v.track.geometry.attributes.position;
+      if (pos) for (let k = 0; k < pos.count; ++k) box.expandByPoint(new THREE.Vector3(pos.getX(k), pos.getY(k), 0));
+    }
+    if (box.isEmpty()) box.set(new THREE.Vector3(t.x_min, t.y_min, 0), new THREE.Vector3(t.x_max, t.y_max, 0));
+    box.expandByScalar(8);
+    const cx = (box.min.x + box.max.x) / 2, cy = (box.min.y + box.max.y) / 2;
+    const half = Math.max((box.max.x - box.min.x) / camera.aspect, box.max.y - box.min.y) / 2;
+    camera.position.set(cx, cy - 0.01, half / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2)));
     controls.target.set(cx, cy, 0);
   } else if (mode === 'orbit') {
     const v = state.vehicles.get(state.selected);
