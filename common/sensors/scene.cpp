@@ -217,20 +217,30 @@ void Scene::detach(unsigned id) {
   dirty_ = true;
 }
 
+namespace {
+// Drawn vertices along one side of a tile of `cells` cells drawn every `step` vertices.
+int drawn_count(int cells, int step) { return (cells + step - 1) / step + 1; }
+std::size_t drawn_quads(int cells_x, int cells_y, int step) {
+  return static_cast<std::size_t>(drawn_count(cells_x, step) - 1) *
+         static_cast<std::size_t>(drawn_count(cells_y, step) - 1);
+}
+}  // namespace
+
 void Scene::clear_terrain() {
   for (auto& t : tiles_) {
-    primitive_count_ -= static_cast<std::size_t>(t.cells_x) * t.cells_y;
+    primitive_count_ -= drawn_quads(t.cells_x, t.cells_y, t.step);
     detach(t.id);
   }
   tiles_.clear();
 }
 
-void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
+void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look, int coarse_stride) {
   if (grid.nx < 2 || grid.ny < 2 || !(grid.spacing_m > 0.0) ||
       grid.heights.size() !=
           static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny)) {
     throw std::invalid_argument("terrain grid: need nx, ny >= 2, spacing > 0 and nx*ny heights");
   }
+  if (coarse_stride < 1) throw std::invalid_argument("terrain coarse stride must be >= 1");
   std::vector<float> texture;
   int tw = 0, th = 0;
   if (!look.texture_file.empty()) {
@@ -258,6 +268,7 @@ void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
   texture_ = std::move(texture);
   texture_width_ = tw;
   texture_height_ = th;
+  coarse_stride_ = coarse_stride;
 
   const int cells_x = grid.nx - 1, cells_y = grid.ny - 1;
   const int t = config_.terrain_tile_cells;
@@ -271,46 +282,142 @@ void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
   for (int ty = 0; ty < tiles_y_; ++ty) {
     for (int tx = 0; tx < tiles_x_; ++tx) {
       Tile& tile = tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+      tile.tx = tx;
+      tile.ty = ty;
       tile.i0 = tx * t;
       tile.j0 = ty * t;
       tile.cells_x = std::min(t, cells_x - tile.i0);
       tile.cells_y = std::min(t, cells_y - tile.j0);
-      const int vx = tile.cells_x + 1, vy = tile.cells_y + 1;
-      RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_QUAD);
-      tile.vertices = static_cast<float*>(
-          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                  3 * sizeof(float), static_cast<std::size_t>(vx) * vy));
-      auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-          g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
-          static_cast<std::size_t>(tile.cells_x) * tile.cells_y));
-      for (int lj = 0; lj < vy; ++lj) {
-        for (int li = 0; li < vx; ++li) write_tile_vertex(tile, tile.i0 + li, tile.j0 + lj);
-      }
-      std::size_t q = 0;
-      for (int lj = 0; lj < tile.cells_y; ++lj) {
-        for (int li = 0; li < tile.cells_x; ++li, ++q) {
-          const auto v00 = static_cast<unsigned>(lj * vx + li);
-          index[4 * q + 0] = v00;
-          index[4 * q + 1] = v00 + 1;
-          index[4 * q + 2] = v00 + 1 + static_cast<unsigned>(vx);
-          index[4 * q + 3] = v00 + static_cast<unsigned>(vx);
-        }
-      }
-      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
-      tile.geometry = g;
-      tile.id = attach(g, surface);
-      primitive_count_ += static_cast<std::size_t>(tile.cells_x) * tile.cells_y;
+      tile.step = coarse_stride;
+      tile.geometry = make_tile_geometry(tile, false);
+      tile.id = attach(tile.geometry, surface);
+      primitive_count_ += drawn_quads(tile.cells_x, tile.cells_y, tile.step);
     }
   }
   check_device("terrain creation");
 }
 
+std::size_t Scene::fine_terrain_tiles() const {
+  return static_cast<std::size_t>(
+      std::count_if(tiles_.begin(), tiles_.end(), [](const Tile& t) { return t.step == 1; }));
+}
+
+Scene::Tile* Scene::tile_at(int tx, int ty) {
+  if (tx < 0 || ty < 0 || tx >= tiles_x_ || ty >= tiles_y_) return nullptr;
+  return &tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+}
+
+// A quad mesh of the tile's drawn vertices at its step; `flat`: every height 0 (the layout the
+// BVH of a refined tile is built over, see commit()).
+RTCGeometry Scene::make_tile_geometry(Tile& tile, bool flat) {
+  const int vx = drawn_count(tile.cells_x, tile.step), vy = drawn_count(tile.cells_y, tile.step);
+  RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_QUAD);
+  tile.vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+      g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+      static_cast<std::size_t>(vx) * static_cast<std::size_t>(vy)));
+  auto* index = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
+                              static_cast<std::size_t>(vx - 1) * static_cast<std::size_t>(vy - 1)));
+  for (int lj = 0; lj < vy; ++lj) {
+    const int j = tile.j0 + std::min(lj * tile.step, tile.cells_y);
+    for (int li = 0; li < vx; ++li) {
+      const int i = tile.i0 + std::min(li * tile.step, tile.cells_x);
+      const std::size_t v = static_cast<std::size_t>(lj) * vx + li;
+      tile.vertices[3 * v + 0] = static_cast<float>(grid_.origin.x() + i * grid_.spacing_m);
+      tile.vertices[3 * v + 1] = static_cast<float>(grid_.origin.y() + j * grid_.spacing_m);
+      tile.vertices[3 * v + 2] = flat ? 0.0f : drawn_height(tile, i, j);
+    }
+  }
+  std::size_t q = 0;
+  for (int lj = 0; lj + 1 < vy; ++lj) {
+    for (int li = 0; li + 1 < vx; ++li, ++q) {
+      const auto v00 = static_cast<unsigned>(lj * vx + li);
+      index[4 * q + 0] = v00;
+      index[4 * q + 1] = v00 + 1;
+      index[4 * q + 2] = v00 + 1 + static_cast<unsigned>(vx);
+      index[4 * q + 3] = v00 + static_cast<unsigned>(vx);
+    }
+  }
+  rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+  return g;
+}
+
+// Height drawn at grid vertex (i, j) of a fine tile: the grid's, except on a side shared with
+// a coarse neighbour, where it lies on that neighbour's straight edge between its drawn
+// vertices (a T-junction without a crack). Such a vertex never changed: a change to it would
+// have refined the neighbour too.
+float Scene::drawn_height(const Tile& tile, int i, int j) const {
+  if (tile.step == 1 && coarse_stride_ > 1) {
+    const int s = coarse_stride_;
+    auto coarse = [&](int tx, int ty) {
+      if (tx < 0 || ty < 0 || tx >= tiles_x_ || ty >= tiles_y_) return false;
+      return tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx].step != 1;
+    };
+    // Along a side: offset `l` of `cells` from the side's start, drawn every s.
+    auto on_edge = [&](int l, int cells, auto&& at) -> std::optional<float> {
+      const int a = (l / s) * s, b = std::min(a + s, cells);
+      if (a == l) return std::nullopt;  // a drawn vertex of the neighbour: the grid's height
+      const double w = static_cast<double>(l - a) / (b - a);
+      return static_cast<float>((1.0 - w) * at(a) + w * at(b));
+    };
+    const bool west = i == tile.i0 && coarse(tile.tx - 1, tile.ty);
+    const bool east = i == tile.i0 + tile.cells_x && coarse(tile.tx + 1, tile.ty);
+    if (west || east) {
+      if (auto z = on_edge(j - tile.j0, tile.cells_y,
+                           [&](int l) { return static_cast<double>(grid_.at(i, tile.j0 + l)); })) {
+        return *z;
+      }
+    }
+    const bool south = j == tile.j0 && coarse(tile.tx, tile.ty - 1);
+    const bool north = j == tile.j0 + tile.cells_y && coarse(tile.tx, tile.ty + 1);
+    if (south || north) {
+      if (auto z = on_edge(i - tile.i0, tile.cells_x,
+                           [&](int l) { return static_cast<double>(grid_.at(tile.i0 + l, j)); })) {
+        return *z;
+      }
+    }
+  }
+  return grid_.at(i, j);
+}
+
 void Scene::write_tile_vertex(Tile& tile, int i, int j) {
-  const int li = i - tile.i0, lj = j - tile.j0;
+  const int li = i - tile.i0, lj = j - tile.j0;  // a fine tile: drawn vertex = grid vertex
   const std::size_t v = static_cast<std::size_t>(lj) * (tile.cells_x + 1) + li;
-  tile.vertices[3 * v + 0] = static_cast<float>(grid_.origin.x() + i * grid_.spacing_m);
-  tile.vertices[3 * v + 1] = static_cast<float>(grid_.origin.y() + j * grid_.spacing_m);
-  tile.vertices[3 * v + 2] = grid_.at(i, j);
+  tile.vertices[3 * v + 2] = drawn_height(tile, i, j);
+}
+
+// Redraws a coarse tile at the grid's spacing. The new mesh keeps the tile's geometry id (so
+// the scene is the same whatever order tiles were refined in) and is built flat: commit()
+// builds its BVH over that layout and then refits it to the heights, so that the BVH depends
+// only on the tile's extent, never on the moment it was refined (a run resumed from a
+// checkpoint draws the same frames as one that never stopped).
+void Scene::refine_tile(Tile& tile) {
+  primitive_count_ -= drawn_quads(tile.cells_x, tile.cells_y, tile.step);
+  rtcDetachGeometry(scene_, tile.id);
+  tile.step = 1;
+  tile.fresh = true;
+  tile.dirty = false;
+  tile.geometry = make_tile_geometry(tile, true);
+  rtcCommitGeometry(tile.geometry);
+  rtcAttachGeometryByID(scene_, tile.geometry, tile.id);
+  rtcReleaseGeometry(tile.geometry);  // the scene holds it
+  primitive_count_ += drawn_quads(tile.cells_x, tile.cells_y, 1);
+  dirty_ = true;
+  // Fine neighbours drew their side facing this tile on its coarse edge: now the grid's.
+  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+  for (int k = 0; k < 4; ++k) {
+    Tile* n = tile_at(tile.tx + dx[k], tile.ty + dy[k]);
+    if (!n || n->step != 1 || n->fresh) continue;
+    if (dx[k] != 0) {
+      const int i = dx[k] < 0 ? n->i0 + n->cells_x : n->i0;
+      for (int j = n->j0; j <= n->j0 + n->cells_y; ++j) write_tile_vertex(*n, i, j);
+    } else {
+      const int j = dy[k] < 0 ? n->j0 + n->cells_y : n->j0;
+      for (int i = n->i0; i <= n->i0 + n->cells_x; ++i) write_tile_vertex(*n, i, j);
+    }
+    n->dirty = true;
+  }
+  check_device("terrain tile refinement");
 }
 
 std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
@@ -335,8 +442,12 @@ std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
             u.j > tile.j0 + tile.cells_y) {
           continue;
         }
-        write_tile_vertex(tile, u.i, u.j);
-        tile.dirty = true;
+        if (tile.step != 1) {
+          refine_tile(tile);
+        } else if (!tile.fresh) {  // a fresh tile gets every height in commit()
+          write_tile_vertex(tile, u.i, u.j);
+          tile.dirty = true;
+        }
         dirty_ = true;
       }
     }
@@ -515,12 +626,29 @@ int Scene::vehicle_slot(const std::string& id) const {
 
 void Scene::commit() {
   refit_tiles_last_commit_ = 0;
+  bool fresh = false;
   for (auto& tile : tiles_) {
+    fresh = fresh || tile.fresh;
     if (!tile.dirty) continue;
     rtcUpdateGeometryBuffer(tile.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
     rtcCommitGeometry(tile.geometry);
     tile.dirty = false;
     ++refit_tiles_last_commit_;
+  }
+  if (fresh) {
+    // Tiles refined since the last commit: their BVHs are built over the flat layout, then
+    // refit to the heights (see refine_tile()).
+    rtcCommitScene(scene_);
+    for (auto& tile : tiles_) {
+      if (!tile.fresh) continue;
+      for (int j = tile.j0; j <= tile.j0 + tile.cells_y; ++j) {
+        for (int i = tile.i0; i <= tile.i0 + tile.cells_x; ++i) write_tile_vertex(tile, i, j);
+      }
+      rtcUpdateGeometryBuffer(tile.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+      rtcCommitGeometry(tile.geometry);
+      tile.fresh = false;
+      ++refit_tiles_last_commit_;
+    }
   }
   rtcCommitScene(scene_);
   check_device("scene commit");

@@ -2,7 +2,10 @@
 // What the camera and lidar see, held in an Embree 3 scene:
 //  - terrain: a regular height grid cut into square tiles of quads, one Embree geometry per
 //    tile; update_terrain() rewrites the changed vertices and marks only their tiles, which
-//    commit() refits (build quality REFIT) - ruts from deformable soil cost a few tiles;
+//    commit() refits (build quality REFIT) - ruts from deformable soil cost a few tiles.
+//    With a coarse stride, tiles nothing changed are drawn from every stride-th vertex and a
+//    tile is redrawn at the grid's own spacing once one of its vertices changes (ruts at the
+//    soil's resolution, untouched ground cheap);
 //  - static obstacles: box (12 triangles), sphere (exact Embree sphere point), cylinder
 //    (triangulated, 32 sides by default);
 //  - vehicles: one triangle mesh each (box chassis + four wheel cylinders) whose vertices are
@@ -126,9 +129,13 @@ class Scene {
 
   const SceneConfig& config() const { return config_; }
 
-  /// Replaces the terrain. Throws std::invalid_argument on a malformed grid or a texture
-  /// that cannot be read.
-  void set_terrain(const TerrainGrid& grid, const TerrainLook& look);
+  /// Replaces the terrain. `coarse_stride` > 1: a tile none of whose vertices has been changed
+  /// by update_terrain() is drawn from every coarse_stride-th grid vertex (and its last row and
+  /// column); the first change to one of its vertices redraws it at the grid's own spacing for
+  /// good. Where such a fine tile borders a coarse one, its border vertices lie on the coarse
+  /// tile's edges (no cracks). Throws std::invalid_argument on a malformed grid, a stride < 1
+  /// or a texture that cannot be read.
+  void set_terrain(const TerrainGrid& grid, const TerrainLook& look, int coarse_stride = 1);
   /// Applies changed heights; (i, j) index the grid from its origin. Returns how many were
   /// inside the grid (others are ignored). A non-finite height throws std::invalid_argument.
   std::size_t update_terrain(std::span<const HeightUpdate> updates);
@@ -164,15 +171,23 @@ class Scene {
   Rgb terrain_albedo(float x, float y) const;
   std::size_t primitive_count() const { return primitive_count_; }
   std::size_t dirty_tiles_last_commit() const { return refit_tiles_last_commit_; }
+  std::size_t terrain_tiles() const { return tiles_.size(); }
+  /// Terrain tiles drawn at the grid's own spacing (all of them with coarse stride 1).
+  std::size_t fine_terrain_tiles() const;
 
  private:
   struct Tile {
     RTCGeometry geometry = nullptr;
     unsigned id = 0;
+    int tx = 0, ty = 0;  // tile column and row
     int i0 = 0, j0 = 0;  // first vertex
-    int cells_x = 0, cells_y = 0;
-    float* vertices = nullptr;  // (cells_x + 1) * (cells_y + 1) float3
+    int cells_x = 0, cells_y = 0;  // grid cells covered
+    int step = 1;  // grid vertices between drawn vertices: 1 (fine) or the coarse stride
+    // Drawn vertices, row-major float3: column k at grid vertex i0 + min(k step, cells_x)
+    // (likewise rows), so a coarse tile keeps its last row and column.
+    float* vertices = nullptr;
     bool dirty = false;
+    bool fresh = false;  // refined since the last commit (built flat, heights written by commit)
   };
   struct VehicleEntry {
     RTCGeometry geometry = nullptr;
@@ -188,6 +203,10 @@ class Scene {
   unsigned attach(RTCGeometry geometry, const Surface& surface);
   void detach(unsigned id);
   void clear_terrain();
+  Tile* tile_at(int tx, int ty);
+  RTCGeometry make_tile_geometry(Tile& tile, bool flat);
+  void refine_tile(Tile& tile);
+  float drawn_height(const Tile& tile, int i, int j) const;
   void write_tile_vertex(Tile& tile, int i, int j);
   void check_device(const char* what) const;
 
@@ -198,6 +217,7 @@ class Scene {
   TerrainGrid grid_;
   TerrainLook look_;
   int tiles_x_ = 0, tiles_y_ = 0;
+  int coarse_stride_ = 1;
   std::vector<Tile> tiles_;
   int texture_width_ = 0, texture_height_ = 0;
   std::vector<float> texture_;  // linear RGB
