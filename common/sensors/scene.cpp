@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
@@ -64,6 +65,51 @@ void box_triangles(unsigned base, std::vector<std::array<unsigned, 3>>& out) {
   for (const auto& f : faces) {
     out.push_back({base + f[0], base + f[1], base + f[2]});
     out.push_back({base + f[0], base + f[2], base + f[3]});
+  }
+}
+
+// A wheel around its local y axis: tread rings (radius r) at -w/2 and +w/2, hub rings (radius
+// kHubRadiusShare r) at -w/2 and +w/2, then the two hub centres.
+std::vector<Vec3> wheel_vertices(double radius, double half_width, int segments) {
+  std::vector<Vec3> v;
+  v.reserve(4 * static_cast<std::size_t>(segments) + 2);
+  for (const double r : {radius, kHubRadiusShare * radius}) {
+    for (const double h : {-half_width, half_width}) {
+      for (int s = 0; s < segments; ++s) {
+        const double a = 2.0 * std::numbers::pi * s / segments;
+        v.emplace_back(r * std::cos(a), h, r * std::sin(a));
+      }
+    }
+  }
+  v.emplace_back(0.0, -half_width, 0.0);
+  v.emplace_back(0.0, half_width, 0.0);
+  return v;
+}
+
+// Tread, two sidewalls (tyre) and two hub discs whose sectors alternate hub / tyre colour.
+void wheel_triangles(unsigned base, int segments, std::vector<std::array<unsigned, 3>>& out,
+                     std::vector<std::uint8_t>& parts) {
+  const auto n = static_cast<unsigned>(segments);
+  const auto tyre = static_cast<std::uint8_t>(VehiclePart::tyre);
+  const auto hub = static_cast<std::uint8_t>(VehiclePart::hub);
+  const unsigned m0 = base + 4 * n, m1 = m0 + 1;
+  for (unsigned s = 0; s < n; ++s) {
+    const unsigned t = (s + 1) % n;
+    const unsigned a0 = base + s, a1 = base + t;                  // tread, -w/2
+    const unsigned b0 = base + n + s, b1 = base + n + t;          // tread, +w/2
+    const unsigned h0 = base + 2 * n + s, h1 = base + 2 * n + t;  // hub, -w/2
+    const unsigned g0 = base + 3 * n + s, g1 = base + 3 * n + t;  // hub, +w/2
+    const std::uint8_t sector =
+        (static_cast<int>(s) * kHubSectors / segments) % 2 == 0 ? hub : tyre;
+    for (const auto& tri : {std::array<unsigned, 3>{a0, a1, b1}, {a0, b1, b0},  // tread
+                            {a0, h0, h1}, {a0, h1, a1}, {b0, b1, g1}, {b0, g1, g0}}) {
+      out.push_back(tri);
+      parts.push_back(tyre);
+    }
+    out.push_back({m0, h1, h0});
+    parts.push_back(sector);
+    out.push_back({m1, g0, g1});
+    parts.push_back(sector);
   }
 }
 
@@ -151,6 +197,32 @@ VehicleShape vehicle_shape(const vehicle::VehicleParams& p, const Rgb& body_colo
       Vec3(p.rear.x_m, p.rear.half_track_m, 0.0), Vec3(p.rear.x_m, -p.rear.half_track_m, 0.0)};
   s.body_colour = body_colour;
   return s;
+}
+
+std::array<DrawnBox, 3> vehicle_body_boxes(const VehicleShape& shape) {
+  const Vec3& c = shape.box_centre_m;
+  const Vec3& h = shape.half_extents_m;
+  const double bottom = c.z() - h.z(), top = c.z() + h.z();
+  double axle = 0.0, inner = std::numeric_limits<double>::infinity();
+  for (const auto& w : shape.wheel_positions_m) {
+    axle += 0.25 * w.z();
+    inner = std::min(inner, std::abs(w.y() - c.y()) - 0.5 * shape.wheel_width_m - 0.03);
+  }
+  auto box = [](double x0, double x1, double y0, double y1, double z0, double z1) {
+    return DrawnBox{Vec3(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * (z0 + z1)),
+                    Vec3(0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.5 * (z1 - z0))};
+  };
+  const double height = top - bottom;
+  // Deck from 3 cm above the tyres (kept within the chassis box), 30 % of what is left above.
+  const double deck0 = std::clamp(axle + shape.wheel_radius_m + 0.03, bottom + 0.2 * height,
+                                  top - 0.3 * height);
+  const double deck1 = deck0 + std::max(0.08, 0.3 * (top - deck0));
+  const double hull_y = std::clamp(inner, 0.2 * h.y(), h.y());
+  const double hull0 = std::clamp(axle, bottom, deck0 - 0.05 * height);
+  return {box(c.x() - h.x(), c.x() + h.x(), c.y() - hull_y, c.y() + hull_y, hull0, deck0),
+          box(c.x() - h.x(), c.x() + h.x(), c.y() - h.y(), c.y() + h.y(), deck0, deck1),
+          box(c.x() - 0.55 * h.x(), c.x() + 0.25 * h.x(), c.y() - 0.9 * h.y(),
+              c.y() + 0.9 * h.y(), deck1, top)};
 }
 
 Rgb vehicle_palette(std::size_t index) {
@@ -523,15 +595,20 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   if (vehicles_.contains(id)) throw std::invalid_argument("vehicle '" + id + "' already in scene");
   VehicleEntry e;
   e.shape = shape;
-  e.box_local = box_vertices(shape.half_extents_m);
-  for (auto& v : e.box_local) v += shape.box_centre_m;
-  const int seg = config_.cylinder_segments;
-  e.wheel_local = cylinder_vertices(shape.wheel_radius_m, 0.5 * shape.wheel_width_m, 1, seg);
   std::vector<std::array<unsigned, 3>> tris;
-  box_triangles(0, tris);
+  std::vector<std::uint8_t> parts;
+  for (const DrawnBox& b : vehicle_body_boxes(shape)) {
+    box_triangles(static_cast<unsigned>(e.body_local.size()), tris);
+    for (const Vec3& v : box_vertices(b.half_extents)) e.body_local.push_back(b.centre + v);
+  }
+  parts.assign(tris.size(), static_cast<std::uint8_t>(VehiclePart::body));
+  const int seg = config_.cylinder_segments;
+  e.wheel_local = wheel_vertices(shape.wheel_radius_m, 0.5 * shape.wheel_width_m, seg);
+  const auto body_vertices = static_cast<unsigned>(e.body_local.size());
   const auto wheel_vertices = static_cast<unsigned>(e.wheel_local.size());
-  for (unsigned w = 0; w < 4; ++w) cylinder_triangles(8 + w * wheel_vertices, seg, tris);
-  e.geometry = make_mesh(device_, 8 + 4 * e.wheel_local.size(), tris, &e.vertices);
+  for (unsigned w = 0; w < 4; ++w) wheel_triangles(body_vertices + w * wheel_vertices, seg, tris, parts);
+  e.triangles = tris.size();
+  e.geometry = make_mesh(device_, body_vertices + 4 * e.wheel_local.size(), tris, &e.vertices);
   rtcSetGeometryBuildQuality(e.geometry, RTC_BUILD_QUALITY_REFIT);
   // Slot: smallest free index (stable while the vehicle lives).
   auto it = std::find(used_slots_.begin(), used_slots_.end(), false);
@@ -547,10 +624,11 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   Surface surface;
   surface.kind = SurfaceKind::vehicle;
   surface.colour = shape.body_colour;
-  surface.secondary_colour = shape.wheel_colour;
   surface.reflectance = shape.body_reflectance;
-  surface.secondary_reflectance = shape.wheel_reflectance;
-  surface.secondary_first_prim = 12;  // box triangles come first, then the wheels
+  surface.prim_part = std::move(parts);
+  surface.part_colours = {shape.body_colour, shape.wheel_colour, shape.hub_colour};
+  surface.part_reflectances = {shape.body_reflectance, shape.wheel_reflectance,
+                               shape.hub_reflectance};
   surface.vehicle_slot = e.slot;
   primitive_count_ += tris.size();
   auto [pos, inserted] = vehicles_.emplace(id, std::move(e));
@@ -567,7 +645,7 @@ void Scene::remove_vehicle(const std::string& id) {
   detach(it->second.id);
   rtcReleaseGeometry(it->second.geometry);
   used_slots_[static_cast<std::size_t>(it->second.slot)] = false;
-  primitive_count_ -= 12 + 16 * static_cast<std::size_t>(config_.cylinder_segments);
+  primitive_count_ -= it->second.triangles;
   vehicles_.erase(it);
 }
 
@@ -585,8 +663,9 @@ void Scene::set_vehicle_pose(const std::string& id, const Pose& chassis,
   }
   VehicleEntry& e = it->second;
   e.chassis = chassis;
-  for (std::size_t k = 0; k < 8; ++k) {
-    store(e.vertices, k, chassis.position + chassis.orientation * e.box_local[k]);
+  const std::size_t body = e.body_local.size();
+  for (std::size_t k = 0; k < body; ++k) {
+    store(e.vertices, k, chassis.position + chassis.orientation * e.body_local[k]);
   }
   const std::size_t per_wheel = e.wheel_local.size();
   for (std::size_t w = 0; w < 4; ++w) {
@@ -598,7 +677,7 @@ void Scene::set_vehicle_pose(const std::string& id, const Pose& chassis,
       wp.orientation = chassis.orientation;
     }
     for (std::size_t k = 0; k < per_wheel; ++k) {
-      store(e.vertices, 8 + w * per_wheel + k, wp.position + wp.orientation * e.wheel_local[k]);
+      store(e.vertices, body + w * per_wheel + k, wp.position + wp.orientation * e.wheel_local[k]);
     }
   }
   rtcUpdateGeometryBuffer(e.geometry, RTC_BUFFER_TYPE_VERTEX, 0);

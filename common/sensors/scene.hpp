@@ -8,8 +8,9 @@
 //    soil's resolution, untouched ground cheap);
 //  - static obstacles: box (12 triangles), sphere (exact Embree sphere point), cylinder
 //    (triangulated, 32 sides by default);
-//  - vehicles: one triangle mesh each (box chassis + four wheel cylinders) whose vertices are
-//    rewritten from the chassis and wheel poses every frame and refit.
+//  - vehicles: one triangle mesh each (a body of three boxes that leaves the wheels in view,
+//    four wheels with tread, sidewalls and a spoked hub) whose vertices are rewritten from the
+//    chassis and wheel poses every frame and refit.
 // The scene is DYNAMIC (Embree's two-level build): commit() rebuilds only what changed plus
 // the small top level. Renderers only read the scene; commit() before rendering.
 #include <embree3/rtcore.h>
@@ -72,7 +73,7 @@ struct TerrainLook {
 /// Throws std::invalid_argument for other names.
 TerrainLook terrain_look(std::string_view kind);
 
-/// Drawable vehicle: chassis box and wheel cylinders (spin axis = wheel's local y).
+/// Drawable vehicle: chassis box and wheels (spin axis = wheel's local y).
 /// Defaults: an HMMWV-class vehicle (config/vehicles/hmmwv.yaml).
 struct VehicleShape {
   Vec3 half_extents_m = Vec3(2.35, 1.08, 0.55);
@@ -83,10 +84,32 @@ struct VehicleShape {
                                         Vec3(1.689, 0.9095, 0.0), Vec3(1.689, -0.9095, 0.0),
                                         Vec3(-1.689, 0.9095, 0.0), Vec3(-1.689, -0.9095, 0.0)};
   Rgb body_colour{0.15f, 0.3f, 0.75f};
-  Rgb wheel_colour{0.06f, 0.06f, 0.06f};
+  Rgb wheel_colour{0.06f, 0.06f, 0.06f};  // tyre: tread and sidewalls
+  Rgb hub_colour{0.55f, 0.55f, 0.52f};    // the hub's spokes (the gaps are tyre-coloured)
   float body_reflectance = 0.6f;
   float wheel_reflectance = 0.1f;
+  float hub_reflectance = 0.5f;
 };
+
+/// One box of a drawn vehicle body, in the chassis reference frame.
+struct DrawnBox {
+  Vec3 centre = Vec3::Zero();
+  Vec3 half_extents = Vec3::Zero();
+};
+/// The boxes a vehicle body is drawn with, inside the chassis box of `shape`: a hull between
+/// the wheels (inner tyre faces less 3 cm) from the axle line up; a deck as wide and long as
+/// the chassis box from 3 cm above the tyres; a cabin on the deck (rear 55 % to front 25 % of
+/// the half length, 90 % of the width) up to the top of the chassis box. Seen from the side or
+/// from behind, the wheels are not hidden.
+std::array<DrawnBox, 3> vehicle_body_boxes(const VehicleShape& shape);
+
+/// What each triangle of a vehicle mesh is (index into Surface::part_colours).
+enum class VehiclePart : std::uint8_t { body = 0, tyre = 1, hub = 2 };
+/// Hub pattern: 8 sectors around the axle, spokes (hub colour) and gaps (tyre colour)
+/// alternating, so that a turning wheel visibly turns.
+constexpr int kHubSectors = 8;
+/// Hub radius as a share of the wheel radius.
+constexpr double kHubRadiusShare = 0.6;
 
 /// Shape from a vehicle definition (chassis box, wheel size, axle positions).
 VehicleShape vehicle_shape(const vehicle::VehicleParams& params, const Rgb& body_colour);
@@ -100,11 +123,20 @@ enum class SurfaceKind : std::uint8_t { terrain, obstacle, vehicle };
 struct Surface {
   SurfaceKind kind = SurfaceKind::terrain;
   Rgb colour;
-  Rgb secondary_colour;  // vehicles: wheels
   float reflectance = 0.5f;
-  float secondary_reflectance = 0.5f;
-  unsigned secondary_first_prim = std::numeric_limits<unsigned>::max();
+  // Vehicles: a part per triangle (VehiclePart) with its colour and reflectance; empty:
+  // `colour` and `reflectance` everywhere.
+  std::vector<std::uint8_t> prim_part;
+  std::vector<Rgb> part_colours;
+  std::vector<float> part_reflectances;
   int vehicle_slot = -1;
+
+  Rgb colour_of(unsigned prim) const {
+    return prim < prim_part.size() ? part_colours[prim_part[prim]] : colour;
+  }
+  float reflectance_of(unsigned prim) const {
+    return prim < prim_part.size() ? part_reflectances[prim_part[prim]] : reflectance;
+  }
 };
 
 /// Intersection context every renderer passes to Embree: vehicle geometries carry a filter
@@ -195,8 +227,9 @@ class Scene {
     int slot = 0;
     VehicleShape shape;
     Pose chassis;
-    std::vector<Vec3> box_local;    // 8 corners in the chassis frame
+    std::vector<Vec3> body_local;   // body box corners in the chassis frame
     std::vector<Vec3> wheel_local;  // one wheel's vertices in the wheel frame
+    std::size_t triangles = 0;
     float* vertices = nullptr;
   };
 
