@@ -15,7 +15,7 @@ namespace syndds::agents {
 namespace fs = std::filesystem;
 namespace {
 
-constexpr double kRenderSpacingM = 0.1;    // rendered terrain resolution on SCM soil
+constexpr double kRenderSpacingM = 0.1;    // untouched SCM soil is drawn at about this spacing
 constexpr double kFlatSpacingM = 2.0;      // a flat plane needs no resolution
 constexpr double kWorldMarginM = 60.0;     // rendered ground beyond the paths and obstacles
 
@@ -63,13 +63,15 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
   const auto surface = scenario::make_terrain(s.terrain);
   if (s.terrain.type == "scm") {
     const auto& g = s.terrain.scm.grid;
-    render_stride_ = std::max(1, static_cast<int>(std::lround(kRenderSpacingM / g.spacing_m)));
+    // The scene holds the soil's own grid: a tile is drawn at the soil's spacing once a
+    // vertex in it deforms (ruts without steps), at about kRenderSpacingM until then.
+    const int coarse = std::max(1, static_cast<int>(std::lround(kRenderSpacingM / g.spacing_m)));
     // Kept to draw the soil afresh when a rollback (on_member_loss: recover) takes back ruts
     // made after the checkpoint.
-    reset_terrain_ = [this, surface, g, look = sensors::terrain_look(look_of(s.terrain))] {
-      scene_->set_terrain(sensors::sample_terrain(*surface, g.spacing_m * render_stride_,
-                                                  g.x_min_m, g.x_max_m, g.y_min_m, g.y_max_m),
-                          look);
+    reset_terrain_ = [this, surface, g, coarse, look = sensors::terrain_look(look_of(s.terrain))] {
+      scene_->set_terrain(sensors::sample_terrain(*surface, g.spacing_m, g.x_min_m, g.x_max_m,
+                                                  g.y_min_m, g.y_max_m),
+                          look, coarse);
     };
     reset_terrain_();
   } else if (s.terrain.type == "heightmap") {
@@ -155,9 +157,8 @@ void SensorAgent::update_world(const proto::FrameSamples& inputs) {
 
 void SensorAgent::render_vertex(std::int32_t i, std::int32_t j,
                                 std::vector<sensors::HeightUpdate>& out) const {
-  if (i % render_stride_ != 0 || j % render_stride_ != 0) return;
   const auto v = soil_->vertex(i, j);
-  if (v) out.push_back({i / render_stride_, j / render_stride_, v->level_m});
+  if (v) out.push_back({i, j, v->level_m});
 }
 
 void SensorAgent::remove_departed(const std::vector<std::string>& departed) {

@@ -54,7 +54,6 @@ class SensorAgent final : public proto::Agent {
   std::string vehicle_id_;
   std::string member_id_;
   bool deformable_ = false;
-  int render_stride_ = 1;  // SCM vertices per rendered terrain vertex (along each axis)
   scenario::VehicleSensorsConfig config_;
   SensorAgentOptions options_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain (merged exactly)

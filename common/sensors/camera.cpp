@@ -192,12 +192,8 @@ void CameraRenderer::render(const Scene& scene, const Pose& pose, std::span<floa
           const float p[3] = {frame.o[0] + t * dir[l][0], frame.o[1] + t * dir[l][1],
                               frame.o[2] + t * dir[l][2]};
           const Surface& s = scene.surface(rh.hit.geomID[l]);
-          Rgb a = s.colour;
-          if (s.kind == SurfaceKind::terrain) {
-            a = scene.terrain_albedo(p[0], p[1]);
-          } else if (rh.hit.primID[l] >= s.secondary_first_prim) {
-            a = s.secondary_colour;
-          }
+          const Rgb a = s.kind == SurfaceKind::terrain ? scene.terrain_albedo(p[0], p[1])
+                                                       : s.colour_of(rh.hit.primID[l]);
           albedo[l][0] = a.r;
           albedo[l][1] = a.g;
           albedo[l][2] = a.b;

@@ -140,8 +140,7 @@ void LidarRenderer::render(const Scene& scene, const Pose& pose, std::vector<Bea
         const float cosi =
             std::abs(n[0] * dir[l][0] + n[1] * dir[l][1] + n[2] * dir[l][2]) / std::max(nl, 1e-30f);
         const Surface& s = scene.surface(rh.hit.geomID[l]);
-        const float refl =
-            rh.hit.primID[l] >= s.secondary_first_prim ? s.secondary_reflectance : s.reflectance;
+        const float refl = s.reflectance_of(rh.hit.primID[l]);
         hits_range_[r] = rh.ray.tfar[l];
         hits_intensity_[r] = refl * cosi;
       }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
@@ -64,6 +65,51 @@ void box_triangles(unsigned base, std::vector<std::array<unsigned, 3>>& out) {
   for (const auto& f : faces) {
     out.push_back({base + f[0], base + f[1], base + f[2]});
     out.push_back({base + f[0], base + f[2], base + f[3]});
+  }
+}
+
+// A wheel around its local y axis: tread rings (radius r) at -w/2 and +w/2, hub rings (radius
+// kHubRadiusShare r) at -w/2 and +w/2, then the two hub centres.
+std::vector<Vec3> wheel_vertices(double radius, double half_width, int segments) {
+  std::vector<Vec3> v;
+  v.reserve(4 * static_cast<std::size_t>(segments) + 2);
+  for (const double r : {radius, kHubRadiusShare * radius}) {
+    for (const double h : {-half_width, half_width}) {
+      for (int s = 0; s < segments; ++s) {
+        const double a = 2.0 * std::numbers::pi * s / segments;
+        v.emplace_back(r * std::cos(a), h, r * std::sin(a));
+      }
+    }
+  }
+  v.emplace_back(0.0, -half_width, 0.0);
+  v.emplace_back(0.0, half_width, 0.0);
+  return v;
+}
+
+// Tread, two sidewalls (tyre) and two hub discs whose sectors alternate hub / tyre colour.
+void wheel_triangles(unsigned base, int segments, std::vector<std::array<unsigned, 3>>& out,
+                     std::vector<std::uint8_t>& parts) {
+  const auto n = static_cast<unsigned>(segments);
+  const auto tyre = static_cast<std::uint8_t>(VehiclePart::tyre);
+  const auto hub = static_cast<std::uint8_t>(VehiclePart::hub);
+  const unsigned m0 = base + 4 * n, m1 = m0 + 1;
+  for (unsigned s = 0; s < n; ++s) {
+    const unsigned t = (s + 1) % n;
+    const unsigned a0 = base + s, a1 = base + t;                  // tread, -w/2
+    const unsigned b0 = base + n + s, b1 = base + n + t;          // tread, +w/2
+    const unsigned h0 = base + 2 * n + s, h1 = base + 2 * n + t;  // hub, -w/2
+    const unsigned g0 = base + 3 * n + s, g1 = base + 3 * n + t;  // hub, +w/2
+    const std::uint8_t sector =
+        (static_cast<int>(s) * kHubSectors / segments) % 2 == 0 ? hub : tyre;
+    for (const auto& tri : {std::array<unsigned, 3>{a0, a1, b1}, {a0, b1, b0},  // tread
+                            {a0, h0, h1}, {a0, h1, a1}, {b0, b1, g1}, {b0, g1, g0}}) {
+      out.push_back(tri);
+      parts.push_back(tyre);
+    }
+    out.push_back({m0, h1, h0});
+    parts.push_back(sector);
+    out.push_back({m1, g0, g1});
+    parts.push_back(sector);
   }
 }
 
@@ -153,6 +199,32 @@ VehicleShape vehicle_shape(const vehicle::VehicleParams& p, const Rgb& body_colo
   return s;
 }
 
+std::array<DrawnBox, 3> vehicle_body_boxes(const VehicleShape& shape) {
+  const Vec3& c = shape.box_centre_m;
+  const Vec3& h = shape.half_extents_m;
+  const double bottom = c.z() - h.z(), top = c.z() + h.z();
+  double axle = 0.0, inner = std::numeric_limits<double>::infinity();
+  for (const auto& w : shape.wheel_positions_m) {
+    axle += 0.25 * w.z();
+    inner = std::min(inner, std::abs(w.y() - c.y()) - 0.5 * shape.wheel_width_m - 0.03);
+  }
+  auto box = [](double x0, double x1, double y0, double y1, double z0, double z1) {
+    return DrawnBox{Vec3(0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * (z0 + z1)),
+                    Vec3(0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.5 * (z1 - z0))};
+  };
+  const double height = top - bottom;
+  // Deck from 3 cm above the tyres (kept within the chassis box), 30 % of what is left above.
+  const double deck0 = std::clamp(axle + shape.wheel_radius_m + 0.03, bottom + 0.2 * height,
+                                  top - 0.3 * height);
+  const double deck1 = deck0 + std::max(0.08, 0.3 * (top - deck0));
+  const double hull_y = std::clamp(inner, 0.2 * h.y(), h.y());
+  const double hull0 = std::clamp(axle, bottom, deck0 - 0.05 * height);
+  return {box(c.x() - h.x(), c.x() + h.x(), c.y() - hull_y, c.y() + hull_y, hull0, deck0),
+          box(c.x() - h.x(), c.x() + h.x(), c.y() - h.y(), c.y() + h.y(), deck0, deck1),
+          box(c.x() - 0.55 * h.x(), c.x() + 0.25 * h.x(), c.y() - 0.9 * h.y(),
+              c.y() + 0.9 * h.y(), deck1, top)};
+}
+
 Rgb vehicle_palette(std::size_t index) {
   static constexpr Rgb palette[] = {
       {0.10f, 0.25f, 0.80f}, {0.80f, 0.10f, 0.10f}, {0.90f, 0.75f, 0.05f}, {0.10f, 0.65f, 0.20f},
@@ -217,20 +289,30 @@ void Scene::detach(unsigned id) {
   dirty_ = true;
 }
 
+namespace {
+// Drawn vertices along one side of a tile of `cells` cells drawn every `step` vertices.
+int drawn_count(int cells, int step) { return (cells + step - 1) / step + 1; }
+std::size_t drawn_quads(int cells_x, int cells_y, int step) {
+  return static_cast<std::size_t>(drawn_count(cells_x, step) - 1) *
+         static_cast<std::size_t>(drawn_count(cells_y, step) - 1);
+}
+}  // namespace
+
 void Scene::clear_terrain() {
   for (auto& t : tiles_) {
-    primitive_count_ -= static_cast<std::size_t>(t.cells_x) * t.cells_y;
+    primitive_count_ -= drawn_quads(t.cells_x, t.cells_y, t.step);
     detach(t.id);
   }
   tiles_.clear();
 }
 
-void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
+void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look, int coarse_stride) {
   if (grid.nx < 2 || grid.ny < 2 || !(grid.spacing_m > 0.0) ||
       grid.heights.size() !=
           static_cast<std::size_t>(grid.nx) * static_cast<std::size_t>(grid.ny)) {
     throw std::invalid_argument("terrain grid: need nx, ny >= 2, spacing > 0 and nx*ny heights");
   }
+  if (coarse_stride < 1) throw std::invalid_argument("terrain coarse stride must be >= 1");
   std::vector<float> texture;
   int tw = 0, th = 0;
   if (!look.texture_file.empty()) {
@@ -258,6 +340,7 @@ void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
   texture_ = std::move(texture);
   texture_width_ = tw;
   texture_height_ = th;
+  coarse_stride_ = coarse_stride;
 
   const int cells_x = grid.nx - 1, cells_y = grid.ny - 1;
   const int t = config_.terrain_tile_cells;
@@ -271,46 +354,142 @@ void Scene::set_terrain(const TerrainGrid& grid, const TerrainLook& look) {
   for (int ty = 0; ty < tiles_y_; ++ty) {
     for (int tx = 0; tx < tiles_x_; ++tx) {
       Tile& tile = tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+      tile.tx = tx;
+      tile.ty = ty;
       tile.i0 = tx * t;
       tile.j0 = ty * t;
       tile.cells_x = std::min(t, cells_x - tile.i0);
       tile.cells_y = std::min(t, cells_y - tile.j0);
-      const int vx = tile.cells_x + 1, vy = tile.cells_y + 1;
-      RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_QUAD);
-      tile.vertices = static_cast<float*>(
-          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                  3 * sizeof(float), static_cast<std::size_t>(vx) * vy));
-      auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-          g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
-          static_cast<std::size_t>(tile.cells_x) * tile.cells_y));
-      for (int lj = 0; lj < vy; ++lj) {
-        for (int li = 0; li < vx; ++li) write_tile_vertex(tile, tile.i0 + li, tile.j0 + lj);
-      }
-      std::size_t q = 0;
-      for (int lj = 0; lj < tile.cells_y; ++lj) {
-        for (int li = 0; li < tile.cells_x; ++li, ++q) {
-          const auto v00 = static_cast<unsigned>(lj * vx + li);
-          index[4 * q + 0] = v00;
-          index[4 * q + 1] = v00 + 1;
-          index[4 * q + 2] = v00 + 1 + static_cast<unsigned>(vx);
-          index[4 * q + 3] = v00 + static_cast<unsigned>(vx);
-        }
-      }
-      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
-      tile.geometry = g;
-      tile.id = attach(g, surface);
-      primitive_count_ += static_cast<std::size_t>(tile.cells_x) * tile.cells_y;
+      tile.step = coarse_stride;
+      tile.geometry = make_tile_geometry(tile, false);
+      tile.id = attach(tile.geometry, surface);
+      primitive_count_ += drawn_quads(tile.cells_x, tile.cells_y, tile.step);
     }
   }
   check_device("terrain creation");
 }
 
+std::size_t Scene::fine_terrain_tiles() const {
+  return static_cast<std::size_t>(
+      std::count_if(tiles_.begin(), tiles_.end(), [](const Tile& t) { return t.step == 1; }));
+}
+
+Scene::Tile* Scene::tile_at(int tx, int ty) {
+  if (tx < 0 || ty < 0 || tx >= tiles_x_ || ty >= tiles_y_) return nullptr;
+  return &tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
+}
+
+// A quad mesh of the tile's drawn vertices at its step; `flat`: every height 0 (the layout the
+// BVH of a refined tile is built over, see commit()).
+RTCGeometry Scene::make_tile_geometry(Tile& tile, bool flat) {
+  const int vx = drawn_count(tile.cells_x, tile.step), vy = drawn_count(tile.cells_y, tile.step);
+  RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_QUAD);
+  tile.vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+      g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+      static_cast<std::size_t>(vx) * static_cast<std::size_t>(vy)));
+  auto* index = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned),
+                              static_cast<std::size_t>(vx - 1) * static_cast<std::size_t>(vy - 1)));
+  for (int lj = 0; lj < vy; ++lj) {
+    const int j = tile.j0 + std::min(lj * tile.step, tile.cells_y);
+    for (int li = 0; li < vx; ++li) {
+      const int i = tile.i0 + std::min(li * tile.step, tile.cells_x);
+      const std::size_t v = static_cast<std::size_t>(lj) * vx + li;
+      tile.vertices[3 * v + 0] = static_cast<float>(grid_.origin.x() + i * grid_.spacing_m);
+      tile.vertices[3 * v + 1] = static_cast<float>(grid_.origin.y() + j * grid_.spacing_m);
+      tile.vertices[3 * v + 2] = flat ? 0.0f : drawn_height(tile, i, j);
+    }
+  }
+  std::size_t q = 0;
+  for (int lj = 0; lj + 1 < vy; ++lj) {
+    for (int li = 0; li + 1 < vx; ++li, ++q) {
+      const auto v00 = static_cast<unsigned>(lj * vx + li);
+      index[4 * q + 0] = v00;
+      index[4 * q + 1] = v00 + 1;
+      index[4 * q + 2] = v00 + 1 + static_cast<unsigned>(vx);
+      index[4 * q + 3] = v00 + static_cast<unsigned>(vx);
+    }
+  }
+  rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+  return g;
+}
+
+// Height drawn at grid vertex (i, j) of a fine tile: the grid's, except on a side shared with
+// a coarse neighbour, where it lies on that neighbour's straight edge between its drawn
+// vertices (a T-junction without a crack). Such a vertex never changed: a change to it would
+// have refined the neighbour too.
+float Scene::drawn_height(const Tile& tile, int i, int j) const {
+  if (tile.step == 1 && coarse_stride_ > 1) {
+    const int s = coarse_stride_;
+    auto coarse = [&](int tx, int ty) {
+      if (tx < 0 || ty < 0 || tx >= tiles_x_ || ty >= tiles_y_) return false;
+      return tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx].step != 1;
+    };
+    // Along a side: offset `l` of `cells` from the side's start, drawn every s.
+    auto on_edge = [&](int l, int cells, auto&& at) -> std::optional<float> {
+      const int a = (l / s) * s, b = std::min(a + s, cells);
+      if (a == l) return std::nullopt;  // a drawn vertex of the neighbour: the grid's height
+      const double w = static_cast<double>(l - a) / (b - a);
+      return static_cast<float>((1.0 - w) * at(a) + w * at(b));
+    };
+    const bool west = i == tile.i0 && coarse(tile.tx - 1, tile.ty);
+    const bool east = i == tile.i0 + tile.cells_x && coarse(tile.tx + 1, tile.ty);
+    if (west || east) {
+      if (auto z = on_edge(j - tile.j0, tile.cells_y,
+                           [&](int l) { return static_cast<double>(grid_.at(i, tile.j0 + l)); })) {
+        return *z;
+      }
+    }
+    const bool south = j == tile.j0 && coarse(tile.tx, tile.ty - 1);
+    const bool north = j == tile.j0 + tile.cells_y && coarse(tile.tx, tile.ty + 1);
+    if (south || north) {
+      if (auto z = on_edge(i - tile.i0, tile.cells_x,
+                           [&](int l) { return static_cast<double>(grid_.at(tile.i0 + l, j)); })) {
+        return *z;
+      }
+    }
+  }
+  return grid_.at(i, j);
+}
+
 void Scene::write_tile_vertex(Tile& tile, int i, int j) {
-  const int li = i - tile.i0, lj = j - tile.j0;
+  const int li = i - tile.i0, lj = j - tile.j0;  // a fine tile: drawn vertex = grid vertex
   const std::size_t v = static_cast<std::size_t>(lj) * (tile.cells_x + 1) + li;
-  tile.vertices[3 * v + 0] = static_cast<float>(grid_.origin.x() + i * grid_.spacing_m);
-  tile.vertices[3 * v + 1] = static_cast<float>(grid_.origin.y() + j * grid_.spacing_m);
-  tile.vertices[3 * v + 2] = grid_.at(i, j);
+  tile.vertices[3 * v + 2] = drawn_height(tile, i, j);
+}
+
+// Redraws a coarse tile at the grid's spacing. The new mesh keeps the tile's geometry id (so
+// the scene is the same whatever order tiles were refined in) and is built flat: commit()
+// builds its BVH over that layout and then refits it to the heights, so that the BVH depends
+// only on the tile's extent, never on the moment it was refined (a run resumed from a
+// checkpoint draws the same frames as one that never stopped).
+void Scene::refine_tile(Tile& tile) {
+  primitive_count_ -= drawn_quads(tile.cells_x, tile.cells_y, tile.step);
+  rtcDetachGeometry(scene_, tile.id);
+  tile.step = 1;
+  tile.fresh = true;
+  tile.dirty = false;
+  tile.geometry = make_tile_geometry(tile, true);
+  rtcCommitGeometry(tile.geometry);
+  rtcAttachGeometryByID(scene_, tile.geometry, tile.id);
+  rtcReleaseGeometry(tile.geometry);  // the scene holds it
+  primitive_count_ += drawn_quads(tile.cells_x, tile.cells_y, 1);
+  dirty_ = true;
+  // Fine neighbours drew their side facing this tile on its coarse edge: now the grid's.
+  const int dx[4] = {-1, 1, 0, 0}, dy[4] = {0, 0, -1, 1};
+  for (int k = 0; k < 4; ++k) {
+    Tile* n = tile_at(tile.tx + dx[k], tile.ty + dy[k]);
+    if (!n || n->step != 1 || n->fresh) continue;
+    if (dx[k] != 0) {
+      const int i = dx[k] < 0 ? n->i0 + n->cells_x : n->i0;
+      for (int j = n->j0; j <= n->j0 + n->cells_y; ++j) write_tile_vertex(*n, i, j);
+    } else {
+      const int j = dy[k] < 0 ? n->j0 + n->cells_y : n->j0;
+      for (int i = n->i0; i <= n->i0 + n->cells_x; ++i) write_tile_vertex(*n, i, j);
+    }
+    n->dirty = true;
+  }
+  check_device("terrain tile refinement");
 }
 
 std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
@@ -335,8 +514,12 @@ std::size_t Scene::update_terrain(std::span<const HeightUpdate> updates) {
             u.j > tile.j0 + tile.cells_y) {
           continue;
         }
-        write_tile_vertex(tile, u.i, u.j);
-        tile.dirty = true;
+        if (tile.step != 1) {
+          refine_tile(tile);
+        } else if (!tile.fresh) {  // a fresh tile gets every height in commit()
+          write_tile_vertex(tile, u.i, u.j);
+          tile.dirty = true;
+        }
         dirty_ = true;
       }
     }
@@ -412,15 +595,20 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   if (vehicles_.contains(id)) throw std::invalid_argument("vehicle '" + id + "' already in scene");
   VehicleEntry e;
   e.shape = shape;
-  e.box_local = box_vertices(shape.half_extents_m);
-  for (auto& v : e.box_local) v += shape.box_centre_m;
-  const int seg = config_.cylinder_segments;
-  e.wheel_local = cylinder_vertices(shape.wheel_radius_m, 0.5 * shape.wheel_width_m, 1, seg);
   std::vector<std::array<unsigned, 3>> tris;
-  box_triangles(0, tris);
+  std::vector<std::uint8_t> parts;
+  for (const DrawnBox& b : vehicle_body_boxes(shape)) {
+    box_triangles(static_cast<unsigned>(e.body_local.size()), tris);
+    for (const Vec3& v : box_vertices(b.half_extents)) e.body_local.push_back(b.centre + v);
+  }
+  parts.assign(tris.size(), static_cast<std::uint8_t>(VehiclePart::body));
+  const int seg = config_.cylinder_segments;
+  e.wheel_local = wheel_vertices(shape.wheel_radius_m, 0.5 * shape.wheel_width_m, seg);
+  const auto body_vertices = static_cast<unsigned>(e.body_local.size());
   const auto wheel_vertices = static_cast<unsigned>(e.wheel_local.size());
-  for (unsigned w = 0; w < 4; ++w) cylinder_triangles(8 + w * wheel_vertices, seg, tris);
-  e.geometry = make_mesh(device_, 8 + 4 * e.wheel_local.size(), tris, &e.vertices);
+  for (unsigned w = 0; w < 4; ++w) wheel_triangles(body_vertices + w * wheel_vertices, seg, tris, parts);
+  e.triangles = tris.size();
+  e.geometry = make_mesh(device_, body_vertices + 4 * e.wheel_local.size(), tris, &e.vertices);
   rtcSetGeometryBuildQuality(e.geometry, RTC_BUILD_QUALITY_REFIT);
   // Slot: smallest free index (stable while the vehicle lives).
   auto it = std::find(used_slots_.begin(), used_slots_.end(), false);
@@ -436,10 +624,11 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   Surface surface;
   surface.kind = SurfaceKind::vehicle;
   surface.colour = shape.body_colour;
-  surface.secondary_colour = shape.wheel_colour;
   surface.reflectance = shape.body_reflectance;
-  surface.secondary_reflectance = shape.wheel_reflectance;
-  surface.secondary_first_prim = 12;  // box triangles come first, then the wheels
+  surface.prim_part = std::move(parts);
+  surface.part_colours = {shape.body_colour, shape.wheel_colour, shape.hub_colour};
+  surface.part_reflectances = {shape.body_reflectance, shape.wheel_reflectance,
+                               shape.hub_reflectance};
   surface.vehicle_slot = e.slot;
   primitive_count_ += tris.size();
   auto [pos, inserted] = vehicles_.emplace(id, std::move(e));
@@ -456,7 +645,7 @@ void Scene::remove_vehicle(const std::string& id) {
   detach(it->second.id);
   rtcReleaseGeometry(it->second.geometry);
   used_slots_[static_cast<std::size_t>(it->second.slot)] = false;
-  primitive_count_ -= 12 + 16 * static_cast<std::size_t>(config_.cylinder_segments);
+  primitive_count_ -= it->second.triangles;
   vehicles_.erase(it);
 }
 
@@ -474,8 +663,9 @@ void Scene::set_vehicle_pose(const std::string& id, const Pose& chassis,
   }
   VehicleEntry& e = it->second;
   e.chassis = chassis;
-  for (std::size_t k = 0; k < 8; ++k) {
-    store(e.vertices, k, chassis.position + chassis.orientation * e.box_local[k]);
+  const std::size_t body = e.body_local.size();
+  for (std::size_t k = 0; k < body; ++k) {
+    store(e.vertices, k, chassis.position + chassis.orientation * e.body_local[k]);
   }
   const std::size_t per_wheel = e.wheel_local.size();
   for (std::size_t w = 0; w < 4; ++w) {
@@ -487,7 +677,7 @@ void Scene::set_vehicle_pose(const std::string& id, const Pose& chassis,
       wp.orientation = chassis.orientation;
     }
     for (std::size_t k = 0; k < per_wheel; ++k) {
-      store(e.vertices, 8 + w * per_wheel + k, wp.position + wp.orientation * e.wheel_local[k]);
+      store(e.vertices, body + w * per_wheel + k, wp.position + wp.orientation * e.wheel_local[k]);
     }
   }
   rtcUpdateGeometryBuffer(e.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
@@ -515,12 +705,29 @@ int Scene::vehicle_slot(const std::string& id) const {
 
 void Scene::commit() {
   refit_tiles_last_commit_ = 0;
+  bool fresh = false;
   for (auto& tile : tiles_) {
+    fresh = fresh || tile.fresh;
     if (!tile.dirty) continue;
     rtcUpdateGeometryBuffer(tile.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
     rtcCommitGeometry(tile.geometry);
     tile.dirty = false;
     ++refit_tiles_last_commit_;
+  }
+  if (fresh) {
+    // Tiles refined since the last commit: their BVHs are built over the flat layout, then
+    // refit to the heights (see refine_tile()).
+    rtcCommitScene(scene_);
+    for (auto& tile : tiles_) {
+      if (!tile.fresh) continue;
+      for (int j = tile.j0; j <= tile.j0 + tile.cells_y; ++j) {
+        for (int i = tile.i0; i <= tile.i0 + tile.cells_x; ++i) write_tile_vertex(tile, i, j);
+      }
+      rtcUpdateGeometryBuffer(tile.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+      rtcCommitGeometry(tile.geometry);
+      tile.fresh = false;
+      ++refit_tiles_last_commit_;
+    }
   }
   rtcCommitScene(scene_);
   check_device("scene commit");

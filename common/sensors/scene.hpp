@@ -2,11 +2,15 @@
 // What the camera and lidar see, held in an Embree 3 scene:
 //  - terrain: a regular height grid cut into square tiles of quads, one Embree geometry per
 //    tile; update_terrain() rewrites the changed vertices and marks only their tiles, which
-//    commit() refits (build quality REFIT) - ruts from deformable soil cost a few tiles;
+//    commit() refits (build quality REFIT) - ruts from deformable soil cost a few tiles.
+//    With a coarse stride, tiles nothing changed are drawn from every stride-th vertex and a
+//    tile is redrawn at the grid's own spacing once one of its vertices changes (ruts at the
+//    soil's resolution, untouched ground cheap);
 //  - static obstacles: box (12 triangles), sphere (exact Embree sphere point), cylinder
 //    (triangulated, 32 sides by default);
-//  - vehicles: one triangle mesh each (box chassis + four wheel cylinders) whose vertices are
-//    rewritten from the chassis and wheel poses every frame and refit.
+//  - vehicles: one triangle mesh each (a body of three boxes that leaves the wheels in view,
+//    four wheels with tread, sidewalls and a spoked hub) whose vertices are rewritten from the
+//    chassis and wheel poses every frame and refit.
 // The scene is DYNAMIC (Embree's two-level build): commit() rebuilds only what changed plus
 // the small top level. Renderers only read the scene; commit() before rendering.
 #include <embree3/rtcore.h>
@@ -69,7 +73,7 @@ struct TerrainLook {
 /// Throws std::invalid_argument for other names.
 TerrainLook terrain_look(std::string_view kind);
 
-/// Drawable vehicle: chassis box and wheel cylinders (spin axis = wheel's local y).
+/// Drawable vehicle: chassis box and wheels (spin axis = wheel's local y).
 /// Defaults: an HMMWV-class vehicle (config/vehicles/hmmwv.yaml).
 struct VehicleShape {
   Vec3 half_extents_m = Vec3(2.35, 1.08, 0.55);
@@ -80,10 +84,32 @@ struct VehicleShape {
                                         Vec3(1.689, 0.9095, 0.0), Vec3(1.689, -0.9095, 0.0),
                                         Vec3(-1.689, 0.9095, 0.0), Vec3(-1.689, -0.9095, 0.0)};
   Rgb body_colour{0.15f, 0.3f, 0.75f};
-  Rgb wheel_colour{0.06f, 0.06f, 0.06f};
+  Rgb wheel_colour{0.06f, 0.06f, 0.06f};  // tyre: tread and sidewalls
+  Rgb hub_colour{0.55f, 0.55f, 0.52f};    // the hub's spokes (the gaps are tyre-coloured)
   float body_reflectance = 0.6f;
   float wheel_reflectance = 0.1f;
+  float hub_reflectance = 0.5f;
 };
+
+/// One box of a drawn vehicle body, in the chassis reference frame.
+struct DrawnBox {
+  Vec3 centre = Vec3::Zero();
+  Vec3 half_extents = Vec3::Zero();
+};
+/// The boxes a vehicle body is drawn with, inside the chassis box of `shape`: a hull between
+/// the wheels (inner tyre faces less 3 cm) from the axle line up; a deck as wide and long as
+/// the chassis box from 3 cm above the tyres; a cabin on the deck (rear 55 % to front 25 % of
+/// the half length, 90 % of the width) up to the top of the chassis box. Seen from the side or
+/// from behind, the wheels are not hidden.
+std::array<DrawnBox, 3> vehicle_body_boxes(const VehicleShape& shape);
+
+/// What each triangle of a vehicle mesh is (index into Surface::part_colours).
+enum class VehiclePart : std::uint8_t { body = 0, tyre = 1, hub = 2 };
+/// Hub pattern: 8 sectors around the axle, spokes (hub colour) and gaps (tyre colour)
+/// alternating, so that a turning wheel visibly turns.
+constexpr int kHubSectors = 8;
+/// Hub radius as a share of the wheel radius.
+constexpr double kHubRadiusShare = 0.6;
 
 /// Shape from a vehicle definition (chassis box, wheel size, axle positions).
 VehicleShape vehicle_shape(const vehicle::VehicleParams& params, const Rgb& body_colour);
@@ -97,11 +123,20 @@ enum class SurfaceKind : std::uint8_t { terrain, obstacle, vehicle };
 struct Surface {
   SurfaceKind kind = SurfaceKind::terrain;
   Rgb colour;
-  Rgb secondary_colour;  // vehicles: wheels
   float reflectance = 0.5f;
-  float secondary_reflectance = 0.5f;
-  unsigned secondary_first_prim = std::numeric_limits<unsigned>::max();
+  // Vehicles: a part per triangle (VehiclePart) with its colour and reflectance; empty:
+  // `colour` and `reflectance` everywhere.
+  std::vector<std::uint8_t> prim_part;
+  std::vector<Rgb> part_colours;
+  std::vector<float> part_reflectances;
   int vehicle_slot = -1;
+
+  Rgb colour_of(unsigned prim) const {
+    return prim < prim_part.size() ? part_colours[prim_part[prim]] : colour;
+  }
+  float reflectance_of(unsigned prim) const {
+    return prim < prim_part.size() ? part_reflectances[prim_part[prim]] : reflectance;
+  }
 };
 
 /// Intersection context every renderer passes to Embree: vehicle geometries carry a filter
@@ -126,9 +161,13 @@ class Scene {
 
   const SceneConfig& config() const { return config_; }
 
-  /// Replaces the terrain. Throws std::invalid_argument on a malformed grid or a texture
-  /// that cannot be read.
-  void set_terrain(const TerrainGrid& grid, const TerrainLook& look);
+  /// Replaces the terrain. `coarse_stride` > 1: a tile none of whose vertices has been changed
+  /// by update_terrain() is drawn from every coarse_stride-th grid vertex (and its last row and
+  /// column); the first change to one of its vertices redraws it at the grid's own spacing for
+  /// good. Where such a fine tile borders a coarse one, its border vertices lie on the coarse
+  /// tile's edges (no cracks). Throws std::invalid_argument on a malformed grid, a stride < 1
+  /// or a texture that cannot be read.
+  void set_terrain(const TerrainGrid& grid, const TerrainLook& look, int coarse_stride = 1);
   /// Applies changed heights; (i, j) index the grid from its origin. Returns how many were
   /// inside the grid (others are ignored). A non-finite height throws std::invalid_argument.
   std::size_t update_terrain(std::span<const HeightUpdate> updates);
@@ -164,15 +203,23 @@ class Scene {
   Rgb terrain_albedo(float x, float y) const;
   std::size_t primitive_count() const { return primitive_count_; }
   std::size_t dirty_tiles_last_commit() const { return refit_tiles_last_commit_; }
+  std::size_t terrain_tiles() const { return tiles_.size(); }
+  /// Terrain tiles drawn at the grid's own spacing (all of them with coarse stride 1).
+  std::size_t fine_terrain_tiles() const;
 
  private:
   struct Tile {
     RTCGeometry geometry = nullptr;
     unsigned id = 0;
+    int tx = 0, ty = 0;  // tile column and row
     int i0 = 0, j0 = 0;  // first vertex
-    int cells_x = 0, cells_y = 0;
-    float* vertices = nullptr;  // (cells_x + 1) * (cells_y + 1) float3
+    int cells_x = 0, cells_y = 0;  // grid cells covered
+    int step = 1;  // grid vertices between drawn vertices: 1 (fine) or the coarse stride
+    // Drawn vertices, row-major float3: column k at grid vertex i0 + min(k step, cells_x)
+    // (likewise rows), so a coarse tile keeps its last row and column.
+    float* vertices = nullptr;
     bool dirty = false;
+    bool fresh = false;  // refined since the last commit (built flat, heights written by commit)
   };
   struct VehicleEntry {
     RTCGeometry geometry = nullptr;
@@ -180,14 +227,19 @@ class Scene {
     int slot = 0;
     VehicleShape shape;
     Pose chassis;
-    std::vector<Vec3> box_local;    // 8 corners in the chassis frame
+    std::vector<Vec3> body_local;   // body box corners in the chassis frame
     std::vector<Vec3> wheel_local;  // one wheel's vertices in the wheel frame
+    std::size_t triangles = 0;
     float* vertices = nullptr;
   };
 
   unsigned attach(RTCGeometry geometry, const Surface& surface);
   void detach(unsigned id);
   void clear_terrain();
+  Tile* tile_at(int tx, int ty);
+  RTCGeometry make_tile_geometry(Tile& tile, bool flat);
+  void refine_tile(Tile& tile);
+  float drawn_height(const Tile& tile, int i, int j) const;
   void write_tile_vertex(Tile& tile, int i, int j);
   void check_device(const char* what) const;
 
@@ -198,6 +250,7 @@ class Scene {
   TerrainGrid grid_;
   TerrainLook look_;
   int tiles_x_ = 0, tiles_y_ = 0;
+  int coarse_stride_ = 1;
   std::vector<Tile> tiles_;
   int texture_width_ = 0, texture_height_ = 0;
   std::vector<float> texture_;  // linear RGB

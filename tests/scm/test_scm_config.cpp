@@ -6,6 +6,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "scm/scm_images.hpp"
 #include "scm_test_util.hpp"
@@ -161,9 +162,9 @@ TEST(ScmConfig, InvalidParamsInCodeAreRejected) {
   EXPECT_THROW(ScmTerrain{p}, ConfigError);
 }
 
-TEST(ScmImages, HeightAndRutImagesMapBackToMetres) {
-  ScmParams p = params("mid", 0.05, 3.0);
-  ScmTerrain t(p);
+namespace {
+// A wheel sunk 4 cm rolled 1 m along +x from the origin on mid soil at 0.05 m.
+void roll_a_rut(ScmTerrain& t) {
   terrain::WheelBodyState w;
   w.pose.position = Vec3(0.0, 0.0, 0.467 - 0.04);
   w.linear_velocity = Vec3(1.0, 0.0, 0.0);
@@ -175,6 +176,13 @@ TEST(ScmImages, HeightAndRutImagesMapBackToMetres) {
     t.compute_wheel_loads(std::span(&w, 1), 2e-3, std::span(&l, 1));
     w.pose.position += 2e-3 * w.linear_velocity;
   }
+}
+}  // namespace
+
+TEST(ScmImages, HeightAndRutImagesMapBackToMetres) {
+  ScmParams p = params("mid", 0.05, 3.0);
+  ScmTerrain t(p);
+  roll_a_rut(t);
   const auto dir = temp_dir("images");
   const TerrainImageInfo info = write_terrain_images(t, (dir / "final").string());
   const cv::Mat h = cv::imread(info.height_png, cv::IMREAD_UNCHANGED);
@@ -197,4 +205,81 @@ TEST(ScmImages, HeightAndRutImagesMapBackToMetres) {
   EXPECT_EQ(j["width_px"].get<int>(), info.width_px);
   EXPECT_DOUBLE_EQ(j["height_m_per_count"].get<double>(), info.height_m_per_count);
   EXPECT_DOUBLE_EQ(j["x_of_column0_m"].get<double>(), info.region.i_min * 0.05);
+}
+
+// The picture for people beside the data images: the rut depth through the viridis colour map
+// (each vertex a square of colour_scale_px pixels), axes, a scale bar and a colour bar.
+TEST(ScmImages, RutColourPictureHasMapAxesScaleAndColourBar) {
+  ScmParams p = params("mid", 0.05, 3.0);
+  ScmTerrain t(p);
+  roll_a_rut(t);
+  const auto dir = temp_dir("colour");
+  const TerrainImageInfo info = write_terrain_images(t, (dir / "terrain").string());
+  EXPECT_EQ(info.rut_colour_png, (dir / "terrain_rut_colour.png").string());
+  const cv::Mat img = cv::imread(info.rut_colour_png, cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(img.type(), CV_8UC3);
+  EXPECT_EQ(img.cols, info.colour_width_px);
+  EXPECT_EQ(img.rows, info.colour_height_px);
+  // The map is at least about 600 px on its long side, in whole pixels per vertex.
+  const int k = info.colour_scale_px;
+  EXPECT_EQ(k, std::max(1, 600 / std::max(info.width_px, info.height_px)));
+  const cv::Rect map(info.map_left_px, info.map_top_px, info.width_px * k, info.height_px * k);
+  const cv::Rect bar(info.bar_left_px, info.bar_top_px, info.bar_width_px, info.bar_height_px);
+  const cv::Rect whole(0, 0, img.cols, img.rows);
+  ASSERT_EQ(map & whole, map);
+  ASSERT_EQ(bar & whole, bar);
+  EXPECT_GE(map.x, 40);                    // room for the y axis labels
+  EXPECT_GE(img.rows - map.br().y, 60);    // x axis labels and the scale bar below
+  EXPECT_GT(bar.x, map.br().x);            // the colour bar right of the map
+  EXPECT_GE(img.cols - bar.br().x, 50);    // its labels right of it
+
+  auto viridis = [](double depth, double dmax) {
+    cv::Mat1b v(1, 1, static_cast<std::uint8_t>(std::lround(255.0 * depth / dmax)));
+    cv::Mat c;
+    cv::applyColorMap(v, c, cv::COLORMAP_VIRIDIS);
+    return c.at<cv::Vec3b>(0, 0);
+  };
+  // Vertex (10, 0) in the rut: its square has the colour of its depth; the whole square.
+  const double depth = -t.vertex_height(10, 0);
+  ASSERT_GT(depth, 0.03);
+  const int col = 10 - info.region.i_min, row = info.region.j_max - 0;
+  for (int dy = 0; dy < k; ++dy) {
+    for (int dx = 0; dx < k; ++dx) {
+      ASSERT_EQ(img.at<cv::Vec3b>(map.y + row * k + dy, map.x + col * k + dx),
+                viridis(depth, info.rut_depth_max_m));
+    }
+  }
+  // Undisturbed soil (a corner of the region) is the colour of depth 0.
+  EXPECT_EQ(img.at<cv::Vec3b>(map.y, map.x), viridis(0.0, 1.0));
+  // The colour bar runs from depth 0 at the bottom to the deepest rut at the top.
+  EXPECT_EQ(img.at<cv::Vec3b>(bar.br().y - 1, bar.x + bar.width / 2), viridis(0.0, 1.0));
+  EXPECT_EQ(img.at<cv::Vec3b>(bar.y, bar.x + bar.width / 2), viridis(1.0, 1.0));
+  // Ink (text, ticks, the scale bar) in each margin: axes and labels were drawn.
+  auto ink = [&](const cv::Rect& r) {
+    int n = 0;
+    for (int y = r.y; y < r.br().y; ++y) {
+      for (int x = r.x; x < r.br().x; ++x) {
+        const auto& px = img.at<cv::Vec3b>(y, x);
+        n += px[0] < 100 && px[1] < 100 && px[2] < 100;
+      }
+    }
+    return n;
+  };
+  EXPECT_GT(ink(cv::Rect(0, map.y, map.x - 2, map.height)), 20) << "y axis labels";
+  EXPECT_GT(ink(cv::Rect(map.x, map.br().y + 2, map.width, 45)), 40) << "x axis labels";
+  EXPECT_GT(ink(cv::Rect(map.x, img.rows - 30, map.width, 28)), 40) << "scale bar";
+  EXPECT_GT(ink(cv::Rect(bar.br().x + 2, bar.y - 6, img.cols - bar.br().x - 2, bar.height + 12)),
+            40)
+      << "colour bar labels";
+  // The data images are unchanged by it, and the side file names the picture.
+  std::ifstream in(info.json);
+  const auto j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["rut_colour_png"].get<std::string>(), "terrain_rut_colour.png");
+  // Deterministic: the same terrain gives the same bytes.
+  const TerrainImageInfo again = write_terrain_images(t, (dir / "again").string());
+  auto bytes = [](const std::string& f) {
+    std::ifstream s(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(s), {});
+  };
+  EXPECT_EQ(bytes(again.rut_colour_png), bytes(info.rut_colour_png));
 }

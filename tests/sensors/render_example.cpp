@@ -3,6 +3,7 @@
 // and one lidar scan as PLY. Run: build/tests/sensors/render_example OUT_DIR
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -83,6 +84,27 @@ int main(int argc, char** argv) {
     }
   }
   write_ply(out + "/lidar.ply", lidar.scan(scene, 0));
+
+  // Close-ups of one vehicle on flat ground: from the side and from the chase camera.
+  Scene studio;
+  studio.set_terrain(TerrainGrid::flat(Vec2(-30, -30), 0.5, 121, 121, 0.0), terrain_look("silt"));
+  studio.add_vehicle("hmmwv", VehicleShape{});
+  studio.set_vehicle_pose("hmmwv", Pose{Vec3(0, 0, 0.467), quat_from_yaw(0.35)}, {});
+  studio.commit();
+  CameraConfig side = chase;
+  side.id = "side";
+  side.mode = CameraMode::fixed;
+  side.intrinsics.width = 640;
+  side.intrinsics.height = 360;
+  side.mount.pose.position = Vec3(1.5, -9.0, 1.6);
+  side.mount.pose.orientation =
+      Quat(Eigen::AngleAxisd(std::numbers::pi / 2 + 0.1, Vec3::UnitZ())) *
+      Quat(Eigen::AngleAxisd(0.08, Vec3::UnitY()));
+  write_png(out + "/vehicle_side.png", CameraSensor(side, "", 4, 0.01).capture(studio, 0));
+  CameraConfig behind = chase;
+  behind.intrinsics.width = 640;
+  behind.intrinsics.height = 360;
+  write_png(out + "/vehicle_chase.png", CameraSensor(behind, "hmmwv", 5, 0.01).capture(studio, 0));
   video.close();
   std::printf("wrote %s (%d frames), PNGs and lidar.ply in %s\n", video.path().c_str(),
               video.frames(), out.c_str());

@@ -259,19 +259,20 @@ TEST(Camera, AnotherVehiclePosedInViewAppears) {
   const RgbImage img = cam.capture(scene, 0);
   const Box2 seen = pixel_box(img, is_red, &count);
   Box2 predicted;
-  for (int k = 0; k < 8; ++k) {
-    const Vec3 corner =
-        shape.box_centre_m + Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1)
-                                 .cwiseProduct(shape.half_extents_m);
-    const Vec3 w = vehicle.position + vehicle.orientation * corner;
-    const auto px = cam.model().project(pose.orientation.conjugate() * (w - pose.position));
-    predicted.add(px->x(), px->y());
+  for (const DrawnBox& b : vehicle_body_boxes(shape)) {
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 corner = b.centre + Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1)
+                                         .cwiseProduct(b.half_extents);
+      const Vec3 w = vehicle.position + vehicle.orientation * corner;
+      const auto px = cam.model().project(pose.orientation.conjugate() * (w - pose.position));
+      predicted.add(px->x(), px->y());
+    }
   }
-  EXPECT_GT(count, 100);
+  EXPECT_GT(count, 60);
   EXPECT_NEAR(seen.u0, predicted.u0, 1.0);
   EXPECT_NEAR(seen.u1, predicted.u1, 1.0);
   EXPECT_NEAR(seen.v0, predicted.v0, 1.0);
-  // The bottom of the box is hidden behind the near wheels: only an upper bound there.
+  // The bottom of the hull is partly hidden behind the near wheels: only an upper bound there.
   EXPECT_LE(seen.v1, predicted.v1 + 1.0);
   // Wheels (dark) show below the body.
   int dark = 0;
@@ -330,6 +331,83 @@ TEST(Camera, MountedCameraHidesItsOwnVehicleChaseCameraSeesIt) {
   EXPECT_NEAR((cp.position - ego.position).head<2>().norm(), cfg.chase.distance_m, 1e-9);
   const RgbImage c = chase.capture(scene, 0);
   EXPECT_TRUE(is_blue(c.at(32, 18)));  // the vehicle at the image centre
+}
+
+// The body does not hide the wheels: a chase camera (behind and above) sees both rear tyres
+// beside the hull, below the deck; from the side the hubs show, and a wheel turned by half a
+// hub sector looks different (spin is visible).
+TEST(Camera, ChaseCameraSeesTheWheelsAndTheSideViewTheirHubsTurn) {
+  Scene scene;
+  flat_terrain(scene, terrain_look("rigid"));
+  VehicleShape shape;  // HMMWV: chassis box 2.16 m wide, track 1.82 m: tyres inside the box
+  shape.body_colour = {0.9f, 0.05f, 0.05f};   // red
+  shape.wheel_colour = {0.05f, 0.8f, 0.05f};  // green tyres, to find them
+  shape.hub_colour = {0.8f, 0.05f, 0.8f};     // magenta hubs
+  auto green = [](const std::uint8_t* p) { return p[1] > 40 && p[1] > 2 * p[0] && p[1] > 2 * p[2]; };
+  auto magenta = [](const std::uint8_t* p) {
+    return p[0] > 40 && p[2] > 40 && p[0] > 2 * p[1] && p[2] > 2 * p[1];
+  };
+  scene.add_vehicle("ego", shape);
+  const Pose ego{Vec3(3.0, -1.0, 0.467), quat_from_yaw(0.2)};
+  scene.set_vehicle_pose("ego", ego, {});
+  scene.commit();
+
+  CameraConfig cfg;
+  cfg.mode = CameraMode::chase;
+  cfg.intrinsics.width = 320;
+  cfg.intrinsics.height = 180;
+  cfg.noise = PixelNoiseModel::none;
+  CameraSensor chase(cfg, "ego", 1, kFrame);
+  const RgbImage img = chase.capture(scene, 0);
+  const Pose cp = chase.camera_pose(scene);
+  // Tyre pixels around each rear wheel's projected centre (within one wheel radius).
+  for (int w : {2, 3}) {  // rear left, rear right
+    const Vec3 centre = ego.position + ego.orientation * shape.wheel_positions_m[w];
+    const auto c = chase.model().project(cp.orientation.conjugate() * (centre - cp.position));
+    const auto top = chase.model().project(
+        cp.orientation.conjugate() * (centre + Vec3(0, 0, shape.wheel_radius_m) - cp.position));
+    ASSERT_TRUE(c && top);
+    const double r = c->y() - top->y();
+    int tyre = 0;
+    for (int v = 0; v < img.height; ++v) {
+      for (int u = 0; u < img.width; ++u) {
+        if (std::hypot(u + 0.5 - c->x(), v + 0.5 - c->y()) <= r) tyre += green(img.at(u, v));
+      }
+    }
+    EXPECT_GT(tyre, 0.25 * r * r) << "rear wheel " << w << " hidden (radius " << r << " px)";
+  }
+  int body = 0;
+  pixel_box(img, is_red, &body);
+  EXPECT_GT(body, 500);  // and the vehicle is there
+
+  // Side view (fixed camera 8 m to the vehicle's left, looking at it).
+  const Vec3 left = ego.orientation * Vec3::UnitY();
+  const Pose side{ego.position + 8.0 * left + Vec3(0, 0, 0.3),
+                  quat_from_yaw(yaw_of(ego.orientation) - std::numbers::pi / 2) *
+                      Quat(Eigen::AngleAxisd(0.04, Vec3::UnitY()))};
+  CameraSensor side_cam(fixed_camera(320, 180, side), "", 1, kFrame);
+  const RgbImage still = side_cam.capture(scene, 0);
+  int hubs = 0;
+  const Box2 hub_box = pixel_box(still, magenta, &hubs);
+  EXPECT_GT(hubs, 40);
+  // Both near wheels show their hubs: hub pixels at the two ends of the vehicle.
+  EXPECT_GT(hub_box.u1 - hub_box.u0, 80.0);
+  // Turn every wheel by 22.5 deg (half of one of the 8 hub sectors) about its axle.
+  std::array<Pose, 4> wheels;
+  for (int w = 0; w < 4; ++w) {
+    wheels[w].position = ego.position + ego.orientation * shape.wheel_positions_m[w];
+    wheels[w].orientation = ego.orientation * Quat(Eigen::AngleAxisd(0.3927, Vec3::UnitY()));
+  }
+  scene.set_vehicle_pose("ego", ego, wheels);
+  scene.commit();
+  const RgbImage turned = side_cam.capture(scene, 0);
+  int turned_hubs = 0, swapped = 0;
+  pixel_box(turned, magenta, &turned_hubs);
+  for (int v = 0; v < still.height; ++v) {
+    for (int u = 0; u < still.width; ++u) swapped += magenta(still.at(u, v)) != magenta(turned.at(u, v));
+  }
+  EXPECT_NEAR(turned_hubs, hubs, 0.2 * hubs);  // as much hub, elsewhere
+  EXPECT_GT(swapped, hubs / 2);
 }
 
 TEST(Camera, NoiseStatisticsMatchConfiguration) {
