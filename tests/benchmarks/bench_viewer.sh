@@ -13,7 +13,7 @@ RUNS=${2:-3}
 DURATION=${3:-20}
 work=$(mktemp -d)
 pids=()
-trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; rm -rf "$work"' EXIT
+trap 'for p in "${pids[@]}"; do kill -- "-$p" 2>/dev/null || kill "$p" 2>/dev/null || true; done; rm -rf "$work"' EXIT
 rtf() { sed -n 's/.*"real_time_factor": *\([0-9.e+-]*\).*/\1/p' "$1/summary.json" | head -n1; }
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 for k in $(seq "$RUNS"); do
@@ -27,15 +27,15 @@ for k in $(seq "$RUNS"); do
   for _ in $(seq 100); do [ -s "$work/url$k" ] && break; sleep 0.1; done
   bpid=""
   if [ "${BROWSER:-1}" = 1 ]; then
-    node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/url$k")" > "$work/browser$k.log" 2>&1 &
+    setsid node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/url$k")" > "$work/browser$k.log" 2>&1 &
     bpid=$!; pids+=("$bpid")
     for _ in $(seq 300); do grep -q watching "$work/browser$k.log" && break; sleep 0.1; done
   fi
   "$ROOT/launch_scripts/run_scenario.sh" "$SCENARIO" --duration "$DURATION" --run-id "$id" \
       --output "$work/view$k" > /dev/null 2>&1
   echo "run $k with viewer$([ "${BROWSER:-1}" = 1 ] && echo " and browser"): RTF $(rtf "$work/view$k")"
-  kill $bpid "$vpid" 2>/dev/null || true
-  pkill -f "chromium.*--headless" 2>/dev/null || true
+  [ -z "$bpid" ] || kill -- "-$bpid" 2>/dev/null || true  # node and its Chromium
+  kill "$vpid" 2>/dev/null || true
   wait "$vpid" 2>/dev/null || true
   cmp -s "$work/plain$k/vehicles.csv" "$work/view$k/vehicles.csv" &&
     echo "  vehicles.csv byte-identical" || echo "  vehicles.csv DIFFERS"

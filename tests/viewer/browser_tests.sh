@@ -66,12 +66,13 @@ case "$CASE" in
         --realtime --view --view-port 0 --output "$work/live" > "$work/launcher.log" 2>&1 &
     lpid=$!
     wait_file "$work/live/logs/viewer.url"
-    node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/live/logs/viewer.url")" > "$work/browser.log" 2>&1 &
+    # In a session of its own: killing its process group kills this test's Chromium only.
+    setsid node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/live/logs/viewer.url")" > "$work/browser.log" 2>&1 &
     bpid=$!
     for _ in $(seq 600); do grep -q watching "$work/browser.log" && break; sleep 0.1; done
     grep -q watching "$work/browser.log" || { cat "$work/browser.log" >&2; exit 1; }
     # Mid-run: the browser and then the viewer die without a word.
-    kill -KILL "$bpid"; pkill -KILL -f "chromium.*--headless" || true
+    kill -KILL -- "-$bpid"
     pkill -KILL -f "syndds_viewer .*$work/live" || true
     wait "$lpid" || { cat "$work/launcher.log" >&2; exit 1; }
     single default 12 "$work/single"

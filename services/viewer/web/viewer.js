@@ -7,6 +7,9 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 const $ = (id) => document.getElementById(id);
 const SOIL_TILE = 64;          // soil vertices per tile side (a mesh per deformed tile)
 const RUT_COLOUR_MAX_M = 0.10; // depth at the end of the colour ramp
+// Live pictures per second at most, and only when something changed: a browser drawing on the
+// CPU (no GPU) competes with the simulation for the same cores (docs/performance.md, "Viewer").
+const LIVE_FPS = 10;
 
 function fail(message) {
   $('error').style.display = 'block';
@@ -60,7 +63,7 @@ scene3.add(sun);
 
 const state = {
   scene: null, mode: 'replay', frame: 0, vehicles: new Map(), selected: null, view: 'follow',
-  soil: null, rtf: null, status: '-', members: [], lastDraw: {},
+  soil: null, rtf: null, status: '-', members: [], dirty: true,
 };
 window.syndds = { ready: false, error: null, state };
 
@@ -393,6 +396,7 @@ function readout() {
 }
 
 function render() {
+  state.dirty = false;
   followCamera();
   if (state.view !== 'follow') controls.update();
   if (state.soil) state.soil.flush();
@@ -517,7 +521,7 @@ async function startReplay(info) {
       pos += dt * +$('speed').value / state.scene.heartbeat_s;
       if (pos >= frames.length - 1) { pos = frames.length - 1; playing = false; $('play').textContent = 'play'; }
       show(Math.floor(pos));
-    } else render();
+    } else if (state.dirty) render();
     requestAnimationFrame(tick);
   }
   try {
@@ -570,12 +574,14 @@ function startLive() {
       lidarPoints.geometry.dispose();
       lidarPoints.geometry = new THREE.BufferGeometry();
       lidarPoints.geometry.setAttribute('position', new THREE.BufferAttribute(p, 3));
+      state.dirty = true;
       drawLidar(p);
       window.syndds.pointClouds = (window.syndds.pointClouds || 0) + 1;
       return;
     }
     if (m.type !== 'update') return;
     window.syndds.updates++;
+    state.dirty = true;
     state.frame = Math.max(0, m.frame);
     state.rtf = m.real_time_factor;
     state.status = m.status + (m.reason ? `: ${m.reason}` : '');
@@ -596,7 +602,11 @@ function startLive() {
     }
     readout();
   };
-  function tick() { render(); requestAnimationFrame(tick); }
+  let last = 0;
+  function tick(now) {
+    if (state.dirty && now - last >= 1000 / LIVE_FPS) { last = now; render(); }
+    requestAnimationFrame(tick);
+  }
   requestAnimationFrame(tick);
 }
 
@@ -639,9 +649,14 @@ async function main() {
       throttle: 0, braking: 0, gear: 0, rpm: 0 });
   }
   state.selected = sc.vehicles.length ? sc.vehicles[0].id : null;
-  select.addEventListener('change', () => { state.selected = select.value; if (state.view !== 'follow') setView(state.view); });
+  select.addEventListener('change', () => {
+    state.selected = select.value; state.dirty = true;
+    if (state.view !== 'follow') setView(state.view);
+  });
   for (const b of ['follow', 'orbit', 'top']) $(b).addEventListener('click', () => setView(b));
   controls.addEventListener('start', () => { if (state.view === 'follow') setView('orbit'); });
+  controls.addEventListener('change', () => { state.dirty = true; });
+  window.addEventListener('resize', () => { state.dirty = true; });
   resize();
   setView('follow');
   window.syndds.vehicleScreenPositions = vehicleScreenPositions;
