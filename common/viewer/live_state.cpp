@@ -6,8 +6,9 @@
 namespace syndds::viewer {
 namespace {
 
-// Frames kept for the real-time factor: about the last two seconds of a run at 100 frames/s.
-constexpr std::size_t kRateWindow = 200;
+// The real-time factor is measured over the grants seen in the last few seconds of wall time
+// (a count of frames would shrink to a burst of late deliveries after a stall).
+constexpr double kRateWindowS = 3.0;
 
 std::uint64_t vertex_key(std::int32_t i, std::int32_t j) {
   return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) |
@@ -60,7 +61,9 @@ void LiveState::on_frame(std::int64_t frame, double sim_time_s, double wall_s) {
   frame_ = frame;
   sim_time_s_ = sim_time_s;
   recent_.emplace_back(wall_s, sim_time_s);
-  if (recent_.size() > kRateWindow) recent_.erase(recent_.begin());
+  while (recent_.size() > 2 && recent_.front().first < wall_s - kRateWindowS) {
+    recent_.pop_front();
+  }
 }
 
 void LiveState::on_member(const proto::MemberAnnounceMsg& m, double) {

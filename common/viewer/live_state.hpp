@@ -6,6 +6,7 @@
 // to send again, so a slow browser gets fewer, larger updates and never a growing queue, and
 // the feeding side never waits for a browser. No DDS here (services/viewer feeds it).
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <mutex>
 #include <string>
@@ -76,8 +77,8 @@ class LiveState {
   std::uint64_t member_changes_ = 0;
   std::int64_t frame_ = -1;
   double sim_time_s_ = 0.0;
-  // Real-time factor (wall / sim) over a sliding window of recent frames.
-  std::vector<std::pair<double, double>> recent_;  // (wall_s, sim_s)
+  // Real-time factor (wall / sim) over the frames of the last seconds.
+  std::deque<std::pair<double, double>> recent_;  // (wall_s, sim_s)
   std::string status_ = "running";
   std::string reason_;
 };
