@@ -9,6 +9,7 @@ find_package(CLI11 REQUIRED)
 find_package(fastcdr REQUIRED)
 find_package(fastrtps 2.9 REQUIRED)
 find_package(embree 3 REQUIRED)
+find_package(assimp 5 REQUIRED)  # Debian libassimp-dev: OBJ meshes of the rendered scene
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs videoio)
 pkg_check_modules(ODE REQUIRED IMPORTED_TARGET ode)
 find_program(FASTDDSGEN fastddsgen REQUIRED)

@@ -176,6 +176,14 @@ SceneConfig parse_scene(const YamlNode& node) {
   }
   s.terrain_tile_cells = integer(m, "terrain_tile_cells", s.terrain_tile_cells, 4, 1024);
   s.cylinder_segments = integer(m, "cylinder_segments", s.cylinder_segments, 3, 256);
+  if (m.has("meshes")) {
+    // Relative to the rig file's folder (config/sensors/*.yaml: ../meshes).
+    const YamlNode dir = m.required("meshes");
+    std::filesystem::path p = dir.as<std::string>();
+    if (p.is_relative()) p = std::filesystem::path(node.file()).parent_path() / p;
+    if (!std::filesystem::is_directory(p)) dir.fail("no mesh directory " + p.lexically_normal().string());
+    s.mesh_dir = p.lexically_normal().string();
+  }
   m.finish();
   return s;
 }

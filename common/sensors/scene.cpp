@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
@@ -272,6 +273,18 @@ void Scene::check_device(const char* what) const {
     throw std::runtime_error(std::string("Embree error ") + std::to_string(static_cast<int>(e)) +
                              " during " + what);
   }
+}
+
+const TriMesh* Scene::mesh(const std::string& name) {
+  if (config_.mesh_dir.empty() || name.empty()) return nullptr;
+  auto it = meshes_.find(name);
+  if (it == meshes_.end()) {
+    const auto file = std::filesystem::path(config_.mesh_dir) / (name + ".obj");
+    std::optional<TriMesh> m;
+    if (std::filesystem::is_regular_file(file)) m = load_mesh(file.string());
+    it = meshes_.emplace(name, std::move(m)).first;
+  }
+  return it->second ? &*it->second : nullptr;
 }
 
 unsigned Scene::attach(RTCGeometry geometry, const Surface& surface) {
@@ -549,6 +562,27 @@ void Scene::add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> col
   surface.reflectance = config_.obstacle_reflectance;
   const Pose& pose = obstacle.pose;
   RTCGeometry g = nullptr;
+  if (const TriMesh* m = mesh(obstacle.label)) {
+    const double r = obstacle.size.x();
+    const Vec3 half = obstacle.shape == world::ShapeKind::box      ? obstacle.size
+                      : obstacle.shape == world::ShapeKind::sphere ? Vec3(r, r, r)
+                                                                   : Vec3(r, r, obstacle.size.z());
+    const TriMesh fitted = fit_to_box(*m, -half, half);
+    float* v = nullptr;
+    g = make_mesh(device_, fitted.vertices.size(), fitted.triangles, &v);
+    for (std::size_t k = 0; k < fitted.vertices.size(); ++k) {
+      store(v, k, pose.position + pose.orientation * fitted.vertices[k]);
+    }
+    surface.prim_part = fitted.parts;
+    surface.part_colours = colour ? std::vector<Rgb>(fitted.part_colours.size(), *colour)
+                                  : fitted.part_colours;
+    surface.part_reflectances.assign(fitted.part_colours.size(), surface.reflectance);
+    primitive_count_ += fitted.triangles.size();
+    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+    attach(g, surface);
+    check_device("obstacle mesh creation");
+    return;
+  }
   switch (obstacle.shape) {
     case world::ShapeKind::sphere: {
       g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
@@ -597,11 +631,32 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   e.shape = shape;
   std::vector<std::array<unsigned, 3>> tris;
   std::vector<std::uint8_t> parts;
-  for (const DrawnBox& b : vehicle_body_boxes(shape)) {
-    box_triangles(static_cast<unsigned>(e.body_local.size()), tris);
-    for (const Vec3& v : box_vertices(b.half_extents)) e.body_local.push_back(b.centre + v);
+  std::vector<Rgb> colours = {shape.body_colour, shape.wheel_colour, shape.hub_colour};
+  const auto boxes = vehicle_body_boxes(shape);
+  if (const TriMesh* m = mesh("vehicle_body")) {
+    // Fitted to the boxes' bounding box; material "body" takes the vehicle's colour, the
+    // others (glass, lights) keep theirs as parts 3, 4, ...
+    Vec3 lo = boxes[0].centre - boxes[0].half_extents, hi = boxes[0].centre + boxes[0].half_extents;
+    for (const DrawnBox& b : boxes) {
+      lo = lo.cwiseMin(b.centre - b.half_extents);
+      hi = hi.cwiseMax(b.centre + b.half_extents);
+    }
+    const TriMesh fitted = fit_to_box(*m, lo, hi);
+    e.body_local = fitted.vertices;
+    tris = fitted.triangles;
+    if (fitted.part_colours.size() > 250) throw std::invalid_argument("vehicle_body.obj: too many materials");
+    for (const std::uint8_t p : fitted.parts) {
+      parts.push_back(fitted.part_names[p] == "body" ? static_cast<std::uint8_t>(VehiclePart::body)
+                                                     : static_cast<std::uint8_t>(3 + p));
+    }
+    colours.insert(colours.end(), fitted.part_colours.begin(), fitted.part_colours.end());
+  } else {
+    for (const DrawnBox& b : boxes) {
+      box_triangles(static_cast<unsigned>(e.body_local.size()), tris);
+      for (const Vec3& v : box_vertices(b.half_extents)) e.body_local.push_back(b.centre + v);
+    }
+    parts.assign(tris.size(), static_cast<std::uint8_t>(VehiclePart::body));
   }
-  parts.assign(tris.size(), static_cast<std::uint8_t>(VehiclePart::body));
   const int seg = config_.cylinder_segments;
   e.wheel_local = wheel_vertices(shape.wheel_radius_m, 0.5 * shape.wheel_width_m, seg);
   const auto body_vertices = static_cast<unsigned>(e.body_local.size());
@@ -626,9 +681,10 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   surface.colour = shape.body_colour;
   surface.reflectance = shape.body_reflectance;
   surface.prim_part = std::move(parts);
-  surface.part_colours = {shape.body_colour, shape.wheel_colour, shape.hub_colour};
   surface.part_reflectances = {shape.body_reflectance, shape.wheel_reflectance,
                                shape.hub_reflectance};
+  surface.part_reflectances.resize(colours.size(), shape.body_reflectance);
+  surface.part_colours = std::move(colours);
   surface.vehicle_slot = e.slot;
   primitive_count_ += tris.size();
   auto [pos, inserted] = vehicles_.emplace(id, std::move(e));

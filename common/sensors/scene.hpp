@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "core/math.hpp"
+#include "sensors/mesh.hpp"
 #include "sensors/sensor_config.hpp"
 #include "terrain/terrain.hpp"
 #include "vehicle/vehicle_model.hpp"
@@ -176,11 +177,16 @@ class Scene {
   std::size_t update_terrain_world(std::span<const HeightUpdate> updates);
   const TerrainGrid& terrain() const { return grid_; }
 
-  /// Adds a static obstacle; colour defaults to obstacle_colour(label).
+  /// Adds a static obstacle; colour defaults to obstacle_colour(label). With a mesh directory
+  /// (SceneConfig::mesh_dir) holding <label>.obj, the obstacle is drawn with that mesh fitted
+  /// to its shape's bounding box (sphere: 2r cube; cylinder: 2r x 2r x its length; box: the
+  /// box), in the mesh's material colours unless `colour` is given.
   void add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> colour = std::nullopt);
   void add_obstacles(const world::Obstacles& obstacles);
 
-  /// Adds a vehicle (placed at the origin until posed). Throws if the id exists.
+  /// Adds a vehicle (placed at the origin until posed). Throws if the id exists. With a mesh
+  /// directory holding vehicle_body.obj, the body is that mesh fitted to the bounding box of
+  /// vehicle_body_boxes() (its material "body" in the vehicle's colour, the others in theirs).
   void add_vehicle(const std::string& id, const VehicleShape& shape);
   void remove_vehicle(const std::string& id);
   bool has_vehicle(const std::string& id) const { return vehicles_.contains(id); }
@@ -242,6 +248,8 @@ class Scene {
   float drawn_height(const Tile& tile, int i, int j) const;
   void write_tile_vertex(Tile& tile, int i, int j);
   void check_device(const char* what) const;
+  /// <mesh_dir>/<name>.obj, read once (nullptr without a mesh directory or such a file).
+  const TriMesh* mesh(const std::string& name);
 
   SceneConfig config_;
   RTCDevice device_ = nullptr;
@@ -255,6 +263,7 @@ class Scene {
   int texture_width_ = 0, texture_height_ = 0;
   std::vector<float> texture_;  // linear RGB
   std::map<std::string, VehicleEntry> vehicles_;
+  std::map<std::string, std::optional<TriMesh>> meshes_;
   std::vector<bool> used_slots_;
   std::size_t primitive_count_ = 0;
   std::size_t refit_tiles_last_commit_ = 0;

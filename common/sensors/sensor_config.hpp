@@ -32,6 +32,9 @@ struct SceneConfig {
   int terrain_tile_cells = 64;  // tile = 64 x 64 cells (8192 triangles)
   int cylinder_segments = 32;
   int embree_threads = 0;  // BVH build threads (0: Embree's default)
+  // Directory of OBJ meshes (empty: primitives only): an obstacle labelled L is drawn with
+  // L.obj when it exists, vehicle bodies with vehicle_body.obj (docs/sensors.md "Meshes").
+  std::string mesh_dir;
 
   /// Unit vector towards the sun (world ENU).
   Vec3 sun_direction() const;

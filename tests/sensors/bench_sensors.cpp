@@ -1,5 +1,6 @@
 // Camera and lidar throughput on a realistic scene: 100 x 100 m terrain at 0.1 m (2 M
-// triangles), 4 vehicles, 30 obstacles. Run: build/tests/sensors/bench_sensors
+// triangles), 4 vehicles, 30 obstacles. Run:
+//   build/tests/sensors/bench_sensors [frames] [case] [tile cells] [shadow distance] [meshes]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -71,6 +72,10 @@ int main(int argc, char** argv) {
   SceneConfig scene_cfg;
   if (argc > 3) scene_cfg.terrain_tile_cells = std::stoi(argv[3]);
   if (argc > 4) scene_cfg.shadow_max_distance_m = std::stod(argv[4]);
+  // "meshes": obstacles and vehicle bodies from config/meshes, as the shipped camera rigs draw.
+  if (argc > 5 && std::string(argv[5]) == "meshes") {
+    scene_cfg.mesh_dir = std::string(SYNDDS_CONFIG_DIR) + "/meshes";
+  }
   auto t0 = Clock::now();
   Scene scene(scene_cfg);
   scene.set_terrain(fixture::rolling_terrain(100.0, 0.1, 1.0), terrain_look("rigid"));
@@ -102,6 +107,41 @@ int main(int argc, char** argv) {
     }
     std::printf("scene update (4 vehicles + 400-vertex rut) + commit: %.3f ms/frame\n",
                 1e3 * seconds_since(t1) / frames_update);
+  }
+
+  // Deformable soil: a 100 x 20 m grid at 0.05 m drawn every second vertex until it deforms
+  // (Scene::set_terrain with coarse stride 2, as the sensor member draws SCM soil); two 0.3 m
+  // wide ruts advancing 0.1 m a frame refine a new 3.2 m tile each every 32 frames.
+  if (only.empty() || only == "soil") {
+    Scene soil(scene_cfg);
+    auto t2 = Clock::now();
+    soil.set_terrain(TerrainGrid::flat(Vec2(-50.0, -10.0), 0.05, 2001, 401, 0.0),
+                     terrain_look("silt"), 2);
+    soil.commit();
+    std::printf("soil scene (2001 x 401 vertices, stride 2): %zu primitives, build %.3f s\n",
+                soil.primitive_count(), seconds_since(t2));
+    std::vector<double> plain, refining;
+    std::vector<HeightUpdate> rut;
+    for (int f = 0; f < 640; ++f) {
+      rut.clear();
+      for (int track : {182, 218}) {  // y = -0.9 and +0.9 m
+        for (int di = 0; di < 2; ++di) {
+          for (int dj = -3; dj <= 3; ++dj) rut.push_back({40 + 2 * f + di, track + dj, -0.05});
+        }
+      }
+      const std::size_t fine = soil.fine_terrain_tiles();
+      const auto t3 = Clock::now();
+      soil.update_terrain(rut);
+      soil.commit();
+      (soil.fine_terrain_tiles() > fine ? refining : plain).push_back(seconds_since(t3));
+    }
+    std::sort(plain.begin(), plain.end());
+    std::sort(refining.begin(), refining.end());
+    std::printf("soil rut frame + commit: %.3f ms median (%zu frames); refining a tile: %.3f ms "
+                "median, %.3f ms max (%zu frames); %zu fine tiles, %zu primitives\n",
+                1e3 * plain[plain.size() / 2], plain.size(), 1e3 * refining[refining.size() / 2],
+                1e3 * refining.back(), refining.size(), soil.fine_terrain_tiles(),
+                soil.primitive_count());
   }
 
   struct Res {

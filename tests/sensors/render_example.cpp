@@ -85,12 +85,31 @@ int main(int argc, char** argv) {
   }
   write_ply(out + "/lidar.ply", lidar.scan(scene, 0));
 
-  // Close-ups of one vehicle on flat ground: from the side and from the chase camera.
-  Scene studio;
+  // Close-ups of one vehicle on flat ground among a rock, a tree and a bush, from the side and
+  // from the chase camera: drawn from primitives, then from the meshes of config/meshes.
+  for (const bool meshes : {false, true}) {
+  SceneConfig studio_config;
+  if (meshes) studio_config.mesh_dir = std::string(SYNDDS_CONFIG_DIR) + "/meshes";
+  Scene studio(studio_config);
   studio.set_terrain(TerrainGrid::flat(Vec2(-30, -30), 0.5, 121, 121, 0.0), terrain_look("silt"));
   studio.add_vehicle("hmmwv", VehicleShape{});
   studio.set_vehicle_pose("hmmwv", Pose{Vec3(0, 0, 0.467), quat_from_yaw(0.35)}, {});
+  world::Obstacles props(3);
+  props[0].label = "rock";
+  props[0].shape = world::ShapeKind::sphere;
+  props[0].size = Vec3(0.8, 0, 0);
+  props[0].pose.position = Vec3(5.0, 4.0, 0.8);
+  props[1].label = "tree";
+  props[1].shape = world::ShapeKind::cylinder;
+  props[1].size = Vec3(0.6, 0, 2.5);
+  props[1].pose.position = Vec3(-5.0, 6.0, 2.5);
+  props[2].label = "bush";
+  props[2].shape = world::ShapeKind::sphere;
+  props[2].size = Vec3(0.7, 0, 0);
+  props[2].pose.position = Vec3(8.0, -1.0, 0.7);
+  studio.add_obstacles(props);
   studio.commit();
+  const std::string suffix = meshes ? "_meshes.png" : ".png";
   CameraConfig side = chase;
   side.id = "side";
   side.mode = CameraMode::fixed;
@@ -100,11 +119,13 @@ int main(int argc, char** argv) {
   side.mount.pose.orientation =
       Quat(Eigen::AngleAxisd(std::numbers::pi / 2 + 0.1, Vec3::UnitZ())) *
       Quat(Eigen::AngleAxisd(0.08, Vec3::UnitY()));
-  write_png(out + "/vehicle_side.png", CameraSensor(side, "", 4, 0.01).capture(studio, 0));
+  write_png(out + "/vehicle_side" + suffix, CameraSensor(side, "", 4, 0.01).capture(studio, 0));
   CameraConfig behind = chase;
   behind.intrinsics.width = 640;
   behind.intrinsics.height = 360;
-  write_png(out + "/vehicle_chase.png", CameraSensor(behind, "hmmwv", 5, 0.01).capture(studio, 0));
+  write_png(out + "/vehicle_chase" + suffix,
+            CameraSensor(behind, "hmmwv", 5, 0.01).capture(studio, 0));
+  }
   video.close();
   std::printf("wrote %s (%d frames), PNGs and lidar.ply in %s\n", video.path().c_str(),
               video.frames(), out.c_str());
