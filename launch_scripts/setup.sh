@@ -27,7 +27,7 @@ PACKAGES=(
   cyclonedds-dev cyclonedds-tools
   python3 python3-matplotlib python3-numpy
   iproute2 util-linux procps nftables openssl bc
-  libcivetweb-dev chromium
+  libcivetweb-dev chromium libassimp-dev
 )
 
 if [ "$INSTALL" = 1 ]; then
