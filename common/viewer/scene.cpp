@@ -124,6 +124,12 @@ nlohmann::json scene_json(const scenario::Scenario& s) {
     const auto shape = sensors::vehicle_shape(v.params, sensors::vehicle_palette(k));
     nlohmann::json wheels = nlohmann::json::array();
     for (const auto& w : shape.wheel_positions_m) wheels.push_back(vec(w));
+    // The boxes the sensors draw the body with (hull, deck, cabin): the page draws the same,
+    // and fits the body mesh to their bounding box as the sensors do.
+    nlohmann::json body = nlohmann::json::array();
+    for (const auto& b : sensors::vehicle_body_boxes(shape)) {
+      body.push_back({{"centre", vec(b.centre)}, {"half_extents", vec(b.half_extents)}});
+    }
     nlohmann::json path = nlohmann::json::array();
     for (const auto& w : v.controller.waypoints) path.push_back({w.x(), w.y()});
     vehicles.push_back({{"id", v.id},
@@ -135,6 +141,7 @@ nlohmann::json scene_json(const scenario::Scenario& s) {
                         {"wheel_radius", shape.wheel_radius_m},
                         {"wheel_width", shape.wheel_width_m},
                         {"wheel_positions", wheels},
+                        {"body_boxes", body},
                         {"controller", v.controller.type},
                         {"follows", v.controller.follows() ? v.controller.convoy.leader : ""},
                         {"path", path},

@@ -29,6 +29,13 @@ fs::path default_web_root() {
   return SYNDDS_VIEWER_WEB_DIR;
 }
 
+// The meshes the sensor rigs use (config/meshes): the page draws obstacles and vehicle bodies
+// with the same files.
+fs::path default_mesh_dir() {
+  if (const char* env = std::getenv("SYNDDS_VIEWER_MESHES")) return env;
+  return SYNDDS_VIEWER_MESH_DIR;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -39,7 +46,7 @@ int main(int argc, char** argv) {
       "Scenario YAML file of the live run to watch (not with --replay)");
   std::string replay;
   viewer::ServerOptions server;
-  std::string web_root, three_dir, url_file;
+  std::string web_root, three_dir, mesh_dir, url_file;
   double exit_after_run_s = -1.0;
   app.add_option("--replay", replay, "Replay this run directory (written by the recorder)");
   app.add_option("--bind", server.bind, "Address to listen on (0.0.0.0: every interface)")
@@ -47,6 +54,9 @@ int main(int argc, char** argv) {
   app.add_option("--port", server.port, "TCP port (0: any free port)")->capture_default_str();
   app.add_option("--web-root", web_root, "Folder with the page (default: the source tree's)");
   app.add_option("--three-dir", three_dir, "The three.js package (default: WEB_ROOT/node_modules/three)");
+  app.add_option("--mesh-dir", mesh_dir,
+                 "OBJ meshes of obstacles (by label) and vehicle_body.obj (default: the source "
+                 "tree's config/meshes; 'none': boxes, cylinders and spheres)");
   app.add_option("--url-file", url_file, "Write the page's URL to this file once listening");
   app.add_option("--exit-after-run", exit_after_run_s,
                  "Live: exit this many seconds after the run ended (default: keep serving)");
@@ -57,6 +67,12 @@ int main(int argc, char** argv) {
     server.web_root = web_root.empty() ? default_web_root() : fs::path(web_root);
     server.three_dir =
         three_dir.empty() ? server.web_root / "node_modules" / "three" : fs::path(three_dir);
+    server.mesh_dir = mesh_dir.empty() ? default_mesh_dir() : fs::path(mesh_dir);
+    if (mesh_dir == "none") {
+      server.mesh_dir.clear();
+    } else if (!fs::is_directory(server.mesh_dir)) {
+      throw ConfigError("--mesh-dir " + server.mesh_dir.string() + ": not a folder");
+    }
     if (server.port < 0 || server.port > 65535) {
       throw ConfigError("--port " + std::to_string(server.port) + ": expected 0..65535");
     }

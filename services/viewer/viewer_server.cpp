@@ -63,7 +63,7 @@ const char* mime_of(const fs::path& p) {
   const std::string ext = p.extension().string();
   if (ext == ".js" || ext == ".mjs") return "text/javascript";
   if (ext == ".json") return "application/json";
-  if (ext == ".csv" || ext == ".txt") return "text/plain; charset=utf-8";
+  if (ext == ".csv" || ext == ".txt" || ext == ".obj" || ext == ".mtl") return "text/plain; charset=utf-8";
   if (ext == ".png") return "image/png";
   if (ext == ".jpg") return "image/jpeg";
   if (ext == ".html") return "text/html; charset=utf-8";
@@ -94,6 +94,10 @@ std::string after_prefix(mg_connection* conn, const char* prefix) {
   std::string uri = info->local_uri ? info->local_uri : "";
   const std::size_t n = std::strlen(prefix);
   return uri.size() > n ? uri.substr(n) : std::string();
+}
+
+bool is_mesh_file(const fs::path& p) {
+  return p.extension() == ".obj" || p.extension() == ".mtl";
 }
 
 }  // namespace
@@ -134,6 +138,7 @@ ViewerServer::ViewerServer(ServerOptions options, std::string scene, LiveState* 
   mg_set_request_handler(ctx_, "/api/", &ViewerServer::handle_api, this);
   mg_set_request_handler(ctx_, "/run/", &ViewerServer::handle_run_file, this);
   mg_set_request_handler(ctx_, "/vendor/three/", &ViewerServer::handle_three, this);
+  mg_set_request_handler(ctx_, "/meshes/", &ViewerServer::handle_mesh, this);
   if (live_) {
     mg_set_websocket_handler(ctx_, "/live", &ViewerServer::ws_connect, &ViewerServer::ws_ready,
                              &ViewerServer::ws_data, &ViewerServer::ws_close, this);
@@ -184,6 +189,7 @@ int ViewerServer::handle_api(mg_connection* conn, void* self_ptr) {
       std::sort(files.begin(), files.end());
       info["run_files"] = files;
     }
+    info["meshes"] = self->mesh_names();
     send_text(conn, 200, "application/json", info.dump());
     return 200;
   }
@@ -203,6 +209,30 @@ int ViewerServer::handle_three(mg_connection* conn, void* self_ptr) {
   // The module and its add-ons only, not the rest of node_modules.
   if (rel.rfind("build/", 0) != 0 && rel.rfind("examples/jsm/", 0) != 0) return send_file(conn, {});
   return send_file(conn, file_inside(self->options_.three_dir, rel));
+}
+
+std::vector<std::string> ViewerServer::mesh_names() const {
+  std::vector<std::string> names;
+  if (options_.mesh_dir.empty()) return names;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(options_.mesh_dir, ec)) {
+    if (e.is_regular_file() && !e.is_symlink() && e.path().extension() == ".obj") {
+      names.push_back(e.path().stem().string());
+    }
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+int ViewerServer::handle_mesh(mg_connection* conn, void* self_ptr) {
+  auto* self = static_cast<ViewerServer*>(self_ptr);
+  const std::string rel = after_prefix(conn, "/meshes/");
+  // Meshes and their materials only, directly in the folder.
+  if (self->options_.mesh_dir.empty() || rel.find('/') != std::string::npos ||
+      !is_mesh_file(rel)) {
+    return send_file(conn, {});
+  }
+  return send_file(conn, file_inside(self->options_.mesh_dir, rel));
 }
 
 int ViewerServer::ws_connect(const mg_connection*, void*) { return 0; }  // 0: accept

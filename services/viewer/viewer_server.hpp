@@ -56,6 +56,7 @@ struct ServerOptions {
   std::filesystem::path web_root;  // index.html, viewer.js, style.css
   std::filesystem::path three_dir; // the three package (node_modules/three)
   std::filesystem::path run_dir;   // replay: the recorded run; empty: live only
+  std::filesystem::path mesh_dir;  // OBJ meshes shared with the sensors (empty: none)
   double update_hz = 20.0;         // live updates per connection, at most
   std::size_t max_vertices_per_update = 50000;
 };
@@ -78,6 +79,8 @@ class ViewerServer {
   static int handle_api(mg_connection* conn, void* self);
   static int handle_run_file(mg_connection* conn, void* self);
   static int handle_three(mg_connection* conn, void* self);
+  static int handle_mesh(mg_connection* conn, void* self);
+  std::vector<std::string> mesh_names() const;  // the .obj files of mesh_dir, without extension
   static int ws_connect(const mg_connection* conn, void* self);
   static void ws_ready(mg_connection* conn, void* self);
   static int ws_data(mg_connection* conn, int bits, char* data, std::size_t len, void* self);

@@ -24,6 +24,10 @@ async function replay() {
     log(JSON.stringify(info));
     assert.deepEqual(info.vehicles.sort(), ['lead', 'loop', 'scurve']);
     assert.ok(info.frames > 100, 'every recorded frame is loaded');
+    // Obstacles and bodies from the sensors' OBJ meshes (config/meshes): rock, bush, two trees.
+    const meshes = await page.evaluate(() => window.syndds.meshStats());
+    log('meshes', JSON.stringify(meshes));
+    assert.deepEqual(meshes, { obstacles: 4, vehicles: 3, errors: [] });
     await page.evaluate(() => window.syndds.setView('top'));
     await moveSlider(page, 0);
     const before = await page.evaluate(() => window.syndds.vehicleScreenPositions());
@@ -43,6 +47,12 @@ async function replay() {
     log(JSON.stringify(stats));
     assert.ok(stats.notSky > 0.5 && stats.colours > 8, 'the picture shows the world');
     await page.screenshot({ path: shot });
+    // Following the lead half way: its body mesh and four wheels (docs/viewer.md).
+    await moveSlider(page, Math.floor(info.frames / 2));
+    await page.evaluate(() => { window.syndds.select('lead'); window.syndds.setView('follow'); });
+    const follow = await page.evaluate(() => window.syndds.pictureStats());
+    assert.ok(follow.notSky > 0.3, 'the follow view shows the ground and the vehicle');
+    await page.screenshot({ path: shot.replace(/\.png$/, '_follow.png') });
   } finally {
     await browser.close();
   }

@@ -64,6 +64,17 @@ TEST(Scene, DescribesTheDefaultScenarioCompletelyAndTheSameEveryTime) {
     EXPECT_EQ(v["wheel_positions"].size(), 4u);
     EXPECT_DOUBLE_EQ(v["wheel_radius"].get<double>(), s.vehicles[k].params.wheels.radius_m);
     EXPECT_EQ(v["path"].size(), s.vehicles[k].controller.waypoints.size());
+    // The sensors' body boxes (hull, deck, cabin), inside the chassis box.
+    ASSERT_EQ(v["body_boxes"].size(), 3u);
+    const auto& shape = s.vehicles[k].params.chassis;
+    for (const auto& b : v["body_boxes"]) {
+      for (int a = 0; a < 3; ++a) {
+        const double c = b["centre"][a].get<double>(), h = b["half_extents"][a].get<double>();
+        EXPECT_GT(h, 0.0);
+        EXPECT_GE(c - h, shape.box_centre_m[a] - shape.half_extents_m[a] - 1e-9);
+        EXPECT_LE(c + h, shape.box_centre_m[a] + shape.half_extents_m[a] + 1e-9);
+      }
+    }
   }
   EXPECT_EQ(scene["obstacles"].size(), s.obstacles.size());
   EXPECT_TRUE(scene["soil"].is_null());
@@ -219,6 +230,10 @@ struct WebFixture {
     fs::create_directories(dir / "web");
     fs::create_directories(dir / "three" / "build");
     fs::create_directories(dir / "run");
+    fs::create_directories(dir / "meshes");
+    std::ofstream(dir / "meshes" / "rock.obj") << "o rock\n";
+    std::ofstream(dir / "meshes" / "meshes.mtl") << "newmtl rock\n";
+    std::ofstream(dir / "meshes" / "notes.txt") << "not a mesh\n";
     std::ofstream(dir / "web" / "index.html") << "<html>page</html>";
     std::ofstream(dir / "three" / "build" / "three.module.js") << "export const x = 1;";
     std::ofstream(dir / "three" / "package.json") << "{}";
@@ -231,6 +246,7 @@ struct WebFixture {
     o.web_root = dir / "web";
     o.three_dir = dir / "three";
     if (replay) o.run_dir = dir / "run";
+    o.mesh_dir = dir / "meshes";
     o.update_hz = 100;
     return o;
   }
@@ -269,6 +285,32 @@ TEST(ViewerServer, ServesThePageTheSceneTheRunAndNothingElse) {
   EXPECT_EQ(get(server.port(), "/run/%2e%2e/three/package.json").first, 404);
   EXPECT_EQ(get(server.port(), "/run/missing.csv").first, 404);
   EXPECT_EQ(get(server.port(), "/api/nothing").first, 404);
+}
+
+TEST(ViewerServer, ServesTheSensorsMeshesAndTheirMaterialsOnly) {
+  WebFixture web;
+  viewer::ViewerServer server(web.options(true), "{}", nullptr, nullptr);
+  const auto info = nlohmann::json::parse(get(server.port(), "/api/info").second);
+  EXPECT_EQ(info["meshes"], nlohmann::json::array({"rock"}));
+  EXPECT_EQ(get(server.port(), "/meshes/rock.obj"), std::make_pair(200, std::string("o rock\n")));
+  EXPECT_EQ(get(server.port(), "/meshes/meshes.mtl").first, 200);
+  EXPECT_EQ(get(server.port(), "/meshes/notes.txt").first, 404);       // not a mesh file
+  // Only files directly in the folder, no links out of it.
+  fs::create_directories(web.dir / "meshes" / "sub");
+  std::ofstream(web.dir / "meshes" / "sub" / "deep.obj") << "o deep\n";
+  EXPECT_EQ(get(server.port(), "/meshes/sub/deep.obj").first, 404);
+  std::ofstream(web.dir / "outside.obj") << "o outside\n";
+  fs::create_symlink(web.dir / "outside.obj", web.dir / "meshes" / "link.obj");
+  EXPECT_EQ(get(server.port(), "/meshes/link.obj").first, 404);
+  EXPECT_EQ(get(server.port(), "/meshes/%2e%2e%2fweb%2findex.obj").first, 404);
+  EXPECT_EQ(get(server.port(), "/meshes/tree.obj").first, 404);        // none
+  // Without a mesh folder: none listed, none served (the page draws primitives).
+  auto o = web.options(true);
+  o.mesh_dir.clear();
+  viewer::ViewerServer plain(o, "{}", nullptr, nullptr);
+  EXPECT_EQ(nlohmann::json::parse(get(plain.port(), "/api/info").second)["meshes"],
+            nlohmann::json::array());
+  EXPECT_EQ(get(plain.port(), "/meshes/rock.obj").first, 404);
 }
 
 TEST(ViewerServer, RefusesAWebRootWithoutThePage) {

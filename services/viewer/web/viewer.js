@@ -3,6 +3,7 @@
 // x east, y north, z up (three.js is told that z is up).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { OBJLoader } from 'three/addons/loaders/OBJLoader.js';
 
 const $ = (id) => document.getElementById(id);
 const SOIL_TILE = 64;          // soil vertices per tile side (a mesh per deformed tile)
@@ -64,8 +65,9 @@ scene3.add(sun);
 const state = {
   scene: null, mode: 'replay', frame: 0, vehicles: new Map(), selected: null, view: 'follow',
   soil: null, rtf: null, status: '-', members: [], dirty: true,
+  meshes: new Map(), meshStats: { obstacles: 0, vehicles: 0 },
 };
-window.syndds = { ready: false, error: null, state };
+window.syndds = { ready: false, error: null, state, meshErrors: [] };
 
 function colourOf(c) { return new THREE.Color(c[0], c[1], c[2]); }
 
@@ -234,14 +236,72 @@ class Soil {
   }
 }
 
+// ---- meshes (/meshes/*.obj: the files the sensors draw with, docs/sensors.md "Meshes") ----
+// Materials by name from meshes.mtl (its Kd colours), read here so that mesh colours are treated
+// like every other colour of the scene document.
+async function loadMeshes(names) {
+  const meshes = new Map();
+  if (!names || names.length === 0) return meshes;
+  const colours = new Map();
+  let name = null;
+  for (const line of (await fetchText('/meshes/meshes.mtl').catch(() => '')).split('\n')) {
+    const w = line.trim().split(/\s+/);
+    if (w[0] === 'newmtl') name = w[1];
+    else if (w[0] === 'Kd' && name) colours.set(name, [+w[1], +w[2], +w[3]]);
+  }
+  const loader = new OBJLoader();
+  for (const n of names) {
+    try {
+      const obj = loader.parse(await fetchText(`/meshes/${n}.obj`));
+      const box = new THREE.Box3().setFromObject(obj);
+      if (box.isEmpty()) throw new Error('no triangles');
+      meshes.set(n, { obj, box, colours });
+    } catch (e) {
+      window.syndds.meshErrors.push(`${n}.obj: ${e.message}`);
+    }
+  }
+  return meshes;
+}
+
+// A copy of mesh `m` with its bounding box mapped onto [lo, hi] axis by axis (as the sensors'
+// fit_to_box does); material `body` in `bodyColour` when given, the others in their MTL colour.
+function fittedMesh(m, lo, hi, bodyColour) {
+  const inner = m.obj.clone();
+  const size = m.box.getSize(new THREE.Vector3());
+  const scale = new THREE.Vector3(...[0, 1, 2].map((k) =>
+    size.getComponent(k) > 0 ? (hi[k] - lo[k]) / size.getComponent(k) : 1));
+  inner.scale.copy(scale);
+  inner.position.set(...[0, 1, 2].map((k) => lo[k] - m.box.min.getComponent(k) * scale.getComponent(k)));
+  const material = (old) => {
+    const c = old.name === 'body' && bodyColour ? bodyColour
+      : m.colours.has(old.name) ? colourOf(m.colours.get(old.name)) : new THREE.Color(0.5, 0.5, 0.5);
+    return new THREE.MeshLambertMaterial({ color: c, side: THREE.DoubleSide });
+  };
+  inner.traverse((o) => {
+    if (o.isMesh) o.material = Array.isArray(o.material) ? o.material.map(material) : material(o.material);
+  });
+  const outer = new THREE.Group();
+  outer.add(inner);
+  return outer;
+}
+
 function buildObstacle(o) {
-  let g;
-  if (o.shape === 'sphere') g = new THREE.SphereGeometry(o.size[0], 24, 16);
-  else if (o.shape === 'cylinder') {
-    g = new THREE.CylinderGeometry(o.size[0], o.size[0], 2 * o.size[2], 24);
-    g.rotateX(Math.PI / 2);  // three's cylinders stand on y; ours on their local z
-  } else g = new THREE.BoxGeometry(2 * o.size[0], 2 * o.size[1], 2 * o.size[2]);
-  const m = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ color: colourOf(o.colour) }));
+  let m;
+  const mesh = state.meshes.get(o.label);
+  if (mesh) {
+    const r = o.size[0];
+    const half = o.shape === 'box' ? o.size : o.shape === 'sphere' ? [r, r, r] : [r, r, o.size[2]];
+    m = fittedMesh(mesh, half.map((h) => -h), half);
+    ++state.meshStats.obstacles;
+  } else {
+    let g;
+    if (o.shape === 'sphere') g = new THREE.SphereGeometry(o.size[0], 24, 16);
+    else if (o.shape === 'cylinder') {
+      g = new THREE.CylinderGeometry(o.size[0], o.size[0], 2 * o.size[2], 24);
+      g.rotateX(Math.PI / 2);  // three's cylinders stand on y; ours on their local z
+    } else g = new THREE.BoxGeometry(2 * o.size[0], 2 * o.size[1], 2 * o.size[2]);
+    m = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ color: colourOf(o.colour) }));
+  }
   m.position.set(...o.position);
   m.quaternion.set(o.orientation[1], o.orientation[2], o.orientation[3], o.orientation[0]);
   scene3.add(m);
@@ -257,20 +317,36 @@ function groundAt(x, y) {
 function buildVehicle(v) {
   const colour = colourOf(v.colour);
   const body = new THREE.Group();
-  // The body between the wheels and above their axles (the collision box, drawn as it is,
-  // would hide them), with a cab over the rear part.
-  const he = v.chassis_half_extents, c = v.chassis_centre;
-  const halfTrack = Math.min(...v.wheel_positions.map((w) => Math.abs(w[1])));
-  const halfWidth = Math.max(0.3, Math.min(he[1], halfTrack - 0.5 * v.wheel_width - 0.05));
-  const top = c[2] + he[2], bottom = Math.min(top - 0.3, Math.max(c[2] - he[2], 0.1 * v.wheel_radius));
   const material = new THREE.MeshLambertMaterial({ color: colour });
-  const box = new THREE.Mesh(new THREE.BoxGeometry(2 * he[0], 2 * halfWidth, top - bottom), material);
-  box.position.set(c[0], c[1], (top + bottom) / 2);
-  body.add(box);
-  const cab = new THREE.Mesh(new THREE.BoxGeometry(1.0 * he[0], 1.8 * halfWidth, 0.5 * (top - bottom)),
-    new THREE.MeshLambertMaterial({ color: colour.clone().multiplyScalar(0.8) }));
-  cab.position.set(c[0] - 0.35 * he[0], c[1], top + 0.25 * (top - bottom));
-  body.add(cab);
+  const mesh = state.meshes.get('vehicle_body');
+  if (v.body_boxes && mesh) {
+    // The body mesh fitted to the boxes' bounding box, as the sensors draw it.
+    const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+    for (const b of v.body_boxes) {
+      for (let k = 0; k < 3; ++k) {
+        lo[k] = Math.min(lo[k], b.centre[k] - b.half_extents[k]);
+        hi[k] = Math.max(hi[k], b.centre[k] + b.half_extents[k]);
+      }
+    }
+    body.add(fittedMesh(mesh, lo, hi, colour));
+    ++state.meshStats.vehicles;
+  } else if (v.body_boxes) {
+    // Hull between the wheels, deck above them, cabin: the sensors' boxes.
+    for (const b of v.body_boxes) {
+      const m = new THREE.Mesh(new THREE.BoxGeometry(...b.half_extents.map((h) => 2 * h)), material);
+      m.position.set(...b.centre);
+      body.add(m);
+    }
+  } else {
+    // A scene document without body boxes (older recorder): the body between the wheels.
+    const he = v.chassis_half_extents, c = v.chassis_centre;
+    const halfTrack = Math.min(...v.wheel_positions.map((w) => Math.abs(w[1])));
+    const halfWidth = Math.max(0.3, Math.min(he[1], halfTrack - 0.5 * v.wheel_width - 0.05));
+    const top = c[2] + he[2], bottom = Math.min(top - 0.3, Math.max(c[2] - he[2], 0.1 * v.wheel_radius));
+    const box = new THREE.Mesh(new THREE.BoxGeometry(2 * he[0], 2 * halfWidth, top - bottom), material);
+    box.position.set(c[0], c[1], (top + bottom) / 2);
+    body.add(box);
+  }
   scene3.add(body);
   const wheels = [];
   for (let k = 0; k < 4; ++k) {
@@ -635,6 +711,7 @@ async function main() {
   if (sc.format !== 1) throw new Error(`scene format ${sc.format}: this page reads format 1`);
   state.scene = sc; state.mode = info.mode;
   $('mode').textContent = `${info.mode}: ${sc.name}`;
+  state.meshes = await loadMeshes(info.meshes);
   buildTerrain(sc.terrain, sc.soil);
   if (sc.soil) state.soil = new Soil(sc.soil);
   else $('legend').style.display = 'none';
@@ -675,6 +752,7 @@ async function main() {
     controls.update();
     render();
   };
+  window.syndds.meshStats = () => ({ ...state.meshStats, errors: window.syndds.meshErrors });
   window.syndds.vehicleState = (id) => { const v = state.vehicles.get(id); return v && v.s; };
   // What the view shows, for the tests: the share of pixels that are not sky, how many distinct
   // colours there are, and the share of pixels that differ from the picture kept by keep=true.
