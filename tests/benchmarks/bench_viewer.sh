@@ -34,7 +34,10 @@ for k in $(seq "$RUNS"); do
   "$ROOT/launch_scripts/run_scenario.sh" "$SCENARIO" --duration "$DURATION" --run-id "$id" \
       --output "$work/view$k" > /dev/null 2>&1
   echo "run $k with viewer$([ "${BROWSER:-1}" = 1 ] && echo " and browser"): RTF $(rtf "$work/view$k")"
-  [ -z "$bpid" ] || kill -- "-$bpid" 2>/dev/null || true  # node and its Chromium
+  if [ -n "$bpid" ]; then
+    echo "  page: $(grep drawing "$work/browser$k.log" | tail -n1 | sed 's/.*drawing //')"
+    kill -- "-$bpid" 2>/dev/null || true  # node and its Chromium
+  fi
   kill "$vpid" 2>/dev/null || true
   wait "$vpid" 2>/dev/null || true
   cmp -s "$work/plain$k/vehicles.csv" "$work/view$k/vehicles.csv" &&

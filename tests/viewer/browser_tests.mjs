@@ -99,7 +99,8 @@ async function live() {
     const first = await page.evaluate(() => window.syndds.state.frame);
     await page.waitForFunction((f) => window.syndds.state.frame > f + 10, first, { timeout: 60000 });
     const s = await page.evaluate(() => ({ frame: window.syndds.state.frame, soil: window.syndds.soilStats(),
-      status: window.syndds.state.status, members: window.syndds.state.members.length }));
+      status: window.syndds.state.status, members: window.syndds.state.members.length,
+      drawing: window.syndds.drawStats }));
     log(JSON.stringify(s));
     assert.equal(s.status, 'running');
     assert.ok(s.soil.maxDepth > 0, 'ruts appear while the run goes on');
@@ -118,7 +119,11 @@ async function watch() {
   log(JSON.stringify(shown));
   assert.ok(shown.width > 0, 'the camera image is shown');
   log('watching');
-  await new Promise(() => {});  // until killed
+  // What drawing costs the page, every second (bench_viewer.sh prints the last).
+  for (;;) {
+    await new Promise((r) => setTimeout(r, 1000));
+    log('drawing', JSON.stringify(await page.evaluate(() => window.syndds.drawStats)));
+  }
 }
 
 const cases = { replay, ruts, live, watch };

@@ -11,6 +11,7 @@ const RUT_COLOUR_MAX_M = 0.10; // depth at the end of the colour ramp
 // Live pictures per second at most, and only when something changed: a browser drawing on the
 // CPU (no GPU) competes with the simulation for the same cores (docs/performance.md, "Viewer").
 const LIVE_FPS = 10;
+const DRAW_BUDGET = 0.1;       // share of the wall time the live page may spend drawing
 
 function fail(message) {
   $('error').style.display = 'block';
@@ -373,7 +374,7 @@ function buildVehicle(v) {
   const trackGeom = new THREE.BufferGeometry();
   const track = new THREE.Line(trackGeom, new THREE.LineBasicMaterial({ color: colour.clone().multiplyScalar(0.6) }));
   scene3.add(track);
-  return { info: v, body, wheels, track, trackPoints: [], s: null };
+  return { info: v, body, wheels, track: new Track(track), s: null };
 }
 
 function poseTo(obj, p) {
@@ -398,9 +399,38 @@ function showVehicle(id, s) {
   }
 }
 
-function setTrack(v, points) {
-  v.track.geometry.dispose();
-  v.track.geometry = new THREE.BufferGeometry().setFromPoints(points);
+// A driven track: one growing vertex buffer per vehicle, drawn up to a count (no new geometry
+// per update: a long run has hundreds of thousands of points).
+class Track {
+  constructor(line) {
+    this.line = line; this.n = 0; this.array = new Float32Array(0);
+    line.frustumCulled = false;  // its bounds change with every point
+  }
+  setAll(xyz) {
+    this.array = xyz; this.n = xyz.length / 3;
+    this.line.geometry.dispose();
+    this.line.geometry = new THREE.BufferGeometry();
+    this.line.geometry.setAttribute('position', new THREE.BufferAttribute(xyz, 3));
+    this.line.geometry.setDrawRange(0, 0);
+  }
+  push(x, y, z) {
+    const k = 3 * this.n;
+    // A vehicle standing still adds no point.
+    if (this.n > 0 && Math.hypot(x - this.array[k - 3], y - this.array[k - 2]) < 0.05) return;
+    if (k + 3 > this.array.length) {
+      const grown = new Float32Array(Math.max(3072, 2 * this.array.length));
+      grown.set(this.array.subarray(0, k));
+      const n = this.n;
+      this.setAll(grown);
+      this.n = n;
+    }
+    this.array[k] = x; this.array[k + 1] = y; this.array[k + 2] = z;
+    ++this.n;
+    const attr = this.line.geometry.getAttribute('position');
+    attr.needsUpdate = true;
+    this.show(this.n);
+  }
+  show(count) { this.line.geometry.setDrawRange(0, count); }
 }
 
 // ---- camera, panel ----
@@ -422,8 +452,8 @@ function setView(mode) {
     for (const v of state.vehicles.values()) {
       box.expandByPoint(v.body.position);
       for (const p of v.info.path) box.expandByPoint(new THREE.Vector3(p[0], p[1], 0));
-      const pos = v.track.geometry.attributes.position;
-      if (pos) for (let k = 0; k < pos.count; ++k) box.expandByPoint(new THREE.Vector3(pos.getX(k), pos.getY(k), 0));
+      const a = v.track.array, n = v.track.line.geometry.drawRange.count;
+      for (let k = 0; k < Math.min(n, v.track.n); ++k) box.expandByPoint(new THREE.Vector3(a[3 * k], a[3 * k + 1], 0));
     }
     if (box.isEmpty()) box.set(new THREE.Vector3(t.x_min, t.y_min, 0), new THREE.Vector3(t.x_max, t.y_max, 0));
     box.expandByScalar(8);
@@ -540,14 +570,18 @@ async function startReplay(info) {
         .map((r) => ({ time: +r[d.time_s], file: r[d.file], sensor: r[d.sensor] })));
     } catch (e) { /* no saved frames for this vehicle */ }
   }
-  // Tracks: every recorded position, drawn up to the current frame.
+  // Tracks: every recorded position, drawn up to the current frame (upTo[k]: the points of
+  // frames 0..k, as a vehicle may be missing from some frames).
   const tracks = new Map();
-  for (const id of state.vehicles.keys()) tracks.set(id, []);
-  for (const fr of frames) {
-    for (const [id, s] of fr.v) {
-      const t = tracks.get(id);
-      if (t) t.push(new THREE.Vector3(s.pose[0], s.pose[1], s.pose[2] + 0.05));
-    }
+  for (const [id, v] of state.vehicles) {
+    const xyz = [], upTo = new Int32Array(frames.length);
+    frames.forEach((fr, k) => {
+      const s = fr.v.get(id);
+      if (s) xyz.push(s.pose[0], s.pose[1], s.pose[2] + 0.05);
+      upTo[k] = xyz.length / 3;
+    });
+    v.track.setAll(new Float32Array(xyz));
+    tracks.set(id, upTo);
   }
   let applied = -1;  // soil snapshots applied up to this frame
   let snapIndex = 0;
@@ -559,7 +593,7 @@ async function startReplay(info) {
     if (!fr) return;
     state.frame = fr.frame;
     for (const [id, s] of fr.v) showVehicle(id, s);
-    for (const [id, v] of state.vehicles) setTrack(v, tracks.get(id).slice(0, k + 1));
+    for (const [id, v] of state.vehicles) v.track.show(tracks.get(id)[k]);
     if (state.soil) {
       if (fr.frame < applied) { state.soil.reset(); applied = -1; snapIndex = 0; }
       while (snapIndex < snapshots.length && snapshots[snapIndex].frame <= fr.frame) {
@@ -666,10 +700,7 @@ function startLive() {
         steering: u.steering, throttle: u.throttle, braking: u.braking, gear: u.gear, rpm: u.engine_speed_rpm };
       showVehicle(u.id, s);
       const v = state.vehicles.get(u.id);
-      if (v) {
-        v.trackPoints.push(new THREE.Vector3(u.pose[0], u.pose[1], u.pose[2] + 0.05));
-        setTrack(v, v.trackPoints);
-      }
+      if (v) v.track.push(u.pose[0], u.pose[1], u.pose[2] + 0.05);
     }
     if (state.soil) for (const [i, j, h] of m.soil) state.soil.set(i, j, h);
     if (m.members) {
@@ -678,9 +709,22 @@ function startLive() {
     }
     readout();
   };
-  let last = 0;
+  // Pictures at most LIVE_FPS a second, and no more often than keeps drawing within
+  // DRAW_BUDGET of the time: a picture that took 40 ms (software WebGL) waits 400 ms for the next.
+  let last = 0, cost = 0;
+  const gl = renderer.getContext();
+  window.syndds.drawStats = { pictures: 0, meanMs: 0 };
   function tick(now) {
-    if (state.dirty && now - last >= 1000 / LIVE_FPS) { last = now; render(); }
+    if (state.dirty && now - last >= Math.max(1000 / LIVE_FPS, cost / DRAW_BUDGET)) {
+      last = now;
+      const t0 = performance.now();
+      render();
+      gl.finish();  // the picture's whole cost, also when the GPU (or SwiftShader) draws it
+      const ms = performance.now() - t0;
+      cost = cost === 0 ? ms : 0.7 * cost + 0.3 * ms;
+      const d = window.syndds.drawStats;
+      d.meanMs += (ms - d.meanMs) / ++d.pictures;
+    }
     requestAnimationFrame(tick);
   }
   requestAnimationFrame(tick);
