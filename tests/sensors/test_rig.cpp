@@ -106,8 +106,9 @@ TEST(SensorRig, ErrorsNameFileLineAndKey) {
   EXPECT_NE(fold.find("folds"), std::string::npos) << fold;
 
   const std::string azimuth = error_of([] {
-    parse("name: r\nsensors:\n  - id: c\n    type: camera\n    mode: chase\n"
-          "    chase: {distance_m: 9, azimuth_deg: 200}\n");
+    parse(
+        "name: r\nsensors:\n  - id: c\n    type: camera\n    mode: chase\n"
+        "    chase: {distance_m: 9, azimuth_deg: 200}\n");
   });
   EXPECT_NE(azimuth.find("rig.yaml:6:"), std::string::npos) << azimuth;
   EXPECT_NE(azimuth.find("sensors[0].chase.azimuth_deg"), std::string::npos) << azimuth;
