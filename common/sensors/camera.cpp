@@ -234,16 +234,19 @@ void CameraRenderer::render(const Scene& scene, const Pose& pose, std::span<floa
 }
 
 Pose chase_camera_pose(const Pose& vehicle, const ChaseConfig& chase) {
-  const double yaw = yaw_of(vehicle.orientation);
-  const Vec3 forward(std::cos(yaw), std::sin(yaw), 0.0);
+  // The horizontal direction the camera looks along: the vehicle's heading turned by the
+  // azimuth towards its right, so that the camera, behind the vehicle along it, has swung
+  // towards the vehicle's left (azimuth 0: the heading itself, bit for bit).
+  const double heading = yaw_of(vehicle.orientation) - deg_to_rad(chase.azimuth_deg);
+  const Vec3 view(std::cos(heading), std::sin(heading), 0.0);
   Pose p;
-  p.position = vehicle.position - chase.distance_m * forward + Vec3(0, 0, chase.height_m);
+  p.position = vehicle.position - chase.distance_m * view + Vec3(0, 0, chase.height_m);
   const Vec3 target = vehicle.position + Vec3(0, 0, chase.target_height_m);
   Vec3 x = target - p.position;
-  if (x.norm() < 1e-9) x = forward;
+  if (x.norm() < 1e-9) x = view;
   x.normalize();
   Vec3 y = Vec3::UnitZ().cross(x);
-  if (y.norm() < 1e-9) y = Vec3(-forward.y(), forward.x(), 0.0);
+  if (y.norm() < 1e-9) y = Vec3(-view.y(), view.x(), 0.0);
   y.normalize();
   const Vec3 z = x.cross(y);
   Eigen::Matrix3d r;

@@ -78,7 +78,9 @@ struct CameraFrame {
   RgbImage image;
 };
 
-/// Camera pose behind and above a vehicle, following its yaw only, looking at the vehicle.
+/// Camera pose behind and above a vehicle (swung by chase.azimuth_deg about the vehicle's
+/// vertical axis, positive towards its left), following its yaw only, looking at the vehicle
+/// point target_height_m above its reference.
 Pose chase_camera_pose(const Pose& vehicle, const ChaseConfig& chase);
 
 /// The rate / lag / exposure / noise wrapper around a renderer. Feed it once per frame after

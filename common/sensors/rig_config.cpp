@@ -91,6 +91,7 @@ void parse_camera(MapReader& m, CameraConfig& c) {
     c.chase.distance_m = k.number("distance_m", c.chase.distance_m, 0.0, 1e4);
     c.chase.height_m = k.number("height_m", c.chase.height_m, -1e4, 1e4);
     c.chase.target_height_m = k.number("target_height_m", c.chase.target_height_m, -1e4, 1e4);
+    c.chase.azimuth_deg = k.number("azimuth_deg", c.chase.azimuth_deg, -180.0, 180.0);
     k.finish();
   }
   c.intrinsics.width = integer(m, "width_px", c.intrinsics.width, 16, 7680);

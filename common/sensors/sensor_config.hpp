@@ -104,9 +104,12 @@ enum class ExposureMode { instant, midpoint, average };
 enum class PixelNoiseModel { none, gaussian, pixel_dependent };
 
 struct ChaseConfig {
-  double distance_m = 8.0;       // behind the vehicle, horizontally
+  double distance_m = 8.0;       // from the vehicle, horizontally
   double height_m = 3.0;         // above the chassis reference point
   double target_height_m = 1.0;  // the camera looks at this point above the reference
+  // Swing about the vehicle's vertical axis: 0 straight behind, positive towards the vehicle's
+  // left (90: on its left, looking at its side), negative towards its right.
+  double azimuth_deg = 0.0;
 };
 
 struct CameraConfig {

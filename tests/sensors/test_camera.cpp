@@ -333,6 +333,64 @@ TEST(Camera, MountedCameraHidesItsOwnVehicleChaseCameraSeesIt) {
   EXPECT_TRUE(is_blue(c.at(32, 18)));  // the vehicle at the image centre
 }
 
+// The chase camera swung about the vehicle's vertical axis: at distance_m horizontally and
+// height_m above the reference, in the direction azimuth_deg from straight behind towards the
+// vehicle's left, looking at the target point (it projects to the image centre), upright.
+// Azimuth 0 is the camera straight behind, computed as before the azimuth existed.
+TEST(Camera, ChaseCameraPoseSwingsByItsAzimuth) {
+  const CameraModel model(CameraIntrinsics{320, 180, deg_to_rad(70.0), 0.0, 0.0});
+  for (const double yaw : {0.0, 0.7, -2.5}) {
+    // A vehicle pitched and rolled a little: the camera follows the yaw only.
+    const Pose vehicle{Vec3(12.0, -4.0, 0.6), quat_from_yaw(yaw) *
+                                                  Quat(Eigen::AngleAxisd(0.05, Vec3::UnitY())) *
+                                                  Quat(Eigen::AngleAxisd(-0.03, Vec3::UnitX()))};
+    const double heading = yaw_of(vehicle.orientation);
+    const Vec3 forward(std::cos(heading), std::sin(heading), 0.0);
+    const Vec3 left(-forward.y(), forward.x(), 0.0);
+    for (const double azimuth : {0.0, 35.0, 90.0, -60.0, 180.0}) {
+      SCOPED_TRACE(testing::Message() << "yaw " << yaw << ", azimuth " << azimuth);
+      ChaseConfig chase;
+      chase.distance_m = 9.0;
+      chase.height_m = 3.5;
+      chase.target_height_m = 1.2;
+      chase.azimuth_deg = azimuth;
+      const Pose cp = chase_camera_pose(vehicle, chase);
+      const Vec3 offset = cp.position - vehicle.position;
+      EXPECT_NEAR(offset.z(), 3.5, 1e-12);
+      EXPECT_NEAR(offset.head<2>().norm(), 9.0, 1e-12);
+      // Straight behind, rotated towards the left by the azimuth.
+      const double a = deg_to_rad(azimuth);
+      const Vec3 expected_dir = -std::cos(a) * forward + std::sin(a) * left;
+      EXPECT_NEAR((offset.head<2>() / 9.0 - expected_dir.head<2>()).norm(), 0.0, 1e-12);
+      // Looking at the target: it projects to the image centre; the camera has no roll.
+      const Vec3 target = vehicle.position + Vec3(0, 0, 1.2);
+      const auto c = model.project(cp.orientation.conjugate() * (target - cp.position));
+      ASSERT_TRUE(c.has_value());
+      EXPECT_NEAR(c->x(), 160.0, 1e-9);
+      EXPECT_NEAR(c->y(), 90.0, 1e-9);
+      EXPECT_NEAR((cp.orientation * Vec3::UnitY()).z(), 0.0, 1e-12);
+      EXPECT_GT((cp.orientation * Vec3::UnitZ()).z(), 0.0);
+      if (azimuth == 90.0) {
+        EXPECT_NEAR(offset.dot(left), 9.0, 1e-12);  // on the left side
+      }
+      if (azimuth == 0.0) {
+        // Bit for bit the pose of the chase camera before azimuth_deg existed.
+        Pose old;
+        old.position = vehicle.position - 9.0 * forward + Vec3(0, 0, 3.5);
+        const Vec3 x = (target - old.position).normalized();
+        const Vec3 y = Vec3::UnitZ().cross(x).normalized();
+        Eigen::Matrix3d r;
+        r.col(0) = x;
+        r.col(1) = y;
+        r.col(2) = x.cross(y);
+        old.orientation = Quat(r);
+        EXPECT_TRUE(cp.position == old.position);
+        EXPECT_TRUE(cp.orientation.coeffs() == old.orientation.coeffs());
+      }
+    }
+  }
+}
+
 // The body does not hide the wheels: a chase camera (behind and above) sees both rear tyres
 // beside the hull, below the deck; from the side the hubs show, and a wheel turned by half a
 // hub sector looks different (spin is visible).

@@ -59,6 +59,11 @@ TEST(SensorRig, DefaultRigHasThePapersSensors) {
   ASSERT_EQ(chase.cameras.size(), 1u);
   EXPECT_EQ(chase.cameras[0].mode, CameraMode::chase);
   EXPECT_EQ(chase.cameras[0].noise, PixelNoiseModel::none);
+  EXPECT_EQ(chase.cameras[0].chase.azimuth_deg, 0.0);  // straight behind unless given
+  const SensorRig swung = parse(
+      "name: r\nsensors:\n  - {id: c, type: camera, mode: chase, chase: {azimuth_deg: -35}}\n");
+  EXPECT_EQ(swung.cameras[0].chase.azimuth_deg, -35.0);
+  EXPECT_EQ(swung.cameras[0].chase.distance_m, ChaseConfig{}.distance_m);
 }
 
 TEST(SensorRig, ErrorsNameFileLineAndKey) {
@@ -99,6 +104,14 @@ TEST(SensorRig, ErrorsNameFileLineAndKey) {
   });
   EXPECT_NE(fold.find("rig.yaml:3:"), std::string::npos) << fold;
   EXPECT_NE(fold.find("folds"), std::string::npos) << fold;
+
+  const std::string azimuth = error_of([] {
+    parse(
+        "name: r\nsensors:\n  - id: c\n    type: camera\n    mode: chase\n"
+        "    chase: {distance_m: 9, azimuth_deg: 200}\n");
+  });
+  EXPECT_NE(azimuth.find("rig.yaml:6:"), std::string::npos) << azimuth;
+  EXPECT_NE(azimuth.find("sensors[0].chase.azimuth_deg"), std::string::npos) << azimuth;
 
   const std::string missing = error_of([] { parse("name: r\n"); });
   EXPECT_NE(missing.find("missing required key 'sensors'"), std::string::npos) << missing;
