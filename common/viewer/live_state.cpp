@@ -82,6 +82,14 @@ void LiveState::on_run_end(const proto::RunControlMsg& c) {
   std::lock_guard lock(mutex_);
   status_ = std::string(proto::to_string(c.status));
   reason_ = c.reason;
+  ++status_changes_;
+}
+
+bool LiveState::has_news(const Cursor& cursor) const {
+  std::lock_guard lock(mutex_);
+  return cursor.frame != frame_ || cursor.vehicles < vehicle_changes_ ||
+         cursor.terrain < soil_changes_ || cursor.members < member_changes_ ||
+         cursor.status < status_changes_;
 }
 
 std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* more) {
@@ -142,6 +150,8 @@ std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* mo
   }
   u["status"] = status_;
   if (!reason_.empty()) u["reason"] = reason_;
+  cursor.status = status_changes_;
+  cursor.frame = frame_;
   return u.dump();
 }
 

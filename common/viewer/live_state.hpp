@@ -22,7 +22,8 @@ struct Cursor {
   std::uint64_t terrain = 0;   // soil changes up to this number were sent
   std::uint64_t vehicles = 0;  // vehicle states up to this number were sent
   std::uint64_t members = 0;
-  bool status_sent = false;
+  std::uint64_t status = 0;   // status changes up to this number were sent
+  std::int64_t frame = -2;    // the frame last sent (-2: nothing sent yet)
 };
 
 class LiveState {
@@ -43,6 +44,10 @@ class LiveState {
   /// since the cursor ([i, j, height] triples, oldest change first), the member list when it
   /// changed; the cursor moves past what was put in. `more` is set when soil changes remain.
   std::string update(Cursor& cursor, std::size_t max_vertices, bool* more = nullptr);
+
+  /// Whether an update for `cursor` would carry anything new (a frame, a state, soil, members,
+  /// the status): a connection with nothing new sends nothing.
+  bool has_news(const Cursor& cursor) const;
 
   std::int64_t frame() const;
   /// The run's end was seen (RunControl).
@@ -80,6 +85,7 @@ class LiveState {
   // Real-time factor (wall / sim) over the frames of the last seconds.
   std::deque<std::pair<double, double>> recent_;  // (wall_s, sim_s)
   std::string status_ = "running";
+  std::uint64_t status_changes_ = 1;
   std::string reason_;
 };
 

@@ -304,7 +304,11 @@ void ViewerServer::send_loop(Client& c) {
     }
     bool more = false;
     // Blocks while the browser has not taken the previous update: the next one is newer.
-    if (!write_text(live_->update(cursor, options_.max_vertices_per_update, &more))) return;
+    // Nothing new, nothing sent (a browser redraws on every update).
+    if (live_->has_news(cursor) &&
+        !write_text(live_->update(cursor, options_.max_vertices_per_update, &more))) {
+      return;
+    }
     if (sensors_ && !selected.empty()) {
       if (selected != image_vehicle) image_seen = points_seen = 0, image_vehicle = selected;
       SensorStore::Image image;

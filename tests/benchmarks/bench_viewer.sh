@@ -29,7 +29,7 @@ for k in $(seq "$RUNS"); do
   if [ "${BROWSER:-1}" = 1 ]; then
     setsid node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/url$k")" > "$work/browser$k.log" 2>&1 &
     bpid=$!; pids+=("$bpid")
-    for _ in $(seq 300); do grep -q watching "$work/browser$k.log" && break; sleep 0.1; done
+    for _ in $(seq 300); do grep -q "page open" "$work/browser$k.log" && break; sleep 0.1; done
   fi
   "$ROOT/launch_scripts/run_scenario.sh" "$SCENARIO" --duration "$DURATION" --run-id "$id" \
       --output "$work/view$k" > /dev/null 2>&1

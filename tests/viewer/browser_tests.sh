@@ -67,7 +67,7 @@ case "$CASE" in
     lpid=$!
     wait_file "$work/live/logs/viewer.url"
     # In a session of its own: killing its process group kills this test's Chromium only.
-    setsid node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/live/logs/viewer.url")" > "$work/browser.log" 2>&1 &
+    setsid node "$ROOT/tests/viewer/browser_tests.mjs" watch "$(cat "$work/live/logs/viewer.url")" sensors > "$work/browser.log" 2>&1 &
     bpid=$!
     for _ in $(seq 600); do grep -q watching "$work/browser.log" && break; sleep 0.1; done
     grep -q watching "$work/browser.log" || { cat "$work/browser.log" >&2; exit 1; }

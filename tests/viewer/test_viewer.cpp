@@ -203,6 +203,37 @@ TEST(LiveState, RealTimeFactorMembersAndTheEnd) {
   EXPECT_TRUE(live.ended());
 }
 
+TEST(LiveState, NothingNewMeansNothingToSend) {
+  viewer::LiveState live;
+  viewer::Cursor c;
+  EXPECT_TRUE(live.has_news(c));  // the first update (status, empty world)
+  update(live, c);
+  EXPECT_FALSE(live.has_news(c));
+  live.on_frame(1, 0.01, 1.0);
+  EXPECT_TRUE(live.has_news(c));
+  update(live, c);
+  EXPECT_FALSE(live.has_news(c));
+  live.on_vehicle_state(state("a", 1, 1));
+  EXPECT_TRUE(live.has_news(c));
+  update(live, c);
+  live.on_terrain(vertices({{3, 4, -0.01}}));
+  EXPECT_TRUE(live.has_news(c));
+  update(live, c);
+  proto::MemberAnnounceMsg m;
+  m.member_id = "vehicle/a";
+  live.on_member(m, 0.0);
+  EXPECT_TRUE(live.has_news(c));
+  update(live, c);
+  live.on_member(m, 1.0);  // the same member again
+  EXPECT_FALSE(live.has_news(c));
+  live.on_run_end(proto::RunControlMsg{});
+  EXPECT_TRUE(live.has_news(c));
+  update(live, c);
+  EXPECT_FALSE(live.has_news(c));
+  viewer::Cursor late;  // a connection opened later gets everything
+  EXPECT_TRUE(live.has_news(late));
+}
+
 TEST(ViewerFiles, OnlyRegularFilesInsideTheRootAreServed) {
   const fs::path root = fs::temp_directory_path() / ("syndds_viewer_files_" + std::to_string(::getpid()));
   fs::create_directories(root / "sensors" / "a");
