@@ -43,7 +43,14 @@ ViewerFeed::ViewerFeed(const dds::DdsOptions& options, const scenario::Scenario&
   using Scope = dds::Participant::Scope;
   readers_.push_back(keep(p.make_reader<msg::VehicleState>(
       dds::topics::data(proto::Topic::vehicle_state), kViewerReader,
-      [&live](msg::VehicleState&& s) { live.on_vehicle_state(dds::from_dds(s)); },
+      [&live](msg::VehicleState&& s) {
+        // The run's progress from the states (each vehicle publishes one per frame), not from
+        // the grants: one more reader of the coordinator's grants would be one more delivery
+        // on every frame's critical path.
+        auto state = dds::from_dds(s);
+        live.on_frame(state.frame, state.sim_time_s, wall_s());
+        live.on_vehicle_state(state);
+      },
       Scope::all_vehicles)));
   if (scenario.terrain.deformable()) {
     readers_.push_back(keep(p.make_reader<msg::TerrainDeformation>(
@@ -82,10 +89,6 @@ ViewerFeed::ViewerFeed(const dds::DdsOptions& options, const scenario::Scenario&
         },
         Scope::all_vehicles)));
   }
-  readers_.push_back(keep(p.make_reader<msg::FrameGrant>(
-      dds::topics::kFrameGrant, kViewerReader, [&live](msg::FrameGrant&& g) {
-        live.on_frame(g.frame(), g.sim_time_s(), wall_s());
-      })));
   readers_.push_back(keep(p.make_reader<msg::MemberAnnounce>(
       dds::topics::kMemberAnnounce, dds::profiles::kProtocolReader,
       [&live](msg::MemberAnnounce&& a) { live.on_member(dds::from_dds(a), wall_s()); })));
