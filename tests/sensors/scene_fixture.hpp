@@ -1,11 +1,38 @@
 #pragma once
 // Scenes shared by the sensor tests and the benchmark.
 #include <cmath>
+#include <limits>
 
 #include "sensors/random.hpp"
 #include "sensors/scene.hpp"
 
 namespace syndds::sensors::fixture {
+
+/// One ray into the scene as the renderer casts it, nothing hidden: what it met first
+/// (`geom` RTC_INVALID_GEOMETRY_ID for nothing), at which distance, and the geometric normal.
+struct RayHit {
+  unsigned geom = RTC_INVALID_GEOMETRY_ID;
+  float t = 0.0f;
+  Vec3 normal = Vec3::Zero();
+  bool hit() const { return geom != RTC_INVALID_GEOMETRY_ID; }
+};
+
+inline RayHit cast_ray(const Scene& scene, const Vec3& origin, const Vec3& dir) {
+  RTCRayHit rh{};
+  rh.ray.org_x = static_cast<float>(origin.x());
+  rh.ray.org_y = static_cast<float>(origin.y());
+  rh.ray.org_z = static_cast<float>(origin.z());
+  rh.ray.dir_x = static_cast<float>(dir.x());
+  rh.ray.dir_y = static_cast<float>(dir.y());
+  rh.ray.dir_z = static_cast<float>(dir.z());
+  rh.ray.tfar = std::numeric_limits<float>::infinity();
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  HidingContext ctx;
+  init_hiding_context(ctx, -1, false);
+  rtcIntersect1(scene.handle(), &ctx.context, &rh);
+  return {rh.hit.geomID, rh.ray.tfar, Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z)};
+}
 
 /// Rolling terrain (amplitude `hills_m`) of size_m x size_m centred on the origin.
 inline TerrainGrid rolling_terrain(double size_m, double spacing_m, double hills_m) {

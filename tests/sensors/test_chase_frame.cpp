@@ -27,6 +27,8 @@
 #include "sensors/rig_config.hpp"
 #include "vehicle/ode_vehicle.hpp"
 
+#include "scene_fixture.hpp"
+
 using namespace syndds;
 using namespace syndds::sensors;
 
@@ -73,25 +75,13 @@ struct Hit {
 };
 
 Hit intersect(const Scene& scene, const Vec3& origin, const Vec3& dir) {
-  RTCRayHit rh{};
-  rh.ray.org_x = static_cast<float>(origin.x());
-  rh.ray.org_y = static_cast<float>(origin.y());
-  rh.ray.org_z = static_cast<float>(origin.z());
-  rh.ray.dir_x = static_cast<float>(dir.x());
-  rh.ray.dir_y = static_cast<float>(dir.y());
-  rh.ray.dir_z = static_cast<float>(dir.z());
-  rh.ray.tfar = std::numeric_limits<float>::infinity();
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  HidingContext ctx;
-  init_hiding_context(ctx, -1, false);
-  rtcIntersect1(scene.handle(), &ctx.context, &rh);
+  const fixture::RayHit r = fixture::cast_ray(scene, origin, dir);
   Hit h;
-  h.geom = rh.hit.geomID;
-  h.t = rh.ray.tfar;
+  h.geom = r.geom;
+  h.t = r.t;
   // The point as the renderer computes it (float origin + t dir).
   for (int k = 0; k < 3; ++k) {
-    h.point[k] = static_cast<float>(origin[k]) + rh.ray.tfar * static_cast<float>(dir[k]);
+    h.point[k] = static_cast<float>(origin[k]) + r.t * static_cast<float>(dir[k]);
   }
   return h;
 }

@@ -14,6 +14,8 @@
 #include "sensors/mesh.hpp"
 #include "sensors/rig_config.hpp"
 
+#include "scene_fixture.hpp"
+
 using namespace syndds;
 using namespace syndds::sensors;
 
@@ -130,23 +132,10 @@ TEST(Meshes, ObstaclesAreDrawnWithTheirMeshesInsideTheirBoxes) {
       for (int b = 0; b <= 40; ++b) {
         const double y = o.pose.position.y() + (a / 20.0 - 1.0) * 1.2 * half.y();
         const double z = o.pose.position.z() + (b / 20.0 - 1.0) * 1.2 * half.z();
-        RTCRayHit rh{};
-        rh.ray.org_x = 0.0f;
-        rh.ray.org_y = static_cast<float>(y);
-        rh.ray.org_z = static_cast<float>(z);
-        rh.ray.dir_x = 1.0f;
-        rh.ray.tfar = std::numeric_limits<float>::infinity();
-        rh.ray.mask = 0xFFFFFFFFu;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        HidingContext ctx;
-        init_hiding_context(ctx, -1, false);
-        rtcIntersect1(scene.handle(), &ctx.context, &rh);
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ||
-            scene.surface(rh.hit.geomID).kind != SurfaceKind::obstacle) {
-          continue;
-        }
+        const fixture::RayHit r = fixture::cast_ray(scene, Vec3(0, y, z), Vec3::UnitX());
+        if (!r.hit() || scene.surface(r.geom).kind != SurfaceKind::obstacle) continue;
         ++hits;
-        const Vec3 p(rh.ray.tfar, y, z);
+        const Vec3 p(r.t, y, z);
         EXPECT_TRUE(((p - o.pose.position).cwiseAbs().array() <= half.array() + 1e-4).all())
             << o.label << " hit at " << p.transpose();
       }

@@ -57,22 +57,11 @@ struct Hit {
 
 // Straight down through (x, y).
 Hit probe(const Scene& scene, double x, double y) {
-  RTCRayHit rh{};
-  rh.ray.org_x = static_cast<float>(x);
-  rh.ray.org_y = static_cast<float>(y);
-  rh.ray.org_z = 10.0f;
-  rh.ray.dir_z = -1.0f;
-  rh.ray.tnear = 0.0f;
-  rh.ray.tfar = std::numeric_limits<float>::infinity();
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  HidingContext ctx;
-  init_hiding_context(ctx, -1, false);
-  rtcIntersect1(scene.handle(), &ctx.context, &rh);
+  const fixture::RayHit r = fixture::cast_ray(scene, Vec3(x, y, 10.0), Vec3(0, 0, -1));
   Hit h;
-  h.hit = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-  h.z = 10.0f - rh.ray.tfar;
-  h.normal = Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z).normalized();
+  h.hit = r.hit();
+  h.z = 10.0f - r.t;
+  h.normal = r.normal.normalized();
   return h;
 }
 
