@@ -716,8 +716,8 @@ function startLive() {
   let last = 0, cost = 0, textDue = false, lastText = 0;
   const gl = renderer.getContext();
   window.syndds.drawStats = { pictures: 0, meanMs: 0 };
-  // A timer, not requestAnimationFrame: a page asking for every display frame keeps the
-  // compositor producing frames even when nothing is drawn (a third of a core in software).
+  // A timer at 40 Hz decides; the page asks for no display-frame callbacks while it has nothing
+  // to draw.
   function tick() {
     const now = performance.now();
     if (textDue && now - lastText >= 1000 / READOUT_HZ) { textDue = false; lastText = now; readout(); }
