@@ -29,13 +29,6 @@ fs::path default_web_root() {
   return SYNDDS_VIEWER_WEB_DIR;
 }
 
-// The meshes the sensor rigs use (config/meshes): the page draws obstacles and vehicle bodies
-// with the same files.
-fs::path default_mesh_dir() {
-  if (const char* env = std::getenv("SYNDDS_VIEWER_MESHES")) return env;
-  return SYNDDS_VIEWER_MESH_DIR;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -67,7 +60,9 @@ int main(int argc, char** argv) {
     server.web_root = web_root.empty() ? default_web_root() : fs::path(web_root);
     server.three_dir =
         three_dir.empty() ? server.web_root / "node_modules" / "three" : fs::path(three_dir);
-    server.mesh_dir = mesh_dir.empty() ? default_mesh_dir() : fs::path(mesh_dir);
+    // Default: the meshes the sensor rigs use (config/meshes), so the page draws obstacles and
+    // vehicle bodies with the same files.
+    server.mesh_dir = mesh_dir.empty() ? fs::path(SYNDDS_VIEWER_MESH_DIR) : fs::path(mesh_dir);
     if (mesh_dir == "none") {
       server.mesh_dir.clear();
     } else if (!fs::is_directory(server.mesh_dir)) {
