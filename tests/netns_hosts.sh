@@ -75,7 +75,12 @@ on_host() {  # host log command... : run in the host's network namespace, /dev/s
   local h=$1 log=$2; shift 2
   local pin=()
   [ -n "${HOST_CPUS[$h]:-}" ] && pin=(taskset -c "${HOST_CPUS[$h]}")
-  ip netns exec "$NETNS_TAG$h" "${pin[@]}" unshare -m sh -c \
+  # NETNS_PIDNS=1: each process in its own pid namespace too, so that no process takes
+  # another host's processes for its own machine's (they share the kernel's boot id) and
+  # failure detection across hosts goes by the DDS lease, as between real machines.
+  local ns=(-m)
+  [ "${NETNS_PIDNS:-0}" = 1 ] && ns=(-m -p -f --kill-child --mount-proc)
+  ip netns exec "$NETNS_TAG$h" "${pin[@]}" unshare "${ns[@]}" sh -c \
     'mount --bind "$0" /dev/shm && exec "$@"' "$NETNS_WORK/$h/shm" "$@" > "$log" 2>&1 &
 }
 

@@ -10,6 +10,12 @@
 #                                   (checked: some were dropped); a Fast DDS discovery server
 #                                   on host 1 (the setup for networks without multicast)
 #   multihost.sh udp                like multicast, with --transport udp
+#   multihost.sh partition          the default scenario (its three vehicles and the sensor
+#                                   process on host 2) cut off the network for 15 s, longer
+#                                   than the 10 s DDS lease: the run aborts naming all four as
+#                                   lost and no member of the other hosts. Every process in its
+#                                   own pid namespace (the lease decides, as between machines);
+#                                   frame deadline 30 s, so that the lease speaks first.
 # Needs root (ip netns); exits 77 (skipped) without it.
 set -euo pipefail
 MODE=${1:-multicast}
@@ -39,13 +45,20 @@ hosts_up "$TAG" "$WORK" "$multicast" "${HOSTS[@]}"
 for h in "${HOSTS[@]}"; do
   # Each host has its own copy of the configuration: nothing is shared on disk.
   cp -r "$ROOT/config" "$WORK/$h/config"
-  cp "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" "$WORK/$h/scenario.yaml"
+  if [ "$MODE" = partition ]; then
+    sed 's/frame_timeout_s: 10$/frame_timeout_s: 30/' "$ROOT/config/scenarios/default.yaml" \
+      > "$WORK/$h/scenario.yaml"
+    grep -q 'frame_timeout_s: 30$' "$WORK/$h/scenario.yaml" || { echo "multihost: no frame_timeout_s"; exit 1; }
+  else
+    cp "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" "$WORK/$h/scenario.yaml"
+  fi
 done
 
 EXTRA=()
 case "$MODE" in
   multicast) ;;
   udp) EXTRA=(--transport udp) ;;
+  partition) EXTRA=(--realtime --duration 60); export NETNS_PIDNS=1 ;;
   discovery-server)
     on_host h1 "$WORK/discovery.log" fast-discovery-server -i 0 -l "$NET.1" -p 11811
     EXTRA=(--discovery-server "$NET.1:11811") ;;
@@ -60,7 +73,7 @@ plan() {  # host -> plan lines for that host's copy
 host_of() {
   case "$1" in
     coordinator|recorder) echo h1 ;;
-    vehicle/*) echo h2 ;;
+    vehicle/*|sensor/*) echo h2 ;;
     *) echo h3 ;;
   esac
 }
@@ -72,6 +85,27 @@ for h in "${HOSTS[@]}"; do
     pids+=($!)
   done < <(plan "$h")
 done
+
+if [ "$MODE" = partition ]; then
+  rows() { [ -f "$WORK/h1/out/vehicles.csv" ] && wc -l < "$WORK/h1/out/vehicles.csv" || echo 0; }
+  for _ in $(seq 600); do [ "$(rows)" -gt 300 ] && break; sleep 0.1; done
+  [ "$(rows)" -gt 300 ] || { echo "multihost (partition): the run never got going"; tail -n 5 "$WORK"/*.log; exit 1; }
+  ip netns exec "${TAG}h2" ip link set eth0 down
+  # The stimulus (a partition of a given length), not a wait for a condition.
+  sleep 15
+  ip netns exec "${TAG}h2" ip link set eth0 up
+  for p in "${pids[@]}"; do wait "$p" || true; done
+  reason=$(grep -h "run aborted" "$WORK/coordinator.log" || true)
+  echo "multihost (partition): $reason"
+  for m in vehicle/lead vehicle/loop vehicle/scurve sensor/lead; do
+    grep -q "[ ,]$m[ ,].*lost" <<< "$reason" || { echo "multihost (partition): $m not named lost"; exit 1; }
+  done
+  if grep -Eq "(controller/|recorder).*lost" <<< "$reason"; then
+    echo "multihost (partition): a member of another host was named lost"; exit 1
+  fi
+  echo "multihost (partition): every member of the cut-off host named lost, no other"
+  exit 0
+fi
 
 status=0
 for p in "${pids[@]}"; do
