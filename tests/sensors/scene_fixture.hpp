@@ -3,10 +3,21 @@
 #include <cmath>
 #include <limits>
 
+#include "sensors/camera.hpp"
 #include "sensors/random.hpp"
 #include "sensors/scene.hpp"
 
 namespace syndds::sensors::fixture {
+
+/// A noiseless chase camera of `width` x `height` pixels (the chase rig's default placement).
+inline CameraConfig chase_camera(int width, int height) {
+  CameraConfig cfg;
+  cfg.mode = CameraMode::chase;
+  cfg.intrinsics.width = width;
+  cfg.intrinsics.height = height;
+  cfg.noise = PixelNoiseModel::none;
+  return cfg;
+}
 
 /// One ray into the scene as the renderer casts it, nothing hidden: what it met first
 /// (`geom` RTC_INVALID_GEOMETRY_ID for nothing), at which distance, and the geometric normal.

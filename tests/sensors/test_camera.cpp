@@ -410,12 +410,7 @@ TEST(Camera, ChaseCameraSeesTheWheelsAndTheSideViewTheirHubsTurn) {
   scene.set_vehicle_pose("ego", ego, {});
   scene.commit();
 
-  CameraConfig cfg;
-  cfg.mode = CameraMode::chase;
-  cfg.intrinsics.width = 320;
-  cfg.intrinsics.height = 180;
-  cfg.noise = PixelNoiseModel::none;
-  CameraSensor chase(cfg, "ego", 1, kFrame);
+  CameraSensor chase(fixture::chase_camera(320, 180), "ego", 1, kFrame);
   const RgbImage img = chase.capture(scene, 0);
   const Pose cp = chase.camera_pose(scene);
   // Tyre pixels around each rear wheel's projected centre (within one wheel radius).

@@ -171,12 +171,7 @@ TEST(Meshes, MeshBodyTakesTheVehicleColourAndLeavesTheWheelsInView) {
   const Pose ego{Vec3(0.0, 0.0, 0.467), Quat::Identity()};
   scene.set_vehicle_pose("ego", ego, {});
   scene.commit();
-  CameraConfig cfg;
-  cfg.mode = CameraMode::chase;
-  cfg.intrinsics.width = 320;
-  cfg.intrinsics.height = 180;
-  cfg.noise = PixelNoiseModel::none;
-  CameraSensor chase(cfg, "ego", 1, 0.01);
+  CameraSensor chase(fixture::chase_camera(320, 180), "ego", 1, 0.01);
   const RgbImage img = chase.capture(scene, 0);
   int red = 0, glass = 0, tyre_left = 0, tyre_right = 0;
   for (int v = 0; v < img.height; ++v) {
