@@ -45,6 +45,20 @@ void MemberSession::on_grant(FrameGrantMsg grant, double now_s) {
   grants_.push_back(std::move(grant));
 }
 
+bool MemberSession::sample_may_unblock() const {
+  // Only the running member's wait for the inputs of its next granted frame can end with a
+  // sample; anything unusual (joining, finishing, a rollback or late-join grant first in line)
+  // is left to poll(), as before.
+  if (phase_ != Phase::running || control_ || !failure_.empty() || interrupted_s_) return true;
+  if (grants_.empty()) return false;  // the grant wakes the member when it comes
+  const FrameGrantMsg& front = grants_.front();
+  if (!admitted_ || front.rollback || front.epoch != epoch_ || front.frame != next_frame_ ||
+      resumed_inputs_ || config_.skip_data_barrier) {
+    return true;
+  }
+  return inbox_.complete(front.frame - 1, front.manifest);
+}
+
 void MemberSession::on_control(RunControlMsg control, double now_s) {
   if (control_) return;  // the verdict is given once; later copies are replays
   control_ = std::move(control);

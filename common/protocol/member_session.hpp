@@ -74,10 +74,13 @@ class MemberSession {
   void on_failure(const std::string& why, double now_s);
   /// The step handed out by poll() ended; `error` is empty when it succeeded.
   void on_stepped(std::int64_t frame, const std::string& error, double now_s);
-  /// A data sample whose writer was checked. False when the inbox does not keep it.
+  /// A data sample whose writer was checked. True when poll() may now decide something new
+  /// (the caller wakes the thread that polls): false when the inbox does not keep the sample,
+  /// and false while the member waits for a grant or for more of a granted frame's inputs, so
+  /// that a member receiving many samples per frame is woken once, not once per sample.
   template <typename Msg>
   bool add(Msg sample) {
-    return inbox_.add(std::move(sample));
+    return inbox_.add(std::move(sample)) && sample_may_unblock();
   }
 
   /// A member resumed from its checkpoint of config.resume_frame: the first frame it steps is
@@ -99,6 +102,7 @@ class MemberSession {
   const FrameInbox& inbox() const { return inbox_; }
 
  private:
+  bool sample_may_unblock() const;
   Action finish(RunControlMsg control, Outcome outcome, double now_s);
   Action fail(const std::string& why, Outcome outcome, double now_s);
   Action wait_until(double t) const;

@@ -176,9 +176,9 @@ TEST(MemberSession, FrameStartsOnlyWhenItsAnnouncedInputsArrived) {
   s.on_grant(grant(0), 0.2);
   step(s, 0, 0.2);
   s.on_grant(grant(1, {announced("a"), announced("b")}), 0.3);
-  EXPECT_TRUE(s.add(state(0, "a")));
+  EXPECT_FALSE(s.add(state(0, "a")));  // kept; the frame still waits for b: no wake-up
   EXPECT_EQ(s.poll(0.3).kind, Kind::wait);
-  EXPECT_TRUE(s.add(state(0, "b")));
+  EXPECT_TRUE(s.add(state(0, "b")));  // completes frame 1's inputs: wake the member
   auto a = s.poll(0.4);
   ASSERT_EQ(a.kind, Kind::step);
   EXPECT_EQ(a.context.frame, 1);
@@ -187,6 +187,28 @@ TEST(MemberSession, FrameStartsOnlyWhenItsAnnouncedInputsArrived) {
   ASSERT_EQ(a.inputs.vehicle_states.size(), 2u);
   EXPECT_EQ(a.inputs.vehicle_states[0].vehicle_id, "a");
   EXPECT_EQ(a.inputs.vehicle_states[1].vehicle_id, "b");
+}
+
+// A member that receives many samples per frame (a vehicle on soft soil: every neighbour's
+// deformation) is woken once per frame, not once per sample: a sample says "act" only when it
+// completes the inputs of the frame granted next; before the grant, the grant itself wakes.
+TEST(MemberSession, OnlyTheSampleThatCompletesAGrantedFrameWakesTheMember) {
+  auto s = joined();
+  s.on_grant(grant(0), 0.2);
+  step(s, 0, 0.2);
+  EXPECT_FALSE(s.add(state(0, "a")));  // before grant 1
+  EXPECT_FALSE(s.add(state(0, "b")));
+  s.on_grant(grant(1, {announced("a"), announced("b"), announced("c")}), 0.3);
+  EXPECT_EQ(s.poll(0.3).kind, Kind::wait);
+  EXPECT_FALSE(s.add(state(0, "x")));  // kept (all keys are subscribed), but not announced
+  EXPECT_TRUE(s.add(state(0, "c")));   // the last announced input of frame 1
+  ASSERT_EQ(s.poll(0.3).kind, Kind::step);
+  EXPECT_FALSE(s.add(state(1, "a")));  // while frame 1 steps, no grant 2
+  s.on_stepped(1, "", 0.35);
+  EXPECT_FALSE(s.add(state(1, "b")));  // no grant 2 yet
+  // Anything but a plain running wait is left to poll(): the verdict, a failure.
+  s.on_control(RunControlMsg{}, 0.4);
+  EXPECT_TRUE(s.add(state(1, "c")));
 }
 
 TEST(MemberSession, NoNewStepWhileOneRuns) {
@@ -289,7 +311,7 @@ TEST(MemberSession, LateJoinerStartsAfterTheGrantNamingIt) {
   EXPECT_EQ(s.poll(0.3).kind, Kind::wait);
   EXPECT_TRUE(s.admitted());
   EXPECT_EQ(s.next_frame(), 5);
-  EXPECT_TRUE(s.add(state(4)));
+  EXPECT_FALSE(s.add(state(4)));  // kept; nothing to do before grant 5
   s.on_grant(grant(5, {announced()}), 0.4);
   auto a = s.poll(0.4);
   ASSERT_EQ(a.kind, Kind::step);
