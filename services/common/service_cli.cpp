@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "core/cpu_policy.hpp"
 #include "core/error.hpp"
 #include "record/checkpoint.hpp"
 
@@ -66,6 +67,11 @@ void add_common_options(CLI::App& app, CommonArgs& a) {
   app.add_option("--security-dir", a.security_dir,
                  "DDS Security folder written by launch_scripts/make_security.sh (overrides "
                  "dds.security)");
+  app.add_option("--cpu-policy", a.cpu_policy,
+                 "CPU scheduling: batch (a woken process does not preempt the one that woke it: "
+                 "fewer context switches per frame) or normal")
+      ->check(CLI::IsMember({"batch", "normal"}))
+      ->capture_default_str();
   app.add_flag("--rejoin", a.rejoin,
                "A member restarted after it was lost (on_member_loss: recover): join the run "
                "under way from the coordinator's rollback");
@@ -213,6 +219,7 @@ int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonAr
   std::signal(SIGTERM, on_signal);
   std::signal(SIGHUP, on_signal);
   try {
+    set_cpu_policy(common.cpu_policy);  // before DDS starts its threads: they inherit it
     return body();
   } catch (const ConfigError& e) {
     std::cerr << name << ": error: " << e.what() << std::endl;

@@ -34,6 +34,9 @@ struct CommonArgs {
   bool rejoin = false;
   /// DDS Security folder (overrides dds.security.dir; launch_scripts/make_security.sh).
   std::string security_dir;
+  /// The process's CPU scheduling policy, set before any thread starts (core/cpu_policy.hpp):
+  /// batch for the simulation's processes, normal for interactive ones (the viewer).
+  std::string cpu_policy = "batch";
 };
 
 /// The frame --resume-from names in `run_dir` (a number, or "latest"); ConfigError if there is

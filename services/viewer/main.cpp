@@ -34,6 +34,7 @@ fs::path default_web_root() {
 int main(int argc, char** argv) {
   CLI::App app{"syndds viewer: watch a live run or replay a recorded one in a browser"};
   service::CommonArgs common;
+  common.cpu_policy = "normal";  // it serves a browser: its answers should not wait
   service::add_common_options(app, common);
   app.get_option("scenario")->required(false)->description(
       "Scenario YAML file of the live run to watch (not with --replay)");

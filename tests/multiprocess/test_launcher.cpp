@@ -2,6 +2,7 @@
 // its own, refusing what the machine cannot start, ending a run that cannot start at once, and
 // saying plainly when the run completed but its recording did not.
 #include <nlohmann/json.hpp>
+#include <sched.h>
 
 #include <regex>
 
@@ -188,6 +189,42 @@ TEST(Launcher, KilledRecorderIsReportedAsAnIncompleteRecording) {
             std::string::npos)
       << launcher->log();
   EXPECT_NE(read_file(out / "logs" / "coordinator.log").find("run completed"), std::string::npos);
+}
+
+/// The scheduling policy of every thread of process `pid` (/proc/PID/task/TID/stat field 41),
+/// or empty if it is gone.
+std::vector<int> thread_policies(int pid) {
+  std::vector<int> out;
+  std::error_code ec;
+  for (const auto& task : fs::directory_iterator(fs::path("/proc") / std::to_string(pid) / "task", ec)) {
+    const std::string stat = read_file(task.path() / "stat");
+    const auto close = stat.rfind(')');
+    if (close == std::string::npos) continue;
+    std::istringstream fields(stat.substr(close + 2));  // from field 3 (state)
+    std::string field;
+    for (int i = 3; i <= 41 && fields >> field; ++i) {
+      if (i == 41) out.push_back(std::stoi(field));
+    }
+  }
+  return out;
+}
+
+// Members run SCHED_BATCH (services' --cpu-policy, default batch): every thread, also those Fast
+// DDS starts after the policy was set, so a woken member does not preempt the one that woke it.
+TEST(Launcher, MembersAndTheirDdsThreadsRunAsBatch) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kScenarios + "continue_run.yaml");
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 10; }, 30))
+      << launcher->log();
+  for (const std::string member : {"coordinator", "recorder"}) {
+    const int pid = launched_pid(out, member);
+    ASSERT_NE(pid, 0) << member;
+    const auto policies = thread_policies(pid);
+    ASSERT_GE(policies.size(), 5u) << member << ": the main thread and Fast DDS's";
+    for (const int p : policies) EXPECT_EQ(p, SCHED_BATCH) << member;
+  }
+  EXPECT_EQ(launcher->wait(40), std::optional<int>(0)) << launcher->log();
 }
 
 }  // namespace

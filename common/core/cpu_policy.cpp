@@ -1,0 +1,38 @@
+#include "core/cpu_policy.hpp"
+
+#include <sched.h>
+
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+
+#include "core/error.hpp"
+
+namespace syndds {
+
+void set_cpu_policy(const std::string& policy, const std::string& option) {
+  int kind = 0;
+  if (policy == "batch") {
+    kind = SCHED_BATCH;
+  } else if (policy == "normal") {
+    kind = SCHED_OTHER;
+  } else {
+    throw ConfigError(option + " '" + policy + "': expected batch or normal");
+  }
+  sched_param param{};
+  param.sched_priority = 0;
+  if (sched_setscheduler(0, kind, &param) != 0) {
+    throw std::runtime_error("could not set the CPU policy '" + policy +
+                             "': " + std::strerror(errno));
+  }
+}
+
+std::string cpu_policy() {
+  switch (sched_getscheduler(0)) {
+    case SCHED_BATCH: return "batch";
+    case SCHED_OTHER: return "normal";
+    default: return "other";
+  }
+}
+
+}  // namespace syndds
