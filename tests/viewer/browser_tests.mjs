@@ -115,9 +115,11 @@ async function watch() {
   log('page open');
   await page.waitForFunction(() => window.syndds.updates > 0, null, { timeout: 60000 });
   if (shot === 'sensors') {
-    // The chosen vehicle's (lead's) camera image and lidar points reach the panel.
-    await page.waitForFunction(() => window.syndds.images > 0 && window.syndds.pointClouds > 0,
-      null, { timeout: 60000 });
+    // The chosen vehicle's (lead's) camera image and lidar points reach the panel. The <img>
+    // decodes a JPEG after it arrived (asynchronously: on a loaded machine well after), so the
+    // wait is for the decoded picture, not only for the message.
+    await page.waitForFunction(() => window.syndds.images > 0 && window.syndds.pointClouds > 0 &&
+      document.getElementById('camera').naturalWidth > 0, null, { timeout: 60000 }).catch(() => {});
     const shown = await page.evaluate(() => ({ width: document.getElementById('camera').naturalWidth,
       label: document.getElementById('camera-label').textContent }));
     log(JSON.stringify(shown));
