@@ -10,15 +10,18 @@
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
-# single = every agent in one process (syndds_sim, no DDS); hostsK = one process per member on K
+# single = every agent in one process (syndds_sim, no DDS); single_full = the same with SCM
+# interest management off (every vehicle merges every rut at once); hostsK = one process per member on K
 # "hosts" (network namespaces on a bridge, each with its own address and /dev/shm, host k pinned
 # to CPU (k-1) mod the CPU count; coordinator and recorder on host 1, vehicle vI and its
 # controller on host (I-1) mod K + 1; needs root). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
 # lanes only). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
-# time, RTF, CPU seconds per process kind and in all), DIR/scaling.md (the same as a table)
-# and, with Debian's matplotlib, DIR/scaling.png (RTF against N). DIR defaults to a new folder
+# time, RTF, CPU seconds per process kind and in all, the vehicles.csv digest and the recorder's
+# SCM grid hash), DIR/scaling.md (the same as a table, and whether every mode of an N recorded
+# byte-identical results; exit status 2 if not) and, with Debian's matplotlib, DIR/scaling.png
+# (RTF against N). DIR defaults to a new folder
 # under runs/. Numbers go to docs/performance.md with the command and the machine's load.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -41,11 +44,11 @@ done
 case "$TERRAIN" in rigid|soft) ;; *) echo "bench_scaling: --terrain rigid or soft" >&2; exit 1 ;; esac
 for mode in $MODES; do
   case "$mode" in
-    distributed|per_vehicle|single) ;;
+    distributed|per_vehicle|single|single_full) ;;
     groups[1-9]|groups[1-9][0-9]) ;;
     hosts[1-9])
       [ "$(id -u)" -eq 0 ] || { echo "bench_scaling: mode $mode needs root (ip netns)" >&2; exit 1; } ;;
-    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, hostsK, single)" >&2
+    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, hostsK, single, single_full)" >&2
        exit 1 ;;
   esac
 done
@@ -57,8 +60,8 @@ source "$ROOT/tests/netns_hosts.sh"
 trap 'hosts_down; rm -rf "$WORK"' EXIT
 NCPU=$(nproc)
 
-scenario() {  # $1 = N; prints the file
-  local n=$1 f=$WORK/scaling_$1.yaml
+scenario() {  # $1 = N [$2 = SCM interest radius]; prints the file
+  local n=$1 f=$WORK/scaling_$1${2:+_r$2}.yaml
   {
     echo "name: scaling_${TERRAIN}_$n"
     echo "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: $DURATION}"
@@ -69,6 +72,7 @@ scenario() {  # $1 = N; prints the file
       echo "  preset: soft"
       echo "  spacing_m: 0.05"
       echo "  area: {x_min_m: -10, x_max_m: 70, y_min_m: -5, y_max_m: $((5 * n + 5))}"
+      [ -z "${2:-}" ] || echo "  interest_radius_m: $2"
     fi
     echo "vehicles:"
     for i in $(seq 1 "$n"); do
@@ -144,7 +148,7 @@ run_on_hosts() {  # scenario out K
   [ $failed = 0 ] || { tail -n 3 "$out"/logs/*.log; return 1; }
 }
 
-echo "terrain,n,mode,processes,frames,wall_s,rtf,cpu_coordinator_s,cpu_vehicles_s,cpu_controllers_s,cpu_groups_s,cpu_recorder_s,cpu_sim_s,cpu_total_s,load_start" > "$OUT/scaling.csv"
+echo "terrain,n,mode,processes,frames,wall_s,rtf,cpu_coordinator_s,cpu_vehicles_s,cpu_controllers_s,cpu_groups_s,cpu_recorder_s,cpu_sim_s,cpu_total_s,load_start,vehicles_csv_sha256,grid_hash" > "$OUT/scaling.csv"
 for n in $NS; do
   file=$(scenario "$n")
   for mode in $MODES; do
@@ -154,7 +158,7 @@ for n in $NS; do
     if [[ "$mode" == hosts* ]]; then
       processes=$((2 * n + 2))
       run_on_hosts "$file" "$out" "${mode#hosts}" > "$WORK/launch.log" 2>&1 &
-    elif [ "$mode" != single ]; then
+    elif [[ "$mode" != single* ]]; then
       case "$mode" in
         distributed) layout=per_member; processes=$((2 * n + 2)) ;;
         per_vehicle) layout=per_vehicle; processes=$((n + 2)) ;;
@@ -163,7 +167,9 @@ for n in $NS; do
       "$ROOT/tests/netns_exec.sh" "$ROOT/launch_scripts/run_scenario.sh" "$file" --output "$out" \
           --processes "$layout" "${PROFILES[@]}" > "$WORK/launch.log" 2>&1 &
     else
-      "$BIN/syndds_sim" "$file" --output "$out" --quiet --config-dir "$ROOT/config" \
+      sim_file=$file
+      [ "$mode" = single ] || sim_file=$(scenario "$n" 0)
+      "$BIN/syndds_sim" "$sim_file" --output "$out" --quiet --config-dir "$ROOT/config" \
           > "$WORK/launch.log" 2>&1 &
       processes=1
     fi
@@ -174,20 +180,22 @@ for n in $NS; do
       tail -5 "$WORK/launch.log" >&2
       mkdir -p "$OUT/failed_${n}_$mode"
       cp -r "$WORK/launch.log" "$out/logs" "$out/summary.json" "$OUT/failed_${n}_$mode/" 2>/dev/null || true
-      echo "$TERRAIN,$n,$mode,$processes,,,,,,,,,,,$load" >> "$OUT/scaling.csv"
+      echo "$TERRAIN,$n,$mode,$processes,,,,,,,,,,,$load,," >> "$OUT/scaling.csv"
       continue
     fi
     /usr/bin/python3 - "$out/summary.json" "$WORK/cpu.txt" "$TERRAIN" "$n" "$mode" "$processes" "$load" \
-        >> "$OUT/scaling.csv" <<'EOF'
-import json, sys
-summary, cpu_file, terrain, n, mode, processes, load = sys.argv[1:]
+        "$out/vehicles.csv" >> "$OUT/scaling.csv" <<'EOF'
+import hashlib, json, sys
+summary, cpu_file, terrain, n, mode, processes, load, vehicles = sys.argv[1:]
 s = json.load(open(summary))
 cpu = dict((k, float(v)) for k, v in (line.split() for line in open(cpu_file) if line.strip()))
 kinds = ["syndds_coordina", "syndds_vehicle", "syndds_controll", "syndds_group", "syndds_recorder",
          "syndds_sim"]
 cells = [f"{cpu.get(k, 0.0):.2f}" for k in kinds] + [f"{sum(cpu.values()):.2f}"]
+digest = hashlib.sha256(open(vehicles, "rb").read()).hexdigest()[:16]
+grid = s.get("terrain", {}).get("grid_hash", "")
 print(",".join([terrain, n, mode, processes, str(s["frames"]), f"{s['wall_time_s']:.2f}",
-                f"{s['real_time_factor']:.3f}"] + cells + [load]))
+                f"{s['real_time_factor']:.3f}"] + cells + [load, digest, grid]))
 EOF
     tail -n 1 "$OUT/scaling.csv"
   done
@@ -206,6 +214,18 @@ for r in rows:
                                             "cpu_sim_s", "cpu_total_s"])
     lines.append(f"| {r['terrain']} | {r['n']} | {r['mode']} | {r['processes']} | "
                  f"{r['rtf'] or 'failed'} | {r['wall_s'] or '-'} | {cpu} | {r['load_start']} |")
+same = True
+for n in sorted({r["n"] for r in rows}, key=int):
+    results = {(r["vehicles_csv_sha256"], r["grid_hash"]) for r in rows if r["n"] == n and r["rtf"]}
+    modes = " ".join(r["mode"] for r in rows if r["n"] == n and r["rtf"])
+    if len(results) == 1:
+        sha, grid = results.pop()
+        lines.append(f"\nN = {n}: vehicles.csv (sha256 {sha}...)"
+                     f"{' and SCM grid hash ' + grid if grid else ''} byte-identical in: {modes}")
+    elif results:
+        same = False
+        lines.append(f"\nN = {n}: RESULTS DIFFER between modes: " + "; ".join(
+            f"{r['mode']} {r['vehicles_csv_sha256']} {r['grid_hash']}" for r in rows if r["n"] == n))
 (out / "scaling.md").write_text("\n".join(lines) + "\n")
 print("\n".join(lines))
 try:
@@ -213,7 +233,7 @@ try:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 except ImportError:
-    sys.exit(0)
+    sys.exit(0 if same else 2)
 fig, ax = plt.subplots(figsize=(6, 4))
 for mode in sorted({r["mode"] for r in rows}):
     pts = [(int(r["n"]), float(r["rtf"])) for r in rows if r["mode"] == mode and r["rtf"]]
@@ -226,5 +246,6 @@ ax.set_title(f"{rows[0]['terrain'] if rows else ''}: RTF against vehicles")
 ax.legend()
 fig.tight_layout()
 fig.savefig(out / "scaling.png", dpi=100)
+sys.exit(0 if same else 2)
 EOF
 echo "bench_scaling: $OUT/scaling.csv, scaling.md, scaling.png"
