@@ -4,13 +4,12 @@
 
 #include <cerrno>
 #include <cstring>
-#include <stdexcept>
 
 #include "core/error.hpp"
 
 namespace syndds {
 
-void set_cpu_policy(const std::string& policy, const std::string& option) {
+std::string set_cpu_policy(const std::string& policy, const std::string& option) {
   int kind = 0;
   if (policy == "batch") {
     kind = SCHED_BATCH;
@@ -22,9 +21,9 @@ void set_cpu_policy(const std::string& policy, const std::string& option) {
   sched_param param{};
   param.sched_priority = 0;
   if (sched_setscheduler(0, kind, &param) != 0) {
-    throw std::runtime_error("could not set the CPU policy '" + policy +
-                             "': " + std::strerror(errno));
+    return "could not set the CPU policy '" + policy + "': " + std::strerror(errno);
   }
+  return {};
 }
 
 std::string cpu_policy() {

@@ -12,8 +12,9 @@ namespace syndds {
 
 /// Applies "batch" (SCHED_BATCH) or "normal" (SCHED_OTHER) to the calling thread; threads it
 /// creates afterwards inherit it, so call it before creating any. Throws ConfigError naming
-/// `option` for another value, std::runtime_error if the kernel refuses.
-void set_cpu_policy(const std::string& policy, const std::string& option = "--cpu-policy");
+/// `option` for another value. Returns an empty string, or why the kernel refused (e.g. a
+/// sandbox that filters the system call): a scheduling hint is not worth failing a run for.
+std::string set_cpu_policy(const std::string& policy, const std::string& option = "--cpu-policy");
 /// The calling thread's policy: "batch", "normal" or "other".
 std::string cpu_policy();
 

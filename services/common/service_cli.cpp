@@ -219,7 +219,10 @@ int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonAr
   std::signal(SIGTERM, on_signal);
   std::signal(SIGHUP, on_signal);
   try {
-    set_cpu_policy(common.cpu_policy);  // before DDS starts its threads: they inherit it
+    // Before DDS starts its threads: they inherit it.
+    if (const std::string why = set_cpu_policy(common.cpu_policy); !why.empty()) {
+      spdlog::warn("{} (running with the policy it has)", why);
+    }
     return body();
   } catch (const ConfigError& e) {
     std::cerr << name << ": error: " << e.what() << std::endl;

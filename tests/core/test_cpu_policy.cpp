@@ -13,11 +13,11 @@ using syndds::set_cpu_policy;
 TEST(CpuPolicy, BatchIsSetAndInheritedByThreadsCreatedAfterIt) {
   std::string own, child, back;
   std::thread t([&] {
-    set_cpu_policy("batch");
+    EXPECT_EQ(set_cpu_policy("batch"), "");
     own = cpu_policy();
     std::thread c([&] { child = cpu_policy(); });  // as Fast DDS's threads, made later
     c.join();
-    set_cpu_policy("normal");
+    EXPECT_EQ(set_cpu_policy("normal"), "");
     back = cpu_policy();
   });
   t.join();
