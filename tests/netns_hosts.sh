@@ -10,17 +10,24 @@
 #   multicast_dropped h1                     # packets the host's rule dropped so far
 #   hosts_loss PERCENT                       # every host drops PERCENT % of the packets it
 #                                            # sends to the others, at random (nftables numgen)
+#   second_path_packets h1                   # with NETNS_PATHS=2: packets the host received
+#                                            # on its second address so far (counted)
+#   loss_dropped h1                          # packets hosts_loss dropped there so far
+#
+# NETNS_PATHS=2: every host has a second address on a second subnet (NET2.k), as a host on two
+# networks has; Fast DDS announces a unicast locator per address and sends each datagram to
+# every one, so a packet is lost only if both copies are (docs/deployment.md, "Lossy networks").
 #   on_host h1 LOG command...                # in the background; $! is its pid
 #   hosts_down                               # also on EXIT if the caller traps it
 #
-# Sets NET (the hosts' /24 prefix) and HOST_CPUS[h] (a taskset CPU list; empty: any CPU).
+# Sets NET and NET2 (the hosts' /24 prefixes) and HOST_CPUS[h] (a taskset CPU list; empty: any CPU).
 
 NETNS_TAG=""; NETNS_WORK=""; NETNS_HOSTS=(); declare -gA HOST_CPUS=()
 
 hosts_up() {
   NETNS_TAG=$1; NETNS_WORK=$2; local multicast=$3; shift 3
   NETNS_HOSTS=("$@")
-  NET=10.77.$(( $$ % 200 + 20 ))
+  NET=10.77.$(( $$ % 200 + 20 )); NET2=10.78.$(( $$ % 200 + 20 ))
   ip netns add "${NETNS_TAG}br"
   ip -n "${NETNS_TAG}br" link add br0 type bridge
   ip -n "${NETNS_TAG}br" link set br0 up
@@ -34,6 +41,14 @@ hosts_up() {
     ip -n "$NETNS_TAG$h" link set lo up
     ip -n "$NETNS_TAG$h" link set "$NETNS_TAG${h}a" name eth0
     ip -n "$NETNS_TAG$h" addr add "$NET.$i/24" dev eth0
+    if [ "${NETNS_PATHS:-1}" = 2 ]; then
+      ip -n "$NETNS_TAG$h" addr add "$NET2.$i/24" dev eth0
+      ip netns exec "$NETNS_TAG$h" nft -f - <<NFT
+table inet syndds_paths {
+  chain in { type filter hook input priority 0; ip daddr $NET2.0/24 counter; }
+}
+NFT
+    fi
     ip -n "$NETNS_TAG$h" link set eth0 up
     ip -n "${NETNS_TAG}br" link set "$NETNS_TAG${h}b" master br0
     ip -n "${NETNS_TAG}br" link set "$NETNS_TAG${h}b" up
@@ -55,10 +70,16 @@ NFT
 }
 
 multicast_dropped() {  # host: packets its nftables rules dropped (both directions)
-  ip netns exec "$NETNS_TAG$1" nft list table inet syndds_nomulticast 2> /dev/null |
+  nft_counted "$1" syndds_nomulticast
+}
+
+nft_counted() {  # host table: packets counted by the table's rules (0 if there is no table)
+  { ip netns exec "$NETNS_TAG$1" nft list table inet "$2" 2> /dev/null || true; } |
     awk '/counter packets/ {for (i = 1; i < NF; ++i) if ($i == "packets") n += $(i + 1)}
          END {print n + 0}'
 }
+second_path_packets() { nft_counted "$1" syndds_paths; }
+loss_dropped() { nft_counted "$1" syndds_loss; }
 
 hosts_loss() {  # percent: random loss of what each host sends on its link (not within a host)
   local h

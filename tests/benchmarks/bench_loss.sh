@@ -6,9 +6,11 @@
 # single-process run, and whether any member was declared lost. Needs root and nft.
 #
 #   tests/benchmarks/bench_loss.sh [--loss "0 10 30"] [--runs N] [--duration S]
-#       [--dds-profiles FILE] [SCENARIO]
+#       [--dds-profiles FILE] [--paths 1|2] [SCENARIO]
 #
 # Defaults: config/scenarios/default.yaml, 10 simulated seconds, 2 runs per loss level.
+# --paths 2: every host has a second address on a second subnet (two networks): Fast DDS sends
+# each datagram to both, and the loss drops each copy on its own (docs/deployment.md).
 set -uo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
@@ -19,7 +21,10 @@ while [ $# -gt 0 ]; do
     --runs) RUNS=$2; shift ;;
     --duration) DURATION=$2; shift ;;
     --dds-profiles) PROFILES=(--dds-profiles "$(realpath "$2")"); shift ;;
-    -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --paths)
+      case "$2" in 1|2) export NETNS_PATHS=$2 ;; *) echo "bench_loss: --paths 1 or 2" >&2; exit 1 ;; esac
+      shift ;;
+    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) SCENARIO=$(realpath "$1") ;;
   esac
   shift
@@ -33,7 +38,7 @@ trap 'hosts_down; rm -rf "$WORK"' EXIT
 "$BIN/syndds_sim" "$SCENARIO" --duration "$DURATION" --output "$WORK/single" --quiet \
   > "$WORK/single.log" 2>&1 || { cat "$WORK/single.log"; exit 1; }
 vehicles=($(awk -F, 'NR > 1 && !seen[$3]++ {print $3}' "$WORK/single/vehicles.csv"))
-echo "machine: $(nproc) CPUs, load average $(cut -d' ' -f1-3 /proc/loadavg); $(basename "$SCENARIO"), ${DURATION} s; profiles: ${PROFILES[1]:-default}"
+echo "machine: $(nproc) CPUs, load average $(cut -d' ' -f1-3 /proc/loadavg); $(basename "$SCENARIO"), ${DURATION} s; profiles: ${PROFILES[1]:-default}; network paths: ${NETNS_PATHS:-1}"
 echo "| loss % | run | end | RTF | vehicles.csv = single process | members declared lost |"
 echo "|---|---|---|---|---|---|"
 n=0

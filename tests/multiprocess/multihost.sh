@@ -16,6 +16,12 @@
 #                                   lost and no member of the other hosts. Every process in its
 #                                   own pid namespace (the lease decides, as between machines);
 #                                   frame deadline 30 s, so that the lease speaks first.
+#   multihost.sh lossy-two-paths    every host drops 10 % of what it sends (nftables, at
+#                                   random) and has a second address on a second subnet; the
+#                                   lossy-network profile (heartbeats and NACK suppression
+#                                   1 ms, made from config/dds/profiles.xml as docs/deployment.md
+#                                   says): the run completes identical, packets were dropped,
+#                                   and the second path carried traffic.
 # Needs root (ip netns); exits 77 (skipped) without it.
 set -euo pipefail
 MODE=${1:-multicast}
@@ -35,12 +41,13 @@ cleanup() {
 }
 trap cleanup EXIT
 
-if [ "$MODE" = discovery-server ]; then
-  command -v nft > /dev/null || { echo "multihost: needs nft (Debian package nftables)"; exit 77; }
-  multicast=off
-else
-  multicast=on
-fi
+multicast=on
+case "$MODE" in
+  discovery-server|lossy-two-paths)
+    command -v nft > /dev/null || { echo "multihost: needs nft (Debian package nftables)"; exit 77; } ;;
+esac
+[ "$MODE" = discovery-server ] && multicast=off
+[ "$MODE" = lossy-two-paths ] && export NETNS_PATHS=2
 hosts_up "$TAG" "$WORK" "$multicast" "${HOSTS[@]}"
 for h in "${HOSTS[@]}"; do
   # Each host has its own copy of the configuration: nothing is shared on disk.
@@ -59,6 +66,14 @@ case "$MODE" in
   multicast) ;;
   udp) EXTRA=(--transport udp) ;;
   partition) EXTRA=(--realtime --duration 60); export NETNS_PIDNS=1 ;;
+  lossy-two-paths)
+    sed 's|<nanosec>100000000</nanosec>|<nanosec>1000000</nanosec>|' "$ROOT/config/dds/profiles.xml" \
+      > "$WORK/lossy.xml"
+    [ "$(grep -c '<nanosec>1000000</nanosec></heartbeatPeriod>' "$WORK/lossy.xml")" -ge 3 ] &&
+      [ "$(grep -c '<nanosec>1000000</nanosec></nackSupressionDuration>' "$WORK/lossy.xml")" -ge 3 ] ||
+      { echo "multihost: the lossy recipe no longer matches profiles.xml"; exit 1; }
+    EXTRA=(--dds-profiles "$WORK/lossy.xml")
+    hosts_loss 10 ;;
   discovery-server)
     on_host h1 "$WORK/discovery.log" fast-discovery-server -i 0 -l "$NET.1" -p 11811
     EXTRA=(--discovery-server "$NET.1:11811") ;;
@@ -127,5 +142,14 @@ if [ "$MODE" = discovery-server ]; then
     echo "multihost ($MODE): no multicast packet was dropped: the block was not exercised"; exit 1
   fi
   echo "multihost ($MODE): $dropped multicast packets dropped by nftables"
+fi
+if [ "$MODE" = lossy-two-paths ]; then
+  dropped=0; second=0
+  for h in "${HOSTS[@]}"; do
+    dropped=$((dropped + $(loss_dropped "$h"))); second=$((second + $(second_path_packets "$h")))
+  done
+  [ "$dropped" -gt 0 ] || { echo "multihost ($MODE): no packet was dropped: the loss was not exercised"; exit 1; }
+  [ "$second" -gt 0 ] || { echo "multihost ($MODE): nothing came by the second path"; exit 1; }
+  echo "multihost ($MODE): $dropped packets dropped, $second received on the second addresses"
 fi
 echo "multihost ($MODE): 3 hosts, $(($(wc -l < "$WORK/h1/out/vehicles.csv") - 1)) rows, identical to the single-process run"
