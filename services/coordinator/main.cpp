@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <optional>
 
 #include "common/service_cli.hpp"
@@ -19,6 +20,12 @@ int main(int argc, char** argv) {
   bool print_members = false;
   app.add_flag("--print-members", print_members,
                "Print the member ids the scenario declares and exit");
+  int exit_notice_delay_ms = 0;
+  app.add_option("--debug-exit-notice-delay-ms", exit_notice_delay_ms,
+                 "Act on a member's process exit this much later (fault injection; also "
+                 "SYNDDS_DEBUG_EXIT_NOTICE_DELAY_MS, for runs started by the launcher)")
+      ->group("Testing (fault injection; never needed in normal runs)")
+      ->check(CLI::Range(0, 60000));
   return service::run_service("coordinator", app, argc, argv, common, [&] {
     const auto s = service::load_scenario_config(common);
     if (print_members) {
@@ -30,6 +37,11 @@ int main(int argc, char** argv) {
     o.dds.identity = "coordinator";
     o.config_fingerprint = s.fingerprint;
     o.scenario_name = s.name;
+    if (const char* env = std::getenv("SYNDDS_DEBUG_EXIT_NOTICE_DELAY_MS");
+        env != nullptr && exit_notice_delay_ms == 0) {
+      exit_notice_delay_ms = std::clamp(std::atoi(env), 0, 60000);
+    }
+    o.debug_exit_notice_delay_s = exit_notice_delay_ms / 1000.0;
     o.run_dir = common.run_dir;
     o.barrier.checkpoint_every = s.checkpoint.every_frames;
     if (s.checkpoint.enabled() && common.run_dir.empty()) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "dds/convert.hpp"
 #include "dds/member_runtime.hpp"
@@ -94,6 +95,10 @@ void CoordinatorService::malformed(const std::string& what, const std::string& e
 
 void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
   std::lock_guard lock(mutex_);
+  join_locked(a);
+}
+
+void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
   if (!barrier_->is_member(a.member_id)) {
     spdlog::warn("coordinator: ignoring {} (pid {} on {}): not a member of this scenario",
                  a.member_id, a.pid, a.host);
@@ -123,9 +128,11 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
       spdlog::warn("coordinator: ignoring {} announced by participant {} (pid {} on {}): "
                    "participant {} is that member", a.member_id, a.participant_guid, a.pid,
                    a.host, known->second);
+      held_announcements_[a.member_id] = a;  // a restart seen before its old process's exit?
       advance_locked();
       return;
     }
+    held_announcements_.erase(a.member_id);
     if (rejoin && known != guid_of_member_.end()) {
       // The member's old participant is gone: its lease running out later is not a new loss.
       auto& old = members_of_guid_[known->second];
@@ -149,6 +156,9 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
 }
 
 void CoordinatorService::on_process_exit(const std::string& guid) {
+  if (options_.debug_exit_notice_delay_s > 0.0) {  // on the watch's thread, outside the lock
+    std::this_thread::sleep_for(std::chrono::duration<double>(options_.debug_exit_notice_delay_s));
+  }
   std::lock_guard lock(mutex_);
   const auto it = members_of_guid_.find(guid);
   if (it == members_of_guid_.end() || !barrier_) return;
@@ -156,6 +166,7 @@ void CoordinatorService::on_process_exit(const std::string& guid) {
     barrier_->on_member_lost(member, "its process exited", now());
   }
   note_recovering_locked();
+  replay_held_locked();
   advance_locked();
 }
 
@@ -168,6 +179,7 @@ void CoordinatorService::on_done(const proto::FrameDoneMsg& d) {
 
 void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
   std::lock_guard lock(mutex_);
+  std::erase_if(held_announcements_, [&](const auto& h) { return h.second.participant_guid == guid; });
   auto it = members_of_guid_.find(guid);
   if (it == members_of_guid_.end()) return;
   if (!graceful) {
@@ -192,6 +204,7 @@ void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
                              now());
   }
   note_recovering_locked();
+  replay_held_locked();
   advance_locked();
 }
 
@@ -220,6 +233,19 @@ void CoordinatorService::declare_checkpoint(const proto::CheckpointReport& repor
   } catch (const std::exception& e) {
     // The run goes on; the previous complete checkpoint stays the one to resume from.
     spdlog::error("coordinator: checkpoint of frame {}: {}", info.frame, e.what());
+  }
+}
+
+void CoordinatorService::replay_held_locked() {
+  if (held_announcements_.empty()) return;
+  for (const auto& member : barrier_->rejoining_members()) {
+    const auto held = held_announcements_.find(member);
+    if (held == held_announcements_.end()) continue;
+    const proto::MemberAnnounceMsg a = held->second;
+    held_announcements_.erase(held);
+    spdlog::info("coordinator: {} had announced itself again before its loss was seen (pid {} "
+                 "on {}): taking that announcement", member, a.pid, a.host);
+    join_locked(a);
   }
 }
 

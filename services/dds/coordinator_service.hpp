@@ -29,6 +29,9 @@ struct CoordinatorOptions {
   /// main program may treat a Fast DDS abort while the members leave as teardown
   /// (service::DdsTeardownGuard).
   std::function<void(int)> on_verdict;
+  /// Testing (fault injection): a member's process exit is acted on this much later, as when
+  /// the watch is slow to see it and a restarted member announces itself first.
+  double debug_exit_notice_delay_s = 0.0;
 };
 
 class CoordinatorService {
@@ -51,6 +54,11 @@ class CoordinatorService {
   void setup();
   double now() const;
   void on_join(const proto::MemberAnnounceMsg& announce);
+  void join_locked(const proto::MemberAnnounceMsg& announce);
+  /// Announcements held back because their name belonged to a live participant: a member
+  /// restarted under recover can announce itself before its old process's exit is seen here.
+  /// Once the member is awaited, they are taken as its return.
+  void replay_held_locked();
   void on_done(const proto::FrameDoneMsg& done);
   void on_lost(const std::string& guid, bool graceful);
   void on_process_exit(const std::string& guid);
@@ -78,6 +86,8 @@ class CoordinatorService {
   // Member -> the participant that is it (the newest, after a restart under recover).
   std::map<std::string, std::string> guid_of_member_;
   std::string recovering_logged_;  // the members last logged as awaited
+  // Member -> the newest announcement ignored because another participant was that member.
+  std::map<std::string, proto::MemberAnnounceMsg> held_announcements_;
   // Participant GUID prefix -> its process (MemberAnnounce::process_key), when announced.
   std::map<std::string, std::string> process_of_guid_;
   // Processes of this machine whose participant's lease expired while they still ran: lost
