@@ -181,11 +181,29 @@ void Participant::remove_lost_callback(int id) {
 void Participant::on_participant_discovery(
     fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) {
   using Info = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
-  if (info.status != Info::REMOVED_PARTICIPANT && info.status != Info::DROPPED_PARTICIPANT) return;
   std::ostringstream out;
   out << info.info.m_guid.guidPrefix;
+  if (info.status == Info::DISCOVERED_PARTICIPANT) {
+    spdlog::debug("DDS: discovered participant {} ({})", out.str(), info.info.m_participantName.c_str());
+  }
+  if (info.status != Info::REMOVED_PARTICIPANT && info.status != Info::DROPPED_PARTICIPANT) return;
   std::lock_guard lock(callback_mutex_);
   for (const auto& [id, lost] : lost_) lost(out.str(), info.status == Info::REMOVED_PARTICIPANT);
+}
+
+// With DDS Security a participant is discovered (above) only once its handshake succeeded; a
+// refused one is worth a warning (a process without a certificate of the run's CA, or with a
+// bad one, is trying to join).
+void Participant::onParticipantAuthentication(
+    fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) {
+  using Info = eprosima::fastrtps::rtps::ParticipantAuthenticationInfo;
+  std::ostringstream out;
+  out << info.guid.guidPrefix;
+  if (info.status == Info::AUTHORIZED_PARTICIPANT) {
+    spdlog::debug("DDS Security: participant {} authenticated", out.str());
+  } else {
+    spdlog::warn("DDS Security: participant {} failed authentication", out.str());
+  }
 }
 
 // Partitions of data topics: writers of vehicle V publish in "<run>/all" and "<run>/vehicle/V";

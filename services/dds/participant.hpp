@@ -326,6 +326,9 @@ class Participant : private fdds::DomainParticipantListener {
 
   void on_participant_discovery(fdds::DomainParticipant* participant,
                                 eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override;
+  void onParticipantAuthentication(
+      fdds::DomainParticipant* participant,
+      eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) override;
   [[noreturn]] void fail(const std::string& what) const;
   fdds::Publisher* data_publisher(const std::string& vehicle_id);
   fdds::Subscriber* data_subscriber(const std::string& vehicle_id);  // "": every vehicle
