@@ -84,13 +84,15 @@ void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexC
     last_tile_key_ = tile_key;
   }
   DeferredTile& tile = *last_tile_;
-  if (tile.slots.empty()) tile.slots.resize(static_cast<std::size_t>(kTileSize * kTileSize));
-  DeferredSlot& slot = tile.slots[static_cast<std::size_t>(((c.i & (kTileSize - 1)) << kTileShift) |
-                                                           (c.j & (kTileSize - 1)))];
-  if (slot.window == 0) {
-    ++tile.used;
+  if (tile.where.empty()) tile.where.assign(static_cast<std::size_t>(kTileSize * kTileSize), 0);
+  std::uint16_t& where = tile.where[static_cast<std::size_t>(((c.i & (kTileSize - 1)) << kTileShift) |
+                                                            (c.j & (kTileSize - 1)))];
+  if (where == 0) {
+    tile.slots.emplace_back();
+    where = static_cast<std::uint16_t>(tile.slots.size());
     ++deferred_vertices_;
   }
+  DeferredSlot& slot = tile.slots[where - 1u];
   if (slot.window != window_ || beats(c, source_id, slot.change, slot.source)) {
     slot.change = c;
     slot.source = source_id;
@@ -101,10 +103,9 @@ void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexC
 }
 
 void Replication::merge_tile(VertexGrid& grid, DeferredTile& tile) {
-  for (const DeferredSlot& slot : tile.slots) {
-    if (slot.window == 0) continue;
+  tile.for_each_used([&](std::size_t, const DeferredSlot& slot) {
     grid.assign(grid.record(grid.get_or_insert_blank(slot.change.i, slot.change.j)), slot.change);
-  }
+  });
 }
 
 void Replication::set_interest(VertexGrid& grid, const IndexBox& box) {
@@ -142,7 +143,7 @@ void Replication::set_interest(VertexGrid& grid, const IndexBox& box) {
 
 void Replication::erase_tile(std::uint64_t key) {
   auto it = deferred_.find(key);
-  deferred_vertices_ -= it->second.used;
+  deferred_vertices_ -= it->second.used();
   if (last_tile_ == &it->second) last_tile_ = nullptr;
   deferred_.erase(it);
 }
@@ -248,10 +249,8 @@ void Replication::save_state(core::StateWriter& w) const {
     const DeferredTile& tile = deferred_.at(key);
     w.io(key_i(key));
     w.io(key_j(key));
-    w.io(static_cast<std::uint32_t>(tile.used));
-    for (std::size_t s = 0; s < tile.slots.size(); ++s) {
-      const DeferredSlot& slot = tile.slots[s];
-      if (slot.window == 0) continue;
+    w.io(static_cast<std::uint32_t>(tile.used()));
+    tile.for_each_used([&](std::size_t s, const DeferredSlot& slot) {
       w.io(static_cast<std::uint16_t>(s));  // the vertex follows from the tile and the slot
       w.io(slot.change.level_m);
       w.io(slot.change.level_initial_m);
@@ -259,7 +258,7 @@ void Replication::save_state(core::StateWriter& w) const {
       w.io(slot.change.sigma_yield_pa);
       w.io(slot.source);
       w.io(slot.window);
-    }
+    });
   }
   w.end();
 }
@@ -300,15 +299,16 @@ void Replication::load_state(core::StateReader& r, const VertexGrid& grid) {
       r.fail(where + " holds " + std::to_string(used) + " records: the state is damaged");
     }
     DeferredTile& tile = deferred_[key];
-    tile.slots.resize(static_cast<std::size_t>(kTileSize * kTileSize));
-    tile.used = used;
+    tile.where.assign(static_cast<std::size_t>(kTileSize * kTileSize), 0);
+    tile.slots.reserve(used);
     deferred_vertices_ += used;
     for (std::uint32_t u = 0; u < used; ++u) {
       const auto s = r.get<std::uint16_t>();
-      if (s >= tile.slots.size() || tile.slots[s].window != 0) {
+      if (s >= tile.where.size() || tile.where[s] != 0) {
         r.fail(where + ": slot " + std::to_string(s) + " is out of range or repeated");
       }
-      DeferredSlot& slot = tile.slots[s];
+      DeferredSlot& slot = tile.slots.emplace_back();
+      tile.where[s] = static_cast<std::uint16_t>(tile.slots.size());
       slot.change.i = ti * kTileSize + (s >> kTileShift);
       slot.change.j = tj * kTileSize + (s & (kTileSize - 1));
       r.io(slot.change.level_m);

@@ -77,9 +77,20 @@ class Replication {
     std::uint32_t source = 0;
     std::uint64_t window = 0;  // merge window (frame) of the record; 0: empty slot
   };
+  // Sparse: a rut crosses a tile on a few hundred of its 1024 vertices, and a process defers
+  // every far-away rut of the run: a dense tile (57 kB, zeroed when made) made the deferred
+  // storage the largest source of fresh pages (page faults) of a soft-soil vehicle.
   struct DeferredTile {
-    std::vector<DeferredSlot> slots;  // kTileSize^2, row i-major
-    std::size_t used = 0;
+    std::vector<std::uint16_t> where;  // kTileSize^2, row i-major: 1 + index in `slots`, 0: none
+    std::vector<DeferredSlot> slots;   // the used slots, in the order they were first deferred
+    std::size_t used() const { return slots.size(); }
+    // The used slots in slot order: fn(slot index, slot).
+    template <class Fn>
+    void for_each_used(Fn&& fn) const {
+      for (std::size_t s = 0; s < where.size(); ++s) {
+        if (where[s] != 0) fn(s, slots[where[s] - 1u]);
+      }
+    }
   };
   bool outside_interest(std::int32_t i, std::int32_t j) const {
     return has_interest_ && (i < interest_.i_lo || i > interest_.i_hi || j < interest_.j_lo ||
