@@ -36,7 +36,7 @@ struct CommonArgs {
   std::string security_dir;
   /// The process's CPU scheduling policy, set before any thread starts (core/cpu_policy.hpp):
   /// batch for the simulation's processes, normal for interactive ones (the viewer); auto is
-  /// batch, except that a participant with DDS Security is started under normal.
+  /// batch, except that a process with DDS Security turns normal when it creates its participant.
   std::string cpu_policy = "auto";
 };
 

@@ -103,7 +103,7 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
     if (options_.cpu_policy == "auto") {
       // Secure discovery (handshakes, key exchange) lost participant pairs in 7 of 8 runs of
       // the default scenario under SCHED_BATCH against 1 of 6 under normal: the participant's
-      // threads, created now, inherit this thread's policy.
+      // threads, created now, inherit this thread's policy (which stays normal too).
       if (const std::string why = set_cpu_policy("normal"); !why.empty()) spdlog::warn("{}", why);
     }
     participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(options_.domain_id),
