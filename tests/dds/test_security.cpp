@@ -7,9 +7,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <set>
-#include <sstream>
 #include <thread>
 
 #include <sched.h>
@@ -95,18 +93,6 @@ std::set<int> thread_ids() {
   return out;
 }
 
-// The scheduling policy of thread `tid` of this process (/proc field 41).
-int thread_policy(int tid) {
-  std::ifstream in("/proc/self/task/" + std::to_string(tid) + "/stat");
-  std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::istringstream fields(stat.substr(stat.rfind(')') + 2));  // from field 3
-  std::string field;
-  for (int i = 3; fields >> field; ++i) {
-    if (i == 41) return std::stoi(field);
-  }
-  return -1;
-}
-
 // The policies of the threads a participant made with `o`, created on a SCHED_BATCH thread.
 std::vector<int> new_thread_policies(const sdds::DdsOptions& o) {
   std::vector<int> out;
@@ -115,7 +101,7 @@ std::vector<int> new_thread_policies(const sdds::DdsOptions& o) {
     const auto before = thread_ids();
     sdds::Participant p(o);
     for (const int tid : thread_ids()) {
-      if (!before.contains(tid)) out.push_back(thread_policy(tid));
+      if (!before.contains(tid)) out.push_back(sched_getscheduler(tid));  // Linux: a thread id
     }
   });
   t.join();

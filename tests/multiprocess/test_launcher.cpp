@@ -191,20 +191,14 @@ TEST(Launcher, KilledRecorderIsReportedAsAnIncompleteRecording) {
   EXPECT_NE(read_file(out / "logs" / "coordinator.log").find("run completed"), std::string::npos);
 }
 
-/// The scheduling policy of every thread of process `pid` (/proc/PID/task/TID/stat field 41),
-/// or empty if it is gone.
+/// The scheduling policy of every thread of process `pid` (Linux's sched_getscheduler takes a
+/// thread id), or empty if it is gone.
 std::vector<int> thread_policies(int pid) {
   std::vector<int> out;
   std::error_code ec;
   for (const auto& task : fs::directory_iterator(fs::path("/proc") / std::to_string(pid) / "task", ec)) {
-    const std::string stat = read_file(task.path() / "stat");
-    const auto close = stat.rfind(')');
-    if (close == std::string::npos) continue;
-    std::istringstream fields(stat.substr(close + 2));  // from field 3 (state)
-    std::string field;
-    for (int i = 3; i <= 41 && fields >> field; ++i) {
-      if (i == 41) out.push_back(std::stoi(field));
-    }
+    const int policy = sched_getscheduler(std::stoi(task.path().filename().string()));
+    if (policy >= 0) out.push_back(policy);
   }
   return out;
 }
