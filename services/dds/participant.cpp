@@ -181,19 +181,24 @@ void Participant::remove_lost_callback(int id) {
 void Participant::on_participant_discovery(
     fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) {
   using Info = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
+  // Called for every announcement received (CHANGED_QOS_PARTICIPANT): nothing to do for those.
+  const bool discovered = info.status == Info::DISCOVERED_PARTICIPANT;
+  const bool gone =
+      info.status == Info::REMOVED_PARTICIPANT || info.status == Info::DROPPED_PARTICIPANT;
+  if (!gone && !(discovered && spdlog::should_log(spdlog::level::debug))) return;
   std::ostringstream out;
   out << info.info.m_guid.guidPrefix;
-  if (info.status == Info::DISCOVERED_PARTICIPANT) {
-    spdlog::debug("DDS: discovered participant {} ({})", out.str(), info.info.m_participantName.c_str());
+  if (discovered) {
+    spdlog::debug("DDS: discovered participant {}", out.str());
+    return;
   }
-  if (info.status != Info::REMOVED_PARTICIPANT && info.status != Info::DROPPED_PARTICIPANT) return;
   std::lock_guard lock(callback_mutex_);
   for (const auto& [id, lost] : lost_) lost(out.str(), info.status == Info::REMOVED_PARTICIPANT);
 }
 
-// With DDS Security a participant is discovered (above) only once its handshake succeeded; a
-// refused one is worth a warning (a process without a certificate of the run's CA, or with a
-// bad one, is trying to join).
+// With DDS Security a discovered participant (above) is heard only once its handshake
+// succeeded; a refused one is worth a warning (a process with a certificate of another CA, or a
+// bad one, is trying to join). Both lines name pairs stuck in the handshake (docs/deployment.md).
 void Participant::onParticipantAuthentication(
     fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) {
   using Info = eprosima::fastrtps::rtps::ParticipantAuthenticationInfo;

@@ -121,7 +121,8 @@ async function watch() {
     await page.waitForFunction(() => window.syndds.images > 0 && window.syndds.pointClouds > 0 &&
       document.getElementById('camera').naturalWidth > 0, null, { timeout: 60000 }).catch(() => {});
     const shown = await page.evaluate(() => ({ width: document.getElementById('camera').naturalWidth,
-      label: document.getElementById('camera-label').textContent }));
+      label: document.getElementById('camera-label').textContent, images: window.syndds.images,
+      pointClouds: window.syndds.pointClouds, frame: window.syndds.state.frame }));
     log(JSON.stringify(shown));
     assert.ok(shown.width > 0, 'the camera image is shown');
   }
