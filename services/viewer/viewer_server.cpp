@@ -109,6 +109,7 @@ struct ViewerServer::Client {
   std::condition_variable cv;
   bool closing = false;
   std::string selected;  // the vehicle whose sensors the page shows
+  std::string peer;      // "address:port", for the log
 };
 
 ViewerServer::ViewerServer(ServerOptions options, std::string scene, LiveState* live,
@@ -241,6 +242,9 @@ void ViewerServer::ws_ready(mg_connection* conn, void* self_ptr) {
   auto* self = static_cast<ViewerServer*>(self_ptr);
   auto client = std::make_unique<Client>();
   client->conn = conn;
+  const mg_request_info* info = mg_get_request_info(conn);
+  client->peer = std::string(info->remote_addr) + ":" + std::to_string(info->remote_port);
+  spdlog::info("viewer: browser at {} connected", client->peer);
   Client& c = *client;
   {
     std::lock_guard lock(self->clients_mutex_);
@@ -283,6 +287,7 @@ void ViewerServer::ws_close(const mg_connection* conn, void* self_ptr) {
   }
   client->cv.notify_all();
   if (client->thread.joinable()) client->thread.join();
+  spdlog::info("viewer: browser at {} disconnected", client->peer);
 }
 
 void ViewerServer::send_loop(Client& c) {
@@ -290,8 +295,14 @@ void ViewerServer::send_loop(Client& c) {
   std::uint64_t image_seen = 0, points_seen = 0;
   std::string image_vehicle;
   const auto period = std::chrono::duration<double>(1.0 / options_.update_hz);
+  const auto write = [&](int opcode, const std::string& data) {
+    const int n = mg_websocket_write(c.conn, opcode, data.data(), data.size());
+    // A browser that went away (closed, killed): its connection closes next.
+    if (n <= 0) spdlog::info("viewer: writing to the browser at {} failed: no more updates", c.peer);
+    return n > 0;
+  };
   const auto write_text = [&](const std::string& text) {
-    return mg_websocket_write(c.conn, MG_WEBSOCKET_OPCODE_TEXT, text.data(), text.size()) > 0;
+    return write(MG_WEBSOCKET_OPCODE_TEXT, text);
   };
   nlohmann::json hello = {{"type", "scene"}, {"scene", nlohmann::json::parse(scene_)}};
   if (!write_text(hello.dump())) return;
@@ -314,10 +325,7 @@ void ViewerServer::send_loop(Client& c) {
       SensorStore::Image image;
       if (sensors_->image(selected, image_seen, image)) {
         image_seen = image.change;
-        if (mg_websocket_write(c.conn, MG_WEBSOCKET_OPCODE_BINARY, image.jpeg.data(),
-                               image.jpeg.size()) <= 0) {
-          return;
-        }
+        if (!write(MG_WEBSOCKET_OPCODE_BINARY, image.jpeg)) return;
       }
       SensorStore::Points points;
       if (sensors_->points(selected, points_seen, points)) {

@@ -116,15 +116,18 @@ async function watch() {
   await page.waitForFunction(() => window.syndds.updates > 0, null, { timeout: 60000 });
   if (shot === 'sensors') {
     // The chosen vehicle's (lead's) camera image and lidar points reach the panel. The <img>
-    // decodes a JPEG after it arrived (asynchronously: on a loaded machine well after), so the
-    // wait is for the decoded picture, not only for the message.
-    await page.waitForFunction(() => window.syndds.images > 0 && window.syndds.pointClouds > 0 &&
-      document.getElementById('camera').naturalWidth > 0, null, { timeout: 60000 }).catch(() => {});
-    const shown = await page.evaluate(() => ({ width: document.getElementById('camera').naturalWidth,
+    // decodes a JPEG after it arrived (on a loaded machine well after, and the next image may
+    // replace it first), so the wait is for an image the page decoded and showed, not for the
+    // <img>'s current state.
+    await page.waitForFunction(() => window.syndds.imagesShown > 0 && window.syndds.pointClouds > 0,
+      null, { timeout: 60000 }).catch((e) => log('waiting for the camera image and lidar points:', e.message));
+    const shown = await page.evaluate(() => ({ size: window.syndds.imageSize,
       label: document.getElementById('camera-label').textContent, images: window.syndds.images,
-      pointClouds: window.syndds.pointClouds, frame: window.syndds.state.frame }));
+      imagesShown: window.syndds.imagesShown, pointClouds: window.syndds.pointClouds,
+      frame: window.syndds.state.frame, status: window.syndds.state.status }));
     log(JSON.stringify(shown));
-    assert.ok(shown.width > 0, 'the camera image is shown');
+    assert.ok(shown.imagesShown > 0 && shown.size[0] > 0, 'the camera image is shown');
+    assert.ok(shown.pointClouds > 0, 'the lidar points are shown');
   }
   log('watching');
   // What drawing costs the page, every second (bench_viewer.sh prints the last).

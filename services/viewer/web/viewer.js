@@ -668,6 +668,14 @@ function startLive() {
   ws.onopen = select;
   $('vehicle').addEventListener('change', select);
   ws.onclose = () => { state.status += ' (viewer disconnected)'; readout(); };
+  // Images received, and images decoded and shown (a JPEG decodes after it arrived; the next
+  // one may replace it before, so the two counts differ on a busy machine).
+  window.syndds.images = 0;
+  window.syndds.imagesShown = 0;
+  $('camera').onload = (ev) => {
+    window.syndds.imagesShown++;
+    window.syndds.imageSize = [ev.target.naturalWidth, ev.target.naturalHeight];
+  };
   ws.onmessage = (ev) => {
     if (typeof ev.data !== 'string') {
       const img = $('camera');
@@ -676,7 +684,7 @@ function startLive() {
       img.style.display = 'block';
       $('camera-label').textContent = `camera of ${state.selected}`;
       if (old.startsWith('blob:')) URL.revokeObjectURL(old);
-      window.syndds.images = (window.syndds.images || 0) + 1;
+      window.syndds.images++;
       return;
     }
     const m = JSON.parse(ev.data);
