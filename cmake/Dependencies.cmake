@@ -8,6 +8,13 @@ find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(fastcdr REQUIRED)
 find_package(fastrtps 2.9 REQUIRED)
+# Fast DDS 2.9.0 and 2.9.1 (Debian 12) race in secure discovery; services/dds carries a lock
+# around it (fastdds_security_race.cpp), and tests/dds checks that the lock is reached.
+if(fastrtps_VERSION VERSION_LESS 2.9.2)
+  set(SYNDDS_FASTDDS_SECURITY_RACE ON)
+else()
+  set(SYNDDS_FASTDDS_SECURITY_RACE OFF)
+endif()
 find_package(embree 3 REQUIRED)
 find_package(assimp 5 REQUIRED)  # Debian libassimp-dev: OBJ meshes of the rendered scene
 find_package(OpenCV REQUIRED COMPONENTS core imgproc imgcodecs videoio)

@@ -106,6 +106,9 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
       // threads, created now, inherit this thread's policy (which stays normal too).
       if (const std::string why = set_cpu_policy("normal"); !why.empty()) spdlog::warn("{}", why);
     }
+    if (security_race_workaround()) {
+      spdlog::debug("DDS Security: Fast DDS 2.9.1's built-in endpoint matching runs under a lock");
+    }
     participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(options_.domain_id),
                                                qos, this, fdds::StatusMask::none());
   }
@@ -141,6 +144,10 @@ void MatchedReaders::on_publication_matched(fdds::DataWriter*,
   }
   cv_.notify_all();
 }
+
+#if !SYNDDS_FASTDDS_SECURITY_RACE_WORKAROUND
+bool security_race_workaround() { return false; }
+#endif
 
 bool MatchedReaders::wait_for(const GuidPrefix& prefix, double timeout_s) {
   std::unique_lock lock(mutex_);

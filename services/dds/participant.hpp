@@ -54,6 +54,10 @@ struct DdsOptions {
 /// from `options.security_dir`; ConfigError naming a missing file.
 std::vector<std::pair<std::string, std::string>> security_properties(const DdsOptions& options);
 
+/// True when this program carries the lock around Fast DDS 2.9.0/2.9.1's secure built-in
+/// endpoint matching (services/dds/fastdds_security_race.cpp; not needed from 2.9.2 on).
+bool security_race_workaround();
+
 /// Topic names, defined once. Protocol topics and one per data topic.
 namespace topics {
 inline constexpr const char* kMemberAnnounce = "syndds/member_announce";

@@ -10,6 +10,7 @@
 #include <set>
 #include <thread>
 
+#include <dlfcn.h>
 #include <sched.h>
 
 #include "core/cpu_policy.hpp"
@@ -173,3 +174,30 @@ TEST(Security, AMissingIdentityIsNamed) {
         << e.what();
   }
 }
+
+// Fast DDS 2.9.0/2.9.1 match a newly discovered (and a newly authenticated) participant's
+// built-in secure endpoints through shared temporaries without a lock; two participants
+// discovered at once by two receive threads left a pair that never authenticated in about half
+// of the default scenario's secure runs. The library calls both functions through its PLT, and
+// every program linking syndds_dds exports its own locked versions
+// (services/dds/fastdds_security_race.cpp): the library's calls must find those first.
+TEST(Security, FastDdsBuiltinEndpointMatchingRunsUnderTheLock) {
+  if (!SYNDDS_TEST_FASTDDS_SECURITY_RACE) GTEST_SKIP() << "built with a Fast DDS without the race";
+  ASSERT_TRUE(sdds::security_race_workaround());
+  Dl_info program{};
+  ASSERT_NE(dladdr(reinterpret_cast<void*>(&sdds::security_race_workaround), &program), 0);
+  for (const char* name :
+       {"_ZN8eprosima8fastrtps4rtps8security15SecurityManager23match_builtin_endpointsERKNS1_"
+        "20ParticipantProxyDataE",
+        "_ZN8eprosima8fastrtps4rtps8security15SecurityManager36match_builtin_key_exchange_"
+        "endpointsERKNS1_20ParticipantProxyDataE"}) {
+    void* found = dlsym(RTLD_DEFAULT, name);
+    ASSERT_NE(found, nullptr) << name;
+    Dl_info where{};
+    ASSERT_NE(dladdr(found, &where), 0) << name;
+    EXPECT_EQ(where.dli_fbase, program.dli_fbase)
+        << name << " resolves to " << (where.dli_fname ? where.dli_fname : "?")
+        << ", not to this program's locked version";
+  }
+}
+
