@@ -69,9 +69,8 @@ void add_common_options(CLI::App& app, CommonArgs& a) {
                  "dds.security)");
   app.add_option("--cpu-policy", a.cpu_policy,
                  "CPU scheduling: batch (a woken process does not preempt the one that woke it: "
-                 "fewer context switches per frame), normal, or auto (batch; normal with DDS "
-                 "Security, whose discovery failed far more often under batch)")
-      ->check(CLI::IsMember({"auto", "batch", "normal"}))
+                 "fewer context switches per frame) or normal")
+      ->check(CLI::IsMember({"batch", "normal"}))
       ->capture_default_str();
   app.add_flag("--rejoin", a.rejoin,
                "A member restarted after it was lost (on_member_loss: recover): join the run "
@@ -157,7 +156,6 @@ dds::DdsOptions dds_options(const CommonArgs& a, const scenario::Scenario& s) {
       a.dds_profiles.empty() ? (std::filesystem::path(a.config_dir) / "dds" / "profiles.xml").string()
                              : a.dds_profiles;
   d.security_dir = a.security_dir.empty() ? s.dds.security_dir : a.security_dir;
-  d.cpu_policy = a.cpu_policy;
   return d;
 }
 
@@ -222,8 +220,7 @@ int run_service(const char* name, CLI::App& app, int argc, char** argv, CommonAr
   std::signal(SIGHUP, on_signal);
   try {
     // Before DDS starts its threads: they inherit it.
-    const std::string policy = common.cpu_policy == "normal" ? "normal" : "batch";
-    if (const std::string why = set_cpu_policy(policy); !why.empty()) {
+    if (const std::string why = set_cpu_policy(common.cpu_policy); !why.empty()) {
       spdlog::warn("{} (running with the policy it has)", why);
     }
     return body();

@@ -35,9 +35,8 @@ struct CommonArgs {
   /// DDS Security folder (overrides dds.security.dir; launch_scripts/make_security.sh).
   std::string security_dir;
   /// The process's CPU scheduling policy, set before any thread starts (core/cpu_policy.hpp):
-  /// batch for the simulation's processes, normal for interactive ones (the viewer); auto is
-  /// batch, except that a process with DDS Security turns normal when it creates its participant.
-  std::string cpu_policy = "auto";
+  /// batch for the simulation's processes, normal for interactive ones (the viewer).
+  std::string cpu_policy = "batch";
 };
 
 /// The frame --resume-from names in `run_dir` (a number, or "latest"); ConfigError if there is

@@ -9,7 +9,6 @@
 #include <filesystem>
 #include <sstream>
 
-#include "core/cpu_policy.hpp"
 #include "core/error.hpp"
 
 namespace syndds::dds {
@@ -99,12 +98,6 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
     }
     for (const auto& [name, value] : security_properties(options_)) {
       qos.properties().properties().emplace_back(name, value);
-    }
-    if (options_.cpu_policy == "auto") {
-      // Secure discovery (handshakes, key exchange) lost participant pairs in 7 of 8 runs of
-      // the default scenario under SCHED_BATCH against 1 of 6 under normal: the participant's
-      // threads, created now, inherit this thread's policy (which stays normal too).
-      if (const std::string why = set_cpu_policy("normal"); !why.empty()) spdlog::warn("{}", why);
     }
     if (security_race_workaround()) {
       spdlog::debug("DDS Security: Fast DDS 2.9.1's built-in endpoint matching runs under a lock");

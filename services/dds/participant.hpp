@@ -45,9 +45,6 @@ struct DdsOptions {
   // governance.p7s, permissions.p7s and identities/; empty: no security.
   std::string security_dir;
   std::string identity;  // whose certificate: a member id ("vehicle/a") or "coordinator"
-  // The process's --cpu-policy: "auto" starts a secure participant's threads under the normal
-  // policy (docs/deployment.md, "DDS Security").
-  std::string cpu_policy = "auto";
 };
 
 /// The participant properties that turn on DDS Security with `options.identity`'s certificate
