@@ -10,6 +10,9 @@
 #                                   (checked: some were dropped); a Fast DDS discovery server
 #                                   on host 1 (the setup for networks without multicast)
 #   multihost.sh udp                like multicast, with --transport udp
+#   multihost.sh secure             like multicast, with DDS Security: the folder of
+#                                   make_security.sh copied to each host without the CA's key;
+#                                   every process authenticates each of the 5 others
 #   multihost.sh partition          the default scenario (its three vehicles and the sensor
 #                                   process on host 2) cut off the network for 15 s, longer
 #                                   than the 10 s DDS lease: the run aborts naming all four as
@@ -62,9 +65,20 @@ for h in "${HOSTS[@]}"; do
 done
 
 EXTRA=()
+SIM_EXTRA=()
 case "$MODE" in
   multicast) ;;
   udp) EXTRA=(--transport udp) ;;
+  secure)
+    SYNDDS_BUILD_DIR=$(dirname "$BIN") "$ROOT/launch_scripts/make_security.sh" \
+      "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" --output "$WORK/security" > "$WORK/make_security.log"
+    for h in "${HOSTS[@]}"; do
+      cp -r "$WORK/security" "$WORK/$h/security" && rm "$WORK/$h/security/ca.key.pem"
+    done
+    # 20 s simulated (2 by default): a pair that exchanges nothing (the two controllers) has
+    # time to finish its handshake, whose first message is resent a second later when the
+    # peer did not know the sender yet.
+    EXTRA=(--log-level debug --duration 20); SIM_EXTRA=(--duration 20); SECURE_DIRS=1 ;;
   partition) EXTRA=(--realtime --duration 60); export NETNS_PIDNS=1 ;;
   lossy-two-paths)
     sed 's|<nanosec>100000000</nanosec>|<nanosec>1000000</nanosec>|' "$ROOT/config/dds/profiles.xml" \
@@ -83,7 +97,8 @@ esac
 RUN_ID=multihost-$$
 plan() {  # host -> plan lines for that host's copy
   "$BIN/syndds_plan" "$WORK/$1/scenario.yaml" --format launcher --run-id "$RUN_ID" --domain 3 \
-    --config-dir "$WORK/$1/config" --output "$WORK/$1/out" --bin-dir "$BIN" "${EXTRA[@]}"
+    --config-dir "$WORK/$1/config" --output "$WORK/$1/out" --bin-dir "$BIN" "${EXTRA[@]}" \
+    ${SECURE_DIRS:+--security-dir "$WORK/$1/security"}
 }
 host_of() {
   case "$1" in
@@ -130,9 +145,17 @@ if [ $status -ne 0 ] || [ ! -f "$WORK/h1/out/vehicles.csv" ]; then
   echo "multihost ($MODE): a process failed"; tail -n 5 "$WORK"/*.log; exit 1
 fi
 "$BIN/syndds_sim" "$ROOT/tests/multiprocess/scenarios/two_vehicles.yaml" --quiet \
-  --output "$WORK/single" > /dev/null
+  --output "$WORK/single" "${SIM_EXTRA[@]}" > /dev/null
 if ! cmp "$WORK/h1/out/vehicles.csv" "$WORK/single/vehicles.csv"; then
   echo "multihost ($MODE): recorded run differs from the single-process run"; exit 1
+fi
+if [ "$MODE" = secure ]; then
+  for member in coordinator recorder vehicle_a vehicle_b controller_a controller_b; do
+    log=$WORK/$member.log
+    n=$(grep -c "DDS Security: participant .* authenticated$" "$log" || true)
+    [ "$n" -eq 5 ] || { echo "multihost (secure): $(basename "$log") authenticated $n of 5 participants"; exit 1; }
+  done
+  echo "multihost (secure): every process authenticated the 5 others"
 fi
 if [ "$MODE" = discovery-server ]; then
   # The block was real: Fast DDS tried multicast and every packet was dropped.

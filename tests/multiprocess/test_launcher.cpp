@@ -235,8 +235,10 @@ TEST(Launcher, DefaultScenarioRunsWithDdsSecurity) {
                            security.string() + " > " + (run.dir / "make_security.log").string() +
                            " 2>&1";
   ASSERT_EQ(std::system(make.c_str()), 0) << read_file(run.dir / "make_security.log");
+  // 15 s simulated: a pair that exchanges nothing has time to finish its handshake (a first
+  // message sent before the peer knew the sender is resent a second later).
   auto launcher = start_launcher(
-      run, scenario, "--duration 4 --log-level debug --security-dir " + security.string());
+      run, scenario, "--duration 15 --log-level debug --security-dir " + security.string());
   const auto code = launcher->wait(150);
   ASSERT_TRUE(code.has_value()) << launcher->log();
   ASSERT_EQ(*code, 0) << launcher->log();
@@ -250,7 +252,7 @@ TEST(Launcher, DefaultScenarioRunsWithDdsSecurity) {
     EXPECT_EQ(authenticated, 8u) << member;
   }
   EXPECT_EQ(read_file(run.dir / "out" / "vehicles.csv"),
-            single_process_csv(run, scenario, "--duration 4"));
+            single_process_csv(run, scenario, "--duration 15"));
 }
 
 }  // namespace syndds::test
