@@ -74,6 +74,11 @@ std::vector<std::pair<std::string, std::string>> security_properties(const DdsOp
           {"dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC"}};
 }
 
+// Built against a Fast DDS without the race (the other definition: fastdds_security_race.cpp).
+#if !SYNDDS_FASTDDS_SECURITY_RACE_WORKAROUND
+bool security_race_workaround() { return false; }
+#endif
+
 Participant::Participant(const DdsOptions& options) : options_(options) {
   load_profiles(options_.profiles_file);
   if (!options_.discovery_server.empty()) {
@@ -137,10 +142,6 @@ void MatchedReaders::on_publication_matched(fdds::DataWriter*,
   }
   cv_.notify_all();
 }
-
-#if !SYNDDS_FASTDDS_SECURITY_RACE_WORKAROUND
-bool security_race_workaround() { return false; }
-#endif
 
 bool MatchedReaders::wait_for(const GuidPrefix& prefix, double timeout_s) {
   std::unique_lock lock(mutex_);
