@@ -4,7 +4,7 @@
 #
 #   launch_scripts/run_scenario.sh SCENARIO.yaml [--output DIR] [--duration S] [--realtime]
 #       [--single-process] [--processes per_member|per_vehicle|N] [--print-commands]
-#       [--domain D] [--run-id ID] [--transport default|udp] [--discovery-server ADDR:PORT]
+#       [--domain D] [--run-id ID] [--transport default|udp|udp_redundant] [--discovery-server ADDR:PORT]
 #       [--log-level LEVEL] [--security-dir DIR] [--view [--view-port P] [--view-bind ADDR]]
 #   launch_scripts/run_scenario.sh SCENARIO.yaml --resume RUN_DIR [--from-frame K] [options]
 #

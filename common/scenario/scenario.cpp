@@ -72,7 +72,7 @@ DdsConfig parse_dds(const YamlNode& node) {
   MapReader m(node);
   DdsConfig d;
   d.domain_id = static_cast<int>(m.number("domain_id", 0, 0, 232));
-  d.transport = m.choice("transport", "default", {"default", "udp"});
+  d.transport = m.choice("transport", "default", {"default", "udp", "udp_redundant"});
   d.discovery_server = m.get_or<std::string>("discovery_server", "");
   if (!d.discovery_server.empty() &&
       !std::regex_match(d.discovery_server, std::regex(R"([0-9.]+:[0-9]+)"))) {

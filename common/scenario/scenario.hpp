@@ -78,7 +78,9 @@ struct CoordinatorConfig {
 
 struct DdsConfig {
   int domain_id = 0;
-  std::string transport = "default";  // default (shared memory + UDP) | udp
+  // default (shared memory + UDP) | udp | udp_redundant (UDP, every datagram sent to two
+  // ports of its receiver: for lossy networks, docs/deployment.md "Lossy networks")
+  std::string transport = "default";
   std::string discovery_server;       // "ADDR:PORT"; empty: multicast discovery
   // DDS Security (security: {enabled: true, dir: ...}): the folder make_security.sh wrote,
   // relative to the scenario file; empty: off.

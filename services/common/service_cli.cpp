@@ -50,8 +50,10 @@ void add_common_options(CLI::App& app, CommonArgs& a) {
       ->check(CLI::Range(0, 232));
   app.add_option("--duration", a.duration_s, "Simulated seconds (overrides time.end_time_s)");
   app.add_flag("--realtime", a.realtime, "Pace frames to the wall clock (overrides time.realtime)");
-  app.add_option("--transport", a.transport, "DDS transport: default (shared memory + UDP) or udp")
-      ->check(CLI::IsMember({"default", "udp"}));
+  app.add_option("--transport", a.transport,
+                 "DDS transport: default (shared memory + UDP), udp, or udp_redundant (UDP, "
+                 "every datagram sent twice, to two ports of its receiver: lossy networks)")
+      ->check(CLI::IsMember({"default", "udp", "udp_redundant"}));
   app.add_option("--discovery-server", a.discovery_server,
                  "ADDR:PORT of a Fast DDS discovery server (networks without multicast)");
   app.add_option("--config-dir", a.config_dir, "Folder with vehicles/ and dds/")->capture_default_str();
@@ -185,7 +187,7 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
     // reuses them (the restarted process gets the dead one's participant id) is never heard
     // by the others, which still hold the dead port (measured: the rejoin timed out in 1 of 4
     // restarts). Over UDP it is a new address to every peer.
-    o.dds.transport = "udp";
+    if (o.dds.transport == "default") o.dds.transport = "udp";
   }
   if (a.rejoin && s.coordinator.on_member_loss != proto::LossPolicy::recover) {
     throw ConfigError("--rejoin: " + s.file + " does not recover lost members "

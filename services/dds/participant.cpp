@@ -1,7 +1,10 @@
 #include "dds/participant.hpp"
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastrtps/utils/IPLocator.h>
 #include <spdlog/spdlog.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -74,6 +77,58 @@ std::vector<std::pair<std::string, std::string>> security_properties(const DdsOp
           {"dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC"}};
 }
 
+namespace {
+
+// A UDP port no socket of this host holds now (the kernel's choice); Fast DDS binds it shortly
+// after. Another process taking it in between makes the participant's creation fail (named).
+std::uint32_t free_udp_port() {
+  const int s = socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_ANY);
+  socklen_t length = sizeof a;
+  const bool ok = s >= 0 && bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &length) == 0;
+  if (s >= 0) close(s);
+  if (!ok) throw ConfigError("transport udp_redundant: no free UDP port");
+  return ntohs(a.sin_port);
+}
+
+// transport udp_redundant: the participant listens on two unicast ports for discovery traffic
+// and two for data, on every address of the host. Fast DDS sends each datagram to every
+// unicast locator a receiver announces and drops the second copy by its sequence number, so a
+// datagram is lost only when both copies are. Explicit unicast lists replace Fast DDS's
+// default locators, multicast discovery included: the multicast locator is listed again.
+void listen_twice(fdds::DomainParticipantQos& qos) {
+  using eprosima::fastrtps::rtps::IPLocator;
+  using eprosima::fastrtps::rtps::Locator_t;
+  auto& wire = qos.wire_protocol();
+  Locator_t multicast;
+  multicast.kind = LOCATOR_KIND_UDPv4;
+  IPLocator::setIPv4(multicast, 239, 255, 0, 1);
+  multicast.port = 0;  // Fast DDS's well-known discovery port of the domain
+  wire.builtin.metatrafficMulticastLocatorList.clear();
+  wire.builtin.metatrafficMulticastLocatorList.push_back(multicast);
+  wire.builtin.metatrafficUnicastLocatorList.clear();
+  wire.default_unicast_locator_list.clear();
+  for (int copy = 0; copy < 2; ++copy) {
+    Locator_t discovery;  // address 0: every interface
+    discovery.kind = LOCATOR_KIND_UDPv4;
+    discovery.port = free_udp_port();
+    wire.builtin.metatrafficUnicastLocatorList.push_back(discovery);
+    Locator_t data;
+    data.kind = LOCATOR_KIND_UDPv4;
+    data.port = free_udp_port();
+    wire.default_unicast_locator_list.push_back(data);
+  }
+  const auto& m = wire.builtin.metatrafficUnicastLocatorList;
+  const auto& d = wire.default_unicast_locator_list;
+  spdlog::info("DDS: transport udp_redundant: unicast ports {} {} (discovery), {} {} (data)",
+               m.begin()->port, (m.begin() + 1)->port, d.begin()->port, (d.begin() + 1)->port);
+}
+
+}  // namespace
+
 // Built against a Fast DDS without the race (the other definition: fastdds_security_race.cpp).
 #if !SYNDDS_FASTDDS_SECURITY_RACE_WORKAROUND
 bool security_race_workaround() { return false; }
@@ -86,25 +141,33 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
     // (FASTDDS_DISCOVERY_SERVER is not read by 2.9.1).
     setenv("ROS_DISCOVERY_SERVER", options_.discovery_server.c_str(), 1);
   }
+  const bool redundant = options_.transport == "udp_redundant";
+  if (redundant && !options_.discovery_server.empty()) {
+    throw ConfigError("transport udp_redundant works with multicast discovery, not with a "
+                      "discovery server (" + options_.discovery_server + ")");
+  }
   const char* profile =
-      options_.transport == "udp" ? "syndds_participant_udp" : "syndds_participant";
+      options_.transport == "default" ? "syndds_participant" : "syndds_participant_udp";
   auto* factory = fdds::DomainParticipantFactory::get_instance();
-  if (options_.security_dir.empty()) {
+  if (options_.security_dir.empty() && !redundant) {
     participant_ = factory->create_participant_with_profile(
         static_cast<fdds::DomainId_t>(options_.domain_id), profile, this,
         fdds::StatusMask::none());
   } else {
     // The profile's QoS plus the security plugins with this member's identity (set in code:
-    // each process has its own certificate).
+    // each process has its own certificate) and/or the redundant unicast locators.
     fdds::DomainParticipantQos qos;
     if (factory->get_participant_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
       throw ConfigError(std::string("no participant profile ") + profile + " in " +
                         options_.profiles_file);
     }
-    for (const auto& [name, value] : security_properties(options_)) {
-      qos.properties().properties().emplace_back(name, value);
+    if (redundant) listen_twice(qos);
+    if (!options_.security_dir.empty()) {
+      for (const auto& [name, value] : security_properties(options_)) {
+        qos.properties().properties().emplace_back(name, value);
+      }
     }
-    if (security_race_workaround()) {
+    if (!options_.security_dir.empty() && security_race_workaround()) {
       spdlog::debug("DDS Security: Fast DDS 2.9.1's built-in endpoint matching runs under a lock");
     }
     participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(options_.domain_id),

@@ -38,7 +38,7 @@ namespace fdds = eprosima::fastdds::dds;
 struct DdsOptions {
   int domain_id = 0;
   std::string run_id;            // becomes the DDS partition: runs on one domain never mix
-  std::string transport = "default";  // default (shared memory + UDP) | udp
+  std::string transport = "default";  // default (shared memory + UDP) | udp | udp_redundant
   std::string discovery_server;  // "ADDR:PORT" of a Fast DDS discovery server; empty: multicast
   std::string profiles_file;     // QoS profiles XML (config/dds/profiles.xml)
   // DDS Security (launch_scripts/make_security.sh): the folder with ca.cert.pem,

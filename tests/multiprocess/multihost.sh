@@ -25,6 +25,11 @@
 #                                   1 ms, made from config/dds/profiles.xml as docs/deployment.md
 #                                   says): the run completes identical, packets were dropped,
 #                                   and the second path carried traffic.
+#   multihost.sh lossy-redundant    every host drops 10 % of what it sends, one address each;
+#                                   --transport udp_redundant (every datagram sent to two ports
+#                                   of its receiver) and the lossy-network profile: the run
+#                                   completes identical, packets were dropped, and every process
+#                                   listens on two data ports.
 # Needs root (ip netns); exits 77 (skipped) without it.
 set -euo pipefail
 MODE=${1:-multicast}
@@ -46,7 +51,7 @@ trap cleanup EXIT
 
 multicast=on
 case "$MODE" in
-  discovery-server|lossy-two-paths)
+  discovery-server|lossy-two-paths|lossy-redundant)
     command -v nft > /dev/null || { echo "multihost: needs nft (Debian package nftables)"; exit 77; } ;;
 esac
 [ "$MODE" = discovery-server ] && multicast=off
@@ -80,13 +85,14 @@ case "$MODE" in
     # peer did not know the sender yet.
     EXTRA=(--log-level debug --duration 20); SIM_EXTRA=(--duration 20); SECURE_DIRS=1 ;;
   partition) EXTRA=(--realtime --duration 60); export NETNS_PIDNS=1 ;;
-  lossy-two-paths)
+  lossy-two-paths|lossy-redundant)
     sed 's|<nanosec>100000000</nanosec>|<nanosec>1000000</nanosec>|' "$ROOT/config/dds/profiles.xml" \
       > "$WORK/lossy.xml"
     [ "$(grep -c '<nanosec>1000000</nanosec></heartbeatPeriod>' "$WORK/lossy.xml")" -ge 3 ] &&
       [ "$(grep -c '<nanosec>1000000</nanosec></nackSupressionDuration>' "$WORK/lossy.xml")" -ge 3 ] ||
       { echo "multihost: the lossy recipe no longer matches profiles.xml"; exit 1; }
     EXTRA=(--dds-profiles "$WORK/lossy.xml")
+    [ "$MODE" = lossy-redundant ] && EXTRA+=(--transport udp_redundant)
     hosts_loss 10 ;;
   discovery-server)
     on_host h1 "$WORK/discovery.log" fast-discovery-server -i 0 -l "$NET.1" -p 11811
@@ -174,5 +180,15 @@ if [ "$MODE" = lossy-two-paths ]; then
   [ "$dropped" -gt 0 ] || { echo "multihost ($MODE): no packet was dropped: the loss was not exercised"; exit 1; }
   [ "$second" -gt 0 ] || { echo "multihost ($MODE): nothing came by the second path"; exit 1; }
   echo "multihost ($MODE): $dropped packets dropped, $second received on the second addresses"
+fi
+if [ "$MODE" = lossy-redundant ]; then
+  dropped=0
+  for h in "${HOSTS[@]}"; do dropped=$((dropped + $(loss_dropped "$h"))); done
+  [ "$dropped" -gt 0 ] || { echo "multihost ($MODE): no packet was dropped: the loss was not exercised"; exit 1; }
+  for member in coordinator recorder vehicle_a vehicle_b controller_a controller_b; do
+    grep -Eq "transport udp_redundant: unicast ports [0-9]+ [0-9]+ \(discovery\), [0-9]+ [0-9]+ \(data\)" \
+      "$WORK/$member.log" || { echo "multihost ($MODE): $member does not listen on two ports"; exit 1; }
+  done
+  echo "multihost ($MODE): $dropped packets dropped, every process on two ports per kind"
 fi
 echo "multihost ($MODE): 3 hosts, $(($(wc -l < "$WORK/h1/out/vehicles.csv") - 1)) rows, identical to the single-process run"
