@@ -79,7 +79,7 @@ struct CoordinatorConfig {
 struct DdsConfig {
   int domain_id = 0;
   // default (shared memory + UDP) | udp | udp_redundant (UDP, every datagram sent to two
-  // ports of its receiver: for lossy networks, docs/deployment.md "Lossy networks")
+  // ports of its receiver: for lossy networks, docs/deployment.md "Running on several hosts")
   std::string transport = "default";
   std::string discovery_server;       // "ADDR:PORT"; empty: multicast discovery
   // DDS Security (security: {enabled: true, dir: ...}): the folder make_security.sh wrote,
