@@ -5,8 +5,11 @@
 // received a single handshake message of the other.
 //
 //   build/lib/libfastdds_security_trace.so is built with the project (Fast DDS 2.9.0/2.9.1);
-//   SYNDDS_SECURITY_TRACE_DIR=/tmp/trace LD_PRELOAD=$PWD/build/lib/libfastdds_security_trace.so \
+//   from the repository:
+//   mkdir trace && SYNDDS_SECURITY_TRACE_DIR=$PWD/trace \
+//     LD_PRELOAD=$PWD/build/lib/libfastdds_security_trace.so \
 //     launch_scripts/run_scenario.sh SCENARIO --security-dir SEC --log-level debug
+//   (without SYNDDS_SECURITY_TRACE_DIR: the working directory of each process)
 //
 // Participants are named by their GUID prefix as the processes' debug lines print them
 // ("DDS: discovered participant ..."); a process's own prefix is the one all others discovered.
@@ -59,7 +62,7 @@ FILE* trace_file() {  // one per process (not per instantiation of trace())
   static FILE* out = [] {
     const char* dir = std::getenv("SYNDDS_SECURITY_TRACE_DIR");
     const std::string path =
-        std::string(dir ? dir : "/tmp") + "/" + std::to_string(getpid()) + ".log";
+        std::string(dir ? dir : ".") + "/" + std::to_string(getpid()) + ".log";
     return std::fopen(path.c_str(), "w");
   }();
   return out;

@@ -54,22 +54,24 @@ MatchFn library_function(const char* name) {
 std::mutex g_handshake_endpoints;     // SecurityManager::temp_stateless_*_proxy_data_
 std::mutex g_key_exchange_endpoints;  // SecurityManager::temp_volatile_*_proxy_data_
 
+void call_locked(const char* name, std::mutex& mutex, void* self, const void* participant_data) {
+  const MatchFn library = library_function(name);
+  std::lock_guard lock(mutex);
+  library(self, participant_data);
+}
+
 }  // namespace
 
 extern "C" void syndds_match_builtin_endpoints(void* self, const void* participant_data) __asm__(
     SYNDDS_MATCH_BUILTIN);
 extern "C" void syndds_match_builtin_endpoints(void* self, const void* participant_data) {
-  static const MatchFn library = library_function(SYNDDS_MATCH_BUILTIN);
-  std::lock_guard lock(g_handshake_endpoints);
-  library(self, participant_data);
+  call_locked(SYNDDS_MATCH_BUILTIN, g_handshake_endpoints, self, participant_data);
 }
 
 extern "C" void syndds_match_key_exchange_endpoints(void* self, const void* participant_data) __asm__(
     SYNDDS_MATCH_KEY_EXCHANGE);
 extern "C" void syndds_match_key_exchange_endpoints(void* self, const void* participant_data) {
-  static const MatchFn library = library_function(SYNDDS_MATCH_KEY_EXCHANGE);
-  std::lock_guard lock(g_key_exchange_endpoints);
-  library(self, participant_data);
+  call_locked(SYNDDS_MATCH_KEY_EXCHANGE, g_key_exchange_endpoints, self, participant_data);
 }
 
 namespace syndds::dds {
