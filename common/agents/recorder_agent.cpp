@@ -9,6 +9,7 @@
 
 #include "agents/scm_messages.hpp"
 #include "core/error.hpp"
+#include "protocol/admission.hpp"
 #include "protocol/vertex_codec.hpp"
 #include "scm/scm_images.hpp"
 #include "viewer/scene.hpp"
@@ -286,6 +287,16 @@ void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
       events_->row(ctx.frame, ctx.sim_time_s, "member_lost",
                    v == vehicle_of_member_.end() ? std::string() : v->second, member);
     }
+    for (const auto& entry : ctx.intrusions) {
+      Intrusion i;
+      i.frame = ctx.frame;
+      if (!proto::split_member_entry(entry, i.member, i.participant, &i.what)) continue;
+      const auto v = vehicle_of_member_.find(i.member);
+      events_->row(ctx.frame, ctx.sim_time_s, "intrusion",
+                   v == vehicle_of_member_.end() ? std::string() : v->second,
+                   "participant " + i.participant + " as " + i.member + ": " + i.what);
+      intrusions_.push_back(std::move(i));
+    }
     commit();
     if (seconds_since(summary_written_) >= kSummaryPeriodS) write_summary(nullptr);
   });
@@ -558,6 +569,14 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
     losses.push_back({{"member", l.member}, {"frame", l.frame}, {"time_s", l.time_s}});
   }
   j["losses"] = losses;
+  json intrusions = json::array();
+  for (const auto& i : intrusions_) {
+    intrusions.push_back({{"member", i.member},
+                          {"participant", i.participant},
+                          {"what", i.what},
+                          {"frame", i.frame}});
+  }
+  j["intrusions"] = intrusions;
   if (!failure_.empty()) j["recorder_error"] = failure_;
   json vehicles = json::array();
   for (const auto& id : vehicle_ids_) {
@@ -602,12 +621,26 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
       text += fmt::format("  lost: {} in frame {} (t = {:.2f} s); the run went on without it\n",
                           l.member, l.frame, l.time_s);
     }
+    for (const auto& i : intrusions_) {
+      text += fmt::format("  intrusion (frame {}): participant {} as {}: {}\n", i.frame,
+                          i.participant, i.member, i.what);
+    }
     text += fmt::format("  {:<12} {:>12} {:>15} {:>14} {:>11}\n", "vehicle", "distance_m",
                         "mean_speed_mps", "max_speed_mps", "collisions");
     for (const auto& id : vehicle_ids_) {
       const VehicleTotals& t = totals_.at(id);
       text += fmt::format("  {:<12} {:>12.1f} {:>15.2f} {:>14.2f} {:>11}\n", id, t.distance_m,
                           t.mean_speed_mps(), t.max_speed_mps, t.collisions);
+    }
+    // Vehicle events by kind (command_rejected, leader_lost, ...): details in events.csv.
+    for (const auto& id : vehicle_ids_) {
+      const VehicleTotals& t = totals_.at(id);
+      if (t.events.empty()) continue;
+      std::string kinds;
+      for (const auto& [kind, count] : t.events) {
+        kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ", kind, count);
+      }
+      text += fmt::format("  {} events: {} (events.csv)\n", id, kinds);
     }
     if (!st.members.empty() && options_.mode == "distributed") {
       text += fmt::format("  {:<22} {:>16} {:>15} {:>13}\n", "member", "mean_response_ms",

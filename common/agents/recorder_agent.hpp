@@ -62,6 +62,16 @@ struct MemberLoss {
   double time_s = 0.0;
 };
 
+/// A participant the coordinator refused as a member (docs/protocol.md, "Admission"): a second
+/// copy of a member, or anybody writing in a member's name. Not part of the checkpointed state:
+/// it happened in wall time, not in the simulation, and survives a rollback.
+struct Intrusion {
+  std::string member;
+  std::string participant;
+  std::string what;
+  std::int64_t frame = 0;  // the frame whose grant carried it
+};
+
 class RecorderAgent final : public proto::Agent {
  public:
   RecorderAgent(const scenario::Scenario& scenario, RecorderOptions options);
@@ -97,6 +107,7 @@ class RecorderAgent final : public proto::Agent {
   /// The last frame whose samples are completely on disk (-1: none yet).
   std::int64_t last_recorded_frame() const { return last_frame_; }
   const std::vector<MemberLoss>& losses() const { return losses_; }
+  const std::vector<Intrusion>& intrusions() const { return intrusions_; }
 
  private:
   void record(const proto::FrameSamples& samples, std::int64_t frame);
@@ -150,6 +161,7 @@ class RecorderAgent final : public proto::Agent {
   std::int64_t last_frame_ = -1;     // on disk, complete
   std::int64_t pending_frame_ = -1;  // gathered, not yet committed
   std::vector<MemberLoss> losses_;
+  std::vector<Intrusion> intrusions_;
   std::string failure_;  // the write error that stopped the recorder
   std::unique_ptr<SpaceReserve> reserve_;  // room for the final summary on a full disk
   std::chrono::steady_clock::time_point started_;

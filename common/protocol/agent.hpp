@@ -64,6 +64,8 @@ struct FrameContext {
   double heartbeat_s = 0.0;
   std::vector<std::string> joiners;  // members joining from frame + 1 on (need a snapshot)
   std::vector<std::string> departed;  // members lost (on_member_loss: continue) since the last frame
+  std::vector<std::string> intrusions;  // "MEMBER PARTICIPANT what" the coordinator refused
+                                        // since the last frame (docs/protocol.md, "Admission")
 };
 
 /// How a run ended, as told to every agent.

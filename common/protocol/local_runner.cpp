@@ -76,8 +76,8 @@ void FrameStepper::step() {
   if (finished_) throw ProtocolError("FrameStepper::step after the run ended");
   const std::int64_t frame = completed_ + 1;
   if (frame == 0 || !resumed_inputs_.empty()) t0_ = Clock::now();
-  // Nobody joins late or departs here: every agent lives (and fails) with this process.
-  FrameContext ctx{frame, static_cast<double>(frame) * heartbeat_s_, heartbeat_s_, {}, {}};
+  // Nobody joins late, departs or intrudes here: every agent lives (and fails) with this process.
+  FrameContext ctx{frame, static_cast<double>(frame) * heartbeat_s_, heartbeat_s_, {}, {}, {}};
   FrameSamples current;
   for (std::size_t i = 0; i < agents_.size(); ++i) {
     const auto step_t0 = Clock::now();

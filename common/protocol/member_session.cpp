@@ -1,5 +1,7 @@
 #include "protocol/member_session.hpp"
 
+#include "protocol/admission.hpp"
+
 #include <algorithm>
 #include <sstream>
 
@@ -23,7 +25,11 @@ std::string MemberSession::on_coordinator(const MemberAnnounceMsg& a, double now
     coordinator_ = a;
     return "";
   }
-  if (coordinator_->participant_guid == a.participant_guid) return "";  // repeated
+  if (coordinator_->participant_guid == a.participant_guid) {
+    // The same coordinator again: its newest word on who is admitted (one writer: in order).
+    coordinator_ = a;
+    return "";
+  }
   const std::string why = "a second coordinator (pid " + std::to_string(a.pid) + " on " + a.host +
                           ") announced run '" + a.run_id + "'";
   on_failure(why, now_s);
@@ -133,6 +139,24 @@ std::string MemberSession::check_coordinator() const {
   return "";
 }
 
+bool MemberSession::confirmed() const {
+  if (config_.participant_guid.empty()) return true;  // no DDS identity (tests of other rules)
+  const std::string mine = config_.member_id + " " + config_.participant_guid;
+  const auto& a = coordinator_->admitted;
+  return std::find(a.begin(), a.end(), mine) != a.end();
+}
+
+std::string MemberSession::refusal() const {
+  for (const auto& entry : coordinator_->refused) {
+    std::string member, participant, why;
+    if (!split_member_entry(entry, member, participant, &why)) continue;
+    if (member == config_.member_id && participant == config_.participant_guid) {
+      return "refused by the coordinator as " + member + ": " + why;
+    }
+  }
+  return "";
+}
+
 double MemberSession::gather_deadline() const {
   double deadline = control_s_ + config_.final_timeout_s;
   if (interrupted_s_) {
@@ -218,6 +242,19 @@ MemberSession::Action MemberSession::poll(double now_s) {
                 Outcome::failed, now_s);
   }
 
+  // Admission: grants are acted on only once the coordinator names this participant as this
+  // member; a claimant it refused ends (another participant is this member).
+  if (!owner_confirmed_) {
+    if (const std::string why = refusal(); !why.empty()) {
+      RunControlMsg c;
+      c.status = RunStatus::aborted;
+      c.reason = why;
+      return finish(std::move(c), Outcome::refused, now_s);
+    }
+    if (!confirmed()) return wait_until(now_s + config_.input_timeout_s);
+    owner_confirmed_ = true;
+  }
+
   // A rollback (on_member_loss: recover) voids every grant before it: whatever this member
   // was waiting for in the old epoch will not come, or comes again identical.
   for (auto it = grants_.rbegin(); it != grants_.rend(); ++it) {
@@ -285,7 +322,7 @@ MemberSession::Action MemberSession::poll(double now_s) {
       Action a;
       a.kind = Action::Kind::step;
       a.context = FrameContext{front.frame, front.sim_time_s, config_.heartbeat_s, front.joiners,
-                               front.departed};
+                               front.departed, front.intrusions};
       a.inputs = std::move(*resumed_inputs_);
       resumed_inputs_.reset();
       grants_.pop_front();
@@ -311,7 +348,7 @@ MemberSession::Action MemberSession::poll(double now_s) {
     Action a;
     a.kind = Action::Kind::step;
     a.context = FrameContext{front.frame, front.sim_time_s, config_.heartbeat_s, front.joiners,
-                             front.departed};
+                             front.departed, front.intrusions};
     a.inputs = inbox_.take(input_frame, front.manifest);
     grants_.pop_front();
     waiting_frame_ = -1;

@@ -32,13 +32,21 @@ struct MemberSessionConfig {
   std::int64_t resume_frame = -1; // >= 0: resumed from the checkpoint of this frame (resume())
   bool rejoin = false;            // restarted after it was lost (on_member_loss: recover): takes
                                   // part from the rollback grant that names it
+  std::string participant_guid;   // this member's DDS participant: it acts on grants only once
+                                  // the coordinator admitted it ("" in tests: no admission step)
 };
 
 class MemberSession {
  public:
   enum class Phase { joining, running, finishing, ended };
   /// How this member's run ended (the runtime maps it onto the documented exit codes).
-  enum class Outcome { completed, aborted, failed, interrupted };
+  enum class Outcome {
+    completed,
+    aborted,
+    failed,
+    interrupted,
+    refused,  // the coordinator refused this participant as this member (another one is it)
+  };
 
   struct Action {
     enum class Kind { wait, joined, rollback, step, finish };
@@ -112,6 +120,10 @@ class MemberSession {
   double gather_deadline() const;
   /// Why the announced coordinator cannot be followed ("" when it can).
   std::string check_coordinator() const;
+  /// The coordinator admitted this participant as this member.
+  bool confirmed() const;
+  /// Why the coordinator refused this participant as this member ("" when it did not).
+  std::string refusal() const;
 
   MemberSessionConfig config_;
   FrameInbox inbox_;
@@ -125,6 +137,7 @@ class MemberSession {
   bool coordinator_lost_ = false;
   std::string failure_;
   bool admitted_ = false;              // takes part in the barrier (late joiners: once named)
+  bool owner_confirmed_ = false;       // the coordinator named this participant as the member
   bool stepping_ = false;              // a step was handed out and has not ended yet
   std::int64_t next_frame_ = 0;
   std::optional<FrameSamples> resumed_inputs_;  // for the first frame after resume()

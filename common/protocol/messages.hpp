@@ -28,7 +28,7 @@
 
 namespace syndds::proto {
 
-inline constexpr std::int32_t kProtocolVersion = 3;
+inline constexpr std::int32_t kProtocolVersion = 4;
 /// A scenario fingerprint as every log shows it (16 hex digits).
 inline std::string fingerprint_hex(std::uint64_t f) {
   return hex64(f);
@@ -332,9 +332,15 @@ struct MemberAnnounceMsg {
   std::int32_t protocol_version = kProtocolVersion;
   std::uint64_t config_fingerprint = 0;
   std::vector<std::string> expected_members;  // filled by the coordinator only
+  // The coordinator's word on who is which member (docs/protocol.md, "Admission"):
+  std::vector<std::string> admitted;  // "MEMBER PARTICIPANT_GUID"
+  std::vector<std::string> refused;   // "MEMBER PARTICIPANT_GUID why"
+  double join_timeout_s = 0.0;        // the coordinator's deadlines, for external members
+  double frame_timeout_s = 0.0;
 };
 SYNDDS_FIELDS(MemberAnnounceMsg, member_id, kind, run_id, participant_guid, host, pid,
-              process_key, protocol_version, config_fingerprint, expected_members)
+              process_key, protocol_version, config_fingerprint, expected_members, admitted,
+              refused, join_timeout_s, frame_timeout_s)
 
 struct FrameGrantMsg {
   std::int64_t frame = 0;
@@ -347,9 +353,11 @@ struct FrameGrantMsg {
                             // stepping it) and reports it done; frame + 1 is granted next
   std::vector<std::string> rejoined;  // with rollback: "MEMBER PARTICIPANT_GUID" of each member
                                       // restarted since (its new participant)
+  std::vector<std::string> intrusions;  // "MEMBER PARTICIPANT_GUID what": samples and claims the
+                                        // coordinator refused since the previous grant
 };
 SYNDDS_FIELDS(FrameGrantMsg, frame, sim_time_s, manifest, joiners, departed, epoch, rollback,
-              rejoined)
+              rejoined, intrusions)
 
 struct FrameDoneMsg {
   std::string member_id;

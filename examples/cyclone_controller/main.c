@@ -6,7 +6,8 @@
  *
  * Exit status (as every syndds program): 0 run completed, 1 bad command line or DDS
  * configuration, 2 run aborted, 3 this process failed (coordinator lost, no coordinator,
- * inputs missing, protocol error), 130 interrupted.
+ * inputs missing, protocol error), 4 refused (another participant is this member),
+ * 130 interrupted.
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -32,10 +33,11 @@ enum {
   EXIT_BAD_CONFIG = 1,
   EXIT_ABORTED = 2,
   EXIT_FAILED = 3,
+  EXIT_REFUSED = 4,
   EXIT_INTERRUPTED = 130
 };
 
-enum { PROTOCOL_VERSION = 3, WRITER_DEPTH = 8, READER_DEPTH = 64 };
+enum { PROTOCOL_VERSION = 4, WRITER_DEPTH = 8, READER_DEPTH = 64 };
 
 /* Participant liveliness: the coordinator notices this process's death after the lease. */
 #define LEASE_DURATION "2s"
@@ -95,12 +97,12 @@ static void usage(FILE* out) {
           "                        choice. CYCLONEDDS_URI, if set, is applied on top.\n"
           "  --join-timeout S      give up without a coordinator after S s (default 35)\n"
           "  --input-timeout S     give up when a granted frame's vehicle state is missing\n"
-          "                        after S s (default 7.5)\n"
+          "                        after S s (default: 3/4 of the coordinator's frame deadline)\n"
           "  --quiet               log only errors\n"
           "  -h, --help            this text\n"
           "\n"
           "Exit status: 0 completed, 1 bad command line, 2 run aborted, 3 this process\n"
-          "failed, 130 interrupted.\n");
+          "failed, 4 refused (another participant is this member), 130 interrupted.\n");
 }
 
 static int bad_option(const char* option, const char* fmt, ...) {
@@ -143,7 +145,7 @@ static int parse_options(int argc, char** argv, options* o) {
   memset(o, 0, sizeof *o);
   o->domain = -1;
   o->join_timeout_s = 35.0;
-  o->input_timeout_s = 7.5;
+  o->input_timeout_s = 0.0; /* 0: 3/4 of the coordinator's frame_timeout_s */
   o->control = pursuit_default_config();
   bool have_path = false;
   double max_steer_deg = 30.23;
@@ -285,7 +287,16 @@ typedef struct controller {
   int32_t coordinator_pid;
   int32_t coordinator_protocol;
   uint64_t coordinator_fingerprint;
+  double coordinator_frame_timeout_s;
   bool expects_us;
+  /* Admission: the coordinator names this participant as the member (admitted) or not. */
+  bool admitted;
+  bool refused;
+  char refusal[1024];
+  /* The coordinator's process when it runs on this machine ("" otherwise): watched directly,
+   * so that its exit is seen within a poll interval instead of a DDS lease. */
+  int coordinator_watch_pid;
+  unsigned long long coordinator_watch_start;
   char lost_guids[MAX_LOST][64]; /* participants gone before the coordinator was known */
   size_t lost_count;
 
@@ -536,6 +547,77 @@ static bool guid_is_lost(const controller* c, const char* guid) {
   return false;
 }
 
+/* Admission: the coordinator lists "MEMBER PARTICIPANT" of each admitted member and
+ * "MEMBER PARTICIPANT why" of each refused claimant. */
+static bool entry_is_us(const controller* c, const char* entry, const char** rest) {
+  const size_t m = strlen(c->member_id), g = strlen(c->own_guid);
+  if (!entry || strncmp(entry, c->member_id, m) != 0 || entry[m] != ' ') return false;
+  if (strncmp(entry + m + 1, c->own_guid, g) != 0) return false;
+  const char end = entry[m + 1 + g];
+  if (end != '\0' && end != ' ') return false;
+  if (rest) *rest = end == ' ' ? entry + m + 2 + g : "";
+  return true;
+}
+
+static void note_admission(controller* c, const syndds_msg_MemberAnnounce* a) {
+  for (uint32_t i = 0; i < a->admitted._length; ++i) {
+    if (entry_is_us(c, a->admitted._buffer[i], NULL)) c->admitted = true;
+  }
+  for (uint32_t i = 0; i < a->refused._length; ++i) {
+    const char* why = NULL;
+    if (entry_is_us(c, a->refused._buffer[i], &why) && !c->refused) {
+      c->refused = true;
+      snprintf(c->refusal, sizeof c->refusal, "%s", why);
+    }
+  }
+}
+
+/* The start time (field 22 of /proc/PID/stat) of process `pid`; 0 when it does not exist or
+ * has ended (a zombie, state Z or X, waiting for its parent). */
+static unsigned long long process_start(int pid) {
+  char path[64], stat[1024] = "";
+  snprintf(path, sizeof path, "/proc/%d/stat", pid);
+  FILE* f = fopen(path, "r");
+  if (!f) return 0;
+  const bool got = fgets(stat, sizeof stat, f) != NULL;
+  fclose(f);
+  if (!got) return 0;
+  const char* p = strrchr(stat, ')'); /* the command name may hold spaces */
+  if (!p || p[1] != ' ' || p[2] == 'Z' || p[2] == 'X') return 0;
+  for (int field = 2; field < 22 && p; ++field) p = strchr(p + 1, ' ');
+  unsigned long long start = 0;
+  if (!p || sscanf(p + 1, "%llu", &start) != 1) return 0;
+  return start;
+}
+
+/* Watches the coordinator's process when its process_key ("BOOT_ID/PID/START") names this
+ * machine's boot: it is lost when that process is gone, whatever its DDS lease says. */
+static void watch_coordinator(controller* c, const char* key) {
+  char boot[64] = "";
+  FILE* f = fopen("/proc/sys/kernel/random/boot_id", "r");
+  if (!f) return;
+  const bool got = fgets(boot, sizeof boot, f) != NULL;
+  fclose(f);
+  if (!got) return;
+  boot[strcspn(boot, "\n")] = '\0';
+  const size_t n = strlen(boot);
+  int pid = 0;
+  unsigned long long start = 0;
+  if (n == 0 || strncmp(key, boot, n) != 0 || key[n] != '/' ||
+      sscanf(key + n + 1, "%d/%llu", &pid, &start) != 2 || pid <= 0) {
+    return; /* another machine (or no key): the DDS lease tells */
+  }
+  c->coordinator_watch_pid = pid;
+  c->coordinator_watch_start = start;
+}
+
+static void check_coordinator_process(controller* c) {
+  if (c->coordinator_watch_pid <= 0 || c->coordinator_lost) return;
+  if (process_start(c->coordinator_watch_pid) != c->coordinator_watch_start) {
+    c->coordinator_lost = true;
+  }
+}
+
 static void on_announce(controller* c, const void* sample, const dds_sample_info_t* info) {
   const syndds_msg_MemberAnnounce* a = sample;
   if (!info->valid_data || a->kind != syndds_msg_MEMBER_COORDINATOR) return;
@@ -544,7 +626,9 @@ static void on_announce(controller* c, const void* sample, const dds_sample_info
     if (strcmp(c->coordinator_guid, guid) != 0) {
       fail(c, "a second coordinator (pid %" PRId32 " on %s) announced run '%s'", a->pid,
            a->host ? a->host : "?", c->opt.run_id);
+      return;
     }
+    note_admission(c, a); /* its newest word on who is which member */
     return;
   }
   if (strlen(guid) >= sizeof c->coordinator_guid) {
@@ -563,6 +647,9 @@ static void on_announce(controller* c, const void* sample, const dds_sample_info
     if (m && strcmp(m, c->member_id) == 0) c->expects_us = true;
   }
   if (guid_is_lost(c, guid)) c->coordinator_lost = true;
+  c->coordinator_frame_timeout_s = a->frame_timeout_s;
+  watch_coordinator(c, a->process_key ? a->process_key : "");
+  note_admission(c, a);
 }
 
 static void on_participant(controller* c, const void* sample, const dds_sample_info_t* info) {
@@ -619,8 +706,13 @@ static void on_grant(controller* c, const void* sample, const dds_sample_info_t*
   /* Grants of frames already done (replayed by TRANSIENT_LOCAL, or repeated) are ignored. */
   if (g->frame < c->next_frame) return;
   if (c->grant_count == MAX_PENDING_GRANTS) {
-    fail(c, "protocol error: more than %d grants pending", MAX_PENDING_GRANTS);
-    return;
+    if (c->admitted) {
+      fail(c, "protocol error: more than %d grants pending", MAX_PENDING_GRANTS);
+      return;
+    }
+    /* Not admitted yet: a run under way replays its last grants; only the newest matter. */
+    c->grant_head = (c->grant_head + 1) % MAX_PENDING_GRANTS;
+    --c->grant_count;
   }
   pending_grant* p = &c->grants[(c->grant_head + c->grant_count) % MAX_PENDING_GRANTS];
   memset(p, 0, sizeof *p);
@@ -798,6 +890,13 @@ static void run_frame(controller* c, const pending_grant* g) {
   }
 }
 
+/* --input-timeout, else 3/4 of the coordinator's frame deadline (so that this member names
+ * the missing input before the coordinator names this member). */
+static double input_timeout(const controller* c) {
+  if (c->opt.input_timeout_s > 0.0) return c->opt.input_timeout_s;
+  return c->coordinator_frame_timeout_s > 0.0 ? 0.75 * c->coordinator_frame_timeout_s : 7.5;
+}
+
 /* Runs every pending grant whose inputs are complete; notes a deadline for the first that is
  * not. */
 static void pump(controller* c) {
@@ -818,9 +917,9 @@ static void pump(controller* c) {
       if (c->waiting_frame != g->frame) {
         c->waiting_frame = g->frame;
         c->waiting_since = now_s();
-      } else if (now_s() - c->waiting_since > c->opt.input_timeout_s) {
+      } else if (now_s() - c->waiting_since > input_timeout(c)) {
         fail(c, "frame %" PRId64 ": announced inputs missing after %g s: %s", g->frame,
-             c->opt.input_timeout_s, missing);
+             input_timeout(c), missing);
       }
       return;
     }
@@ -881,7 +980,7 @@ static int finish(controller* c) {
 /* This process gives up: tell the coordinator why (the run's reason names it), then go. */
 static int give_up(controller* c, int code) {
   log_error(c, "%s", c->failure);
-  if (c->joined && c->done_writer > 0 && !c->coordinator_lost) {
+  if (c->admitted && c->done_writer > 0 && !c->coordinator_lost) {
     if (send_done(c, c->next_frame, false, 0.0, false, c->failure)) {
       dds_wait_for_acks(c->done_writer, DDS_SECS(1));
     }
@@ -926,12 +1025,20 @@ static int run(controller* c) {
                c->opt.run_id, c->coordinator_pid, c->coordinator_host,
                c->coordinator_fingerprint);
     }
+    check_coordinator_process(c);
+    /* Admission: grants count only once the coordinator named this participant as the
+     * member; a refused claimant (another participant is this member) ends, telling nobody. */
+    if (c->refused) {
+      log_error(c, "refused by the coordinator as %s: %s", c->member_id, c->refusal);
+      return EXIT_REFUSED;
+    }
     /* The end of the run before the coordinator's departure: it leaves right after it. */
-    if (c->control_received) return finish(c);
+    if (c->admitted && c->control_received) return finish(c);
     if (c->coordinator_lost) {
       fail(c, "the coordinator was lost (its process exited or stopped answering)");
       return give_up(c, EXIT_FAILED);
     }
+    if (!c->admitted) continue;
     pump(c);
     if (c->failure[0]) return give_up(c, EXIT_FAILED);
   }

@@ -53,24 +53,8 @@ void CoordinatorService::setup() {
       participant_->make_writer<msg::RunControl>(topics::kRunControl, profiles::kProtocolWriter);
   announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
                                                                     profiles::kProtocolWriter);
-  announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
-      topics::kMemberAnnounce, profiles::kProtocolReader, [this](msg::MemberAnnounce&& m) {
-        if (m.kind() == msg::MEMBER_COORDINATOR) return;
-        try {
-          on_join(from_dds(m));
-        } catch (const std::exception& e) {
-          malformed("member_announce from " + m.member_id(), e.what());
-        }
-      });
-  done_reader_ = participant_->make_reader<msg::FrameDone>(
-      topics::kFrameDone, profiles::kProtocolReader, [this](msg::FrameDone&& m) {
-        try {
-          on_done(from_dds(m));
-        } catch (const std::exception& e) {
-          malformed("frame_done from " + m.member_id(), e.what());
-        }
-      });
-  proto::MemberAnnounceMsg a;
+  // The announcement's fixed part, before a reader's callback may announce it again.
+  proto::MemberAnnounceMsg& a = announcement_;
   a.member_id = "coordinator";
   a.kind = proto::MemberKind::coordinator;
   a.run_id = options_.dds.run_id;
@@ -82,7 +66,49 @@ void CoordinatorService::setup() {
   a.expected_members = options_.barrier.members;
   a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
                             options_.barrier.late_members.end());
-  announce_writer_->write(to_dds(a));
+  a.join_timeout_s = options_.barrier.join_timeout_s;
+  a.frame_timeout_s = options_.barrier.frame_timeout_s;
+  announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
+      topics::kMemberAnnounce, profiles::kProtocolReader,
+      [this](msg::MemberAnnounce&& m, const fdds::SampleInfo& info) {
+        if (m.kind() == msg::MEMBER_COORDINATOR) return;
+        try {
+          on_join(from_dds(m), to_string(writer_prefix(info)));
+        } catch (const std::exception& e) {
+          malformed("member_announce from " + m.member_id(), e.what());
+        }
+      });
+  done_reader_ = participant_->make_reader<msg::FrameDone>(
+      topics::kFrameDone, profiles::kProtocolReader,
+      [this](msg::FrameDone&& m, const fdds::SampleInfo& info) {
+        try {
+          on_done(from_dds(m), to_string(writer_prefix(info)));
+        } catch (const std::exception& e) {
+          malformed("frame_done from " + m.member_id(), e.what());
+        }
+      });
+  std::lock_guard lock(mutex_);
+  announce_locked();
+}
+
+// The announcement with the admission's current lists: written at the start and whenever who is
+// which member changed (a claimant waits for its name in `admitted` or `refused`).
+void CoordinatorService::announce_locked() {
+  announcement_.admitted = admission_.admitted_list();
+  announcement_.refused = admission_.refused_list();
+  if (!announce_writer_->write(to_dds(announcement_))) {
+    barrier_->on_interrupt("DDS refused a member_announce sample", now());
+  }
+}
+
+// Intrusions are logged when seen and carried to the members (the recorder) by the next grant.
+void CoordinatorService::note_intrusions_locked() {
+  for (auto& i : admission_.take_intrusions()) {
+    spdlog::warn("coordinator: intrusion: participant {} {} as {}", i.participant, i.what,
+                 i.member);
+    intrusions_.push_back(i.member + " " + i.participant + " " + i.what);
+  }
+  if (admission_.take_changed()) announce_locked();
 }
 
 // A malformed protocol message aborts the run naming it (ignoring it would end in a deadline
@@ -93,15 +119,24 @@ void CoordinatorService::malformed(const std::string& what, const std::string& e
   advance_locked();
 }
 
-void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a) {
+void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a, const std::string& writer) {
   std::lock_guard lock(mutex_);
+  if (a.participant_guid != writer) {
+    // Only a participant may say who it is: an announcement naming another one is forged.
+    admission_.refuse(a.member_id, writer,
+                      "its announcement names participant " + a.participant_guid);
+    note_intrusions_locked();
+    return;
+  }
   join_locked(a);
 }
 
 void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
   if (!barrier_->is_member(a.member_id)) {
-    spdlog::warn("coordinator: ignoring {} (pid {} on {}): not a member of this scenario",
+    spdlog::warn("coordinator: refusing {} (pid {} on {}): not a member of this scenario",
                  a.member_id, a.pid, a.host);
+    admission_.refuse(a.member_id, a.participant_guid, "not a member of this scenario");
+    note_intrusions_locked();
     return;
   }
   std::string mismatch;
@@ -116,19 +151,32 @@ void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
   if (!mismatch.empty()) {
     // A member the start waits for aborts the run; a late one is refused and the run goes on.
     const std::string refused = barrier_->on_config_mismatch(a.member_id, mismatch, now());
-    if (!refused.empty()) spdlog::error("coordinator: {}", refused);
+    if (!refused.empty()) {
+      spdlog::error("coordinator: {}", refused);
+      admission_.refuse(a.member_id, a.participant_guid, mismatch);
+      note_intrusions_locked();
+    }
   } else {
     const auto rejoining = barrier_->rejoining_members();
     const bool rejoin =
         std::find(rejoining.begin(), rejoining.end(), a.member_id) != rejoining.end();
     const auto known = guid_of_member_.find(a.member_id);
-    if (known != guid_of_member_.end() && known->second != a.participant_guid && !rejoin) {
-      // Another participant under a name already taken (its samples are refused by the
-      // members): not a restart the run waits for.
-      spdlog::warn("coordinator: ignoring {} announced by participant {} (pid {} on {}): "
-                   "participant {} is that member", a.member_id, a.participant_guid, a.pid,
-                   a.host, known->second);
-      held_announcements_[a.member_id] = a;  // a restart seen before its old process's exit?
+    const auto claim = admission_.on_claim(a.member_id, a.participant_guid, rejoin, now());
+    if (claim == proto::Admission::Claim::held) {
+      // Another participant under a name already taken: a restart seen before its old
+      // process's exit (taken once the loss is seen), or else refused when the hold ends.
+      if (!held_announcements_.contains(a.member_id) ||
+          held_announcements_[a.member_id].participant_guid != a.participant_guid) {
+        spdlog::warn("coordinator: holding {} announced by participant {} (pid {} on {}): "
+                     "participant {} is that member", a.member_id, a.participant_guid, a.pid,
+                     a.host, known == guid_of_member_.end() ? "?" : known->second);
+      }
+      held_announcements_[a.member_id] = a;
+      advance_locked();
+      return;
+    }
+    if (claim == proto::Admission::Claim::refused) {
+      note_intrusions_locked();
       advance_locked();
       return;
     }
@@ -151,6 +199,7 @@ void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
     }
     const std::string warning = barrier_->on_join(a.member_id, now());
     if (!warning.empty()) spdlog::warn("coordinator: {}", warning);
+    note_intrusions_locked();
   }
   advance_locked();
 }
@@ -170,8 +219,15 @@ void CoordinatorService::on_process_exit(const std::string& guid) {
   advance_locked();
 }
 
-void CoordinatorService::on_done(const proto::FrameDoneMsg& d) {
+void CoordinatorService::on_done(const proto::FrameDoneMsg& d, const std::string& writer) {
   std::lock_guard lock(mutex_);
+  // A done counts only from the participant admitted as its member: a second copy of a member
+  // (or anybody writing in its name) cannot finish, fail or abort anything.
+  if (!admission_.accept(d.member_id, writer, "frame_done")) {
+    note_intrusions_locked();
+    advance_locked();
+    return;
+  }
   const std::string warning = barrier_->on_done(d, now());
   if (!warning.empty()) spdlog::warn("coordinator: {}", warning);
   advance_locked();
@@ -180,6 +236,7 @@ void CoordinatorService::on_done(const proto::FrameDoneMsg& d) {
 void CoordinatorService::on_lost(const std::string& guid, bool graceful) {
   std::lock_guard lock(mutex_);
   std::erase_if(held_announcements_, [&](const auto& h) { return h.second.participant_guid == guid; });
+  admission_.forget(guid);
   auto it = members_of_guid_.find(guid);
   if (it == members_of_guid_.end()) return;
   if (!graceful) {
@@ -243,6 +300,8 @@ void CoordinatorService::replay_held_locked() {
     if (held == held_announcements_.end()) continue;
     const proto::MemberAnnounceMsg a = held->second;
     held_announcements_.erase(held);
+    const auto still = admission_.held(member);
+    if (std::find(still.begin(), still.end(), a.participant_guid) == still.end()) continue;
     spdlog::info("coordinator: {} had announced itself again before its loss was seen (pid {} "
                  "on {}): taking that announcement", member, a.pid, a.host);
     join_locked(a);
@@ -297,6 +356,8 @@ void CoordinatorService::advance_locked() {
         note_recovery_locked(action.grant);
         for (auto& member : action.grant.rejoined) member += " " + guid_of_member_[member];
       }
+      action.grant.intrusions = std::move(intrusions_);
+      intrusions_.clear();
       for (const auto& j : action.grant.joiners) {
         spdlog::info("coordinator: {} joins the run at frame {}", j, action.grant.frame + 1);
       }
@@ -335,6 +396,8 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   t0_ = Clock::now();
   progress_every_ = std::max<std::int64_t>(1, options_.barrier.final_frame / 10);
   barrier_.emplace(options_.barrier, now());
+  admission_ = proto::Admission(
+      {options_.barrier.on_member_loss == proto::LossPolicy::recover, options_.claim_hold_s});
   spdlog::info("coordinator: run '{}' on domain {}, waiting for {} members", options_.dds.run_id,
                options_.dds.domain_id, options_.barrier.members.size());
   setup();
@@ -344,12 +407,14 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   advance_locked();
   while (!end_) {
     // Deadlines, real-time pacing and signals; everything else happens in the DDS callbacks.
-    const double wake = std::min(next_wake_s_, now() + 0.05);
+    const double wake = std::min({next_wake_s_, admission_.next_deadline_s(), now() + 0.05});
     cv_.wait_for(lock, std::chrono::duration<double>(std::max(0.0, wake - now())));
     if (interrupt.load() && !interrupted) {
       interrupted = true;
       barrier_->on_interrupt("interrupted (signal to the coordinator)", now());
     }
+    admission_.poll(now());  // claims held past their time are refused
+    note_intrusions_locked();
     advance_locked();
   }
 

@@ -13,6 +13,7 @@
 
 #include "core/process_watch.hpp"
 #include "dds/participant.hpp"
+#include "protocol/admission.hpp"
 #include "protocol/barrier.hpp"
 
 namespace syndds::dds {
@@ -32,6 +33,9 @@ struct CoordinatorOptions {
   /// Testing (fault injection): a member's process exit is acted on this much later, as when
   /// the watch is slow to see it and a restarted member announces itself first.
   double debug_exit_notice_delay_s = 0.0;
+  /// Under recover: how long a second claim of a live member is held (a restart announcing
+  /// itself before its old process's loss is seen) before it is refused.
+  double claim_hold_s = 12.0;
 };
 
 class CoordinatorService {
@@ -53,13 +57,18 @@ class CoordinatorService {
   // deadlines, signals and the end of the run.
   void setup();
   double now() const;
-  void on_join(const proto::MemberAnnounceMsg& announce);
+  /// `writer`: the GUID prefix of the participant that wrote the sample.
+  void on_join(const proto::MemberAnnounceMsg& announce, const std::string& writer);
   void join_locked(const proto::MemberAnnounceMsg& announce);
   /// Announcements held back because their name belonged to a live participant: a member
   /// restarted under recover can announce itself before its old process's exit is seen here.
   /// Once the member is awaited, they are taken as its return.
   void replay_held_locked();
-  void on_done(const proto::FrameDoneMsg& done);
+  void on_done(const proto::FrameDoneMsg& done, const std::string& writer);
+  /// Writes the coordinator's announcement with the current admitted and refused lists.
+  void announce_locked();
+  /// Logs new intrusions, keeps them for the next grant, announces a changed admission.
+  void note_intrusions_locked();
   void on_lost(const std::string& guid, bool graceful);
   void on_process_exit(const std::string& guid);
   void malformed(const std::string& what, const std::string& error);
@@ -78,6 +87,9 @@ class CoordinatorService {
   std::condition_variable cv_;
   std::chrono::steady_clock::time_point t0_;
   std::optional<proto::Barrier> barrier_;
+  proto::Admission admission_;                 // who is which member
+  proto::MemberAnnounceMsg announcement_;      // this coordinator's, with admission's lists
+  std::vector<std::string> intrusions_;        // for the next grant
   std::optional<proto::Barrier::Action> end_;  // stop or abort, once decided
   double next_wake_s_ = 0.0;
   std::int64_t progress_every_ = 1;

@@ -8,6 +8,7 @@
 
 #include "core/error.hpp"
 #include "dds/convert.hpp"
+#include "protocol/admission.hpp"
 #include "protocol/local_runner.hpp"
 #include "record/checkpoint.hpp"
 
@@ -74,6 +75,7 @@ proto::MemberSessionConfig MemberRuntime::session_config() const {
   c.skip_data_barrier = options_.debug_skip_data_barrier;
   c.resume_frame = options_.resume_frame;
   c.rejoin = options_.rejoin;
+  c.participant_guid = participant_->guid_prefix();
   return c;
 }
 
@@ -134,6 +136,7 @@ void MemberRuntime::setup() {
           note_announcement(a, writer_prefix(info));
           if (a.kind != proto::MemberKind::coordinator) return;
           session_->on_coordinator(a, now());
+          apply_admission_locked(*session_->coordinator());
           watch_coordinator_locked();
           cv_.notify_all();
         });
@@ -231,22 +234,62 @@ void MemberRuntime::note_announcement(const proto::MemberAnnounceMsg& a,
   for (auto& retry : waiting) retry();
 }
 
+// The coordinator's word on who is which member wins over the order in which announcements
+// arrived here: a claimant it refused has its samples refused (parked ones included), and a
+// member first announced here by a claimant it refused is the participant it admitted.
+void MemberRuntime::apply_admission_locked(const proto::MemberAnnounceMsg& coordinator) {
+  bool changed = false;
+  for (const auto& entry : coordinator.refused) {
+    std::string member, participant;
+    GuidPrefix guid;
+    if (!proto::split_member_entry(entry, member, participant) ||
+        !parse_guid_prefix(participant, guid)) {
+      continue;
+    }
+    if (refused_[member].insert(guid).second) changed = true;
+  }
+  for (const auto& entry : coordinator.admitted) {
+    std::string member, participant;
+    GuidPrefix guid;
+    if (!proto::split_member_entry(entry, member, participant) ||
+        !parse_guid_prefix(participant, guid)) {
+      continue;
+    }
+    const auto it = members_.find(member);
+    if (it == members_.end() || it->second == guid) continue;
+    const auto refused = refused_.find(member);
+    if (refused != refused_.end() && refused->second.contains(it->second)) {
+      it->second = guid;
+      changed = true;
+    }
+  }
+  if (!changed) return;
+  std::vector<std::function<void()>> waiting;
+  waiting.swap(unannounced_);
+  for (auto& retry : waiting) retry();
+}
+
+void MemberRuntime::park_locked(std::function<void()> retry) {
+  // A sample whose source never announces itself (or is never admitted) stays parked and is
+  // never used; the data barrier then names what is missing. Bounded: a participant flooding
+  // samples under names nobody announced cannot grow this forever.
+  constexpr std::size_t kMaxParked = 4096;
+  if (unannounced_.size() >= kMaxParked) {
+    spdlog::warn("{}: {} samples wait for members that never announced themselves or were not "
+                 "admitted yet; dropping the oldest", agent_.member_id(), unannounced_.size());
+    unannounced_.erase(unannounced_.begin(), unannounced_.begin() + kMaxParked / 2);
+  }
+  unannounced_.push_back(std::move(retry));
+}
+
 template <proto::Topic T>
 void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
                                  const GuidPrefix& writer) {
   const auto it = members_.find(sample.source);
   if (it == members_.end()) {
     // Its writer's announcement has not arrived yet (different writers are not ordered):
-    // park the sample until it does. A sample whose source never announces itself stays
-    // parked and is never used; the data barrier then names what is missing. Bounded: a
-    // participant flooding samples under names nobody announced cannot grow this forever.
-    constexpr std::size_t kMaxParked = 4096;
-    if (unannounced_.size() >= kMaxParked) {
-      spdlog::warn("{}: {} samples wait for members that never announced themselves; dropping "
-                   "the oldest", agent_.member_id(), unannounced_.size());
-      unannounced_.erase(unannounced_.begin(), unannounced_.begin() + kMaxParked / 2);
-    }
-    unannounced_.push_back([this, s = std::move(sample), writer]() mutable {
+    // park the sample until it does.
+    park_locked([this, s = std::move(sample), writer]() mutable {
       admit_locked<T>(std::move(s), writer);
     });
     return;
@@ -254,9 +297,12 @@ void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
   if (it->second != writer) {
     if (replaced_.contains(writer)) return;  // a member's process before its restart
     const auto re = reannounced_.find(sample.source);
-    if (re != reannounced_.end() && re->second.contains(writer)) {
-      // A restarted member's sample may arrive before the rollback naming it: it waits.
-      unannounced_.push_back([this, s = std::move(sample), writer]() mutable {
+    const auto refused = refused_.find(sample.source);
+    const bool was_refused = refused != refused_.end() && refused->second.contains(writer);
+    if (!was_refused && re != reannounced_.end() && re->second.contains(writer)) {
+      // A restarted member's sample may arrive before the rollback naming it: it waits, until
+      // then or until the coordinator refuses its writer.
+      park_locked([this, s = std::move(sample), writer]() mutable {
         admit_locked<T>(std::move(s), writer);
       });
       return;
@@ -396,6 +442,14 @@ int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
     } catch (const std::exception&) {
     }
   }
+  if (end.outcome == Outcome::refused) {
+    // It never took part: nothing of the agent's is finished (a refused recorder must not
+    // write over the run's files), nothing is confirmed.
+    spdlog::error("{}: {}", agent_.member_id(), end.control.reason);
+    end_reason_ = end.control.reason;
+    if (options_.on_outcome) options_.on_outcome(kExitRefused);
+    return kExitRefused;
+  }
   if (end.confirm && end.outcome == Outcome::failed) {
     spdlog::error("{}: {}", agent_.member_id(), end.control.reason);
   }
@@ -405,6 +459,7 @@ int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
     case Outcome::aborted: code = kExitAborted; break;
     case Outcome::failed: code = kExitFailed; break;
     case Outcome::interrupted: code = kExitInterrupted; break;
+    case Outcome::refused: code = kExitRefused; break;
   }
   std::string failed;
   try {
@@ -439,6 +494,7 @@ void MemberRuntime::prepare() {
   {
     std::lock_guard lock(mutex_);
     t0_ = Clock::now();
+    if (!participant_) participant_ = std::make_shared<Participant>(options_.dds);
     session_.emplace(agent_.subscriptions(), session_config(), now());
     if (options_.resume_frame >= 0) {
       restored_from_ = options_.resume_frame;

@@ -56,6 +56,8 @@ enum ExitCode : int {
   kExitConfigError = 1,
   kExitAborted = 2,       // the coordinator aborted the run (reason in its log and summary)
   kExitFailed = 3,        // this process failed: coordinator lost, protocol violation, DDS error
+  kExitRefused = 4,       // the coordinator refused this process as the member it claimed to be
+                          // (another participant is that member: docs/protocol.md, "Admission")
   kExitInterrupted = 130,
 };
 
@@ -101,6 +103,10 @@ class MemberRuntime {
   /// with this member's announcement and done writers and the announcement is acknowledged.
   void reach_coordinator();
   void watch_coordinator_locked();
+  /// Applies the coordinator's admitted and refused lists to who may write as whom.
+  void apply_admission_locked(const proto::MemberAnnounceMsg& coordinator);
+  /// Parks a sample until its writer is decided on (bounded: the oldest go first).
+  void park_locked(std::function<void()> retry);
   /// Carries out the session's finish decision; returns the exit code.
   int end_run(const proto::MemberSession::Action& end);
 
@@ -127,6 +133,8 @@ class MemberRuntime {
   // impostors), and participants a rollback replaced by the member's restarted process.
   std::map<std::string, std::set<GuidPrefix>> reannounced_;
   std::set<GuidPrefix> replaced_;
+  // Participants the coordinator refused as a member (MemberAnnounce::refused), per member.
+  std::map<std::string, std::set<GuidPrefix>> refused_;
 
   // One writer and one reader slot per data topic (null when the agent does not use it).
   template <proto::Topic T>

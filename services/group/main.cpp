@@ -25,7 +25,8 @@ namespace {
 // The exit code of the process from its members': its own failure first, then the run's
 // verdict (every member of a run gets the same one), then an interrupt.
 int combined_exit_code(const std::vector<int>& codes) {
-  for (int worst : {sdds::kExitFailed, sdds::kExitAborted, sdds::kExitInterrupted}) {
+  for (int worst :
+       {sdds::kExitFailed, sdds::kExitRefused, sdds::kExitAborted, sdds::kExitInterrupted}) {
     if (std::find(codes.begin(), codes.end(), worst) != codes.end()) return worst;
   }
   return sdds::kExitCompleted;

@@ -53,9 +53,9 @@ std::vector<Row> rows_of(const std::string& csv) {
 }
 
 // One run with syndds_plan's processes plus the CycloneDDS controller; returns vehicles.csv.
-std::string run_once(const TestRun& run, const std::string& name) {
+std::string run_once(const TestRun& run, const std::string& name, const std::string& extra = "") {
   const fs::path out = run.dir / name;
-  auto processes = plan(run, kScenario, out.string(), "");
+  auto processes = plan(run, kScenario, out.string(), extra);
   processes.push_back({"external/cy", controller_command(run)});
   std::vector<std::unique_ptr<Process>> procs;
   for (const auto& p : processes) {
@@ -159,8 +159,65 @@ TEST(CycloneController, KilledControllerIsNamedLostWithinThreeSeconds) {
       << launcher.log();
 }
 
-// kill -9 of the coordinator: the controller sees its participant's lease expire and exits 3
-// saying so (as every syndds member does).
+// A second copy of the controller (same member id, its own participant) joins the run under
+// way. The coordinator refuses it (docs/protocol.md, "Admission"): the copy exits 4 having
+// written nothing, the refusal is an intrusion in events.csv and summary.json, and the run
+// completes byte-identical to an undisturbed one. Before admission existed the copy acted on
+// the replayed grants, reported "grant of frame N skips frame 0" and the run aborted.
+TEST(CycloneController, ASecondCopyJoiningMidRunIsRefusedAndChangesNothing) {
+  ASSERT_NO_FATAL_FAILURE(require_controller());
+  TestRun run;
+  // Paced to the wall clock (6 s), so that the copy surely comes while the run goes on.
+  const std::string paced = "--realtime --duration 6";
+  const std::string undisturbed = run_once(run, "undisturbed", paced);
+
+  const fs::path out = run.dir / "disturbed";
+  auto processes = plan(run, kScenario, out.string(), paced);
+  processes.push_back({"external/cy", controller_command(run)});
+  std::vector<std::unique_ptr<Process>> procs;
+  for (const auto& p : processes) {
+    procs.push_back(std::make_unique<Process>(p.command, run.dir / ("disturbed-" + log_name(p.member))));
+  }
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << describe_logs(procs);
+  Process copy(controller_command(run), run.dir / "copy.log");
+  const auto copy_code = copy.wait(30);
+  ASSERT_TRUE(copy_code.has_value()) << copy.log();
+  EXPECT_EQ(*copy_code, 4) << copy.log();
+  EXPECT_NE(copy.log().find("error: refused by the coordinator as external/cy: participant "),
+            std::string::npos)
+      << copy.log();
+
+  const auto codes = wait_all(procs, 60.0);
+  for (std::size_t i = 0; i < codes.size(); ++i) {
+    EXPECT_EQ(codes[i], 0) << processes[i].member << "\n" << describe_logs(procs);
+  }
+  EXPECT_EQ(read_file(out / "vehicles.csv"), undisturbed);
+
+  // The copy's claim is an intrusion: in the coordinator's log, events.csv and summary.json.
+  EXPECT_NE(read_file(run.dir / ("disturbed-" + log_name("coordinator"))).find("intrusion: participant "),
+            std::string::npos);
+  const std::string events = read_file(out / "events.csv");
+  EXPECT_NE(events.find(",intrusion,cy,participant "), std::string::npos) << events;
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  EXPECT_EQ(summary["status"], "completed");
+  ASSERT_EQ(summary["intrusions"].size(), 1u) << summary.dump(2);
+  EXPECT_EQ(summary["intrusions"][0]["member"], "external/cy");
+  EXPECT_NE(summary["intrusions"][0]["what"].get<std::string>().find("claimed the member"),
+            std::string::npos);
+  EXPECT_LT(summary["intrusions"][0]["frame"].get<int>(), 600);  // during the run
+  // Every command came from the first copy and none was rejected.
+  std::istringstream commands(read_file(out / "commands.csv"));
+  std::string line;
+  std::getline(commands, line);
+  std::size_t count = 0;
+  while (std::getline(commands, line)) ++count;
+  EXPECT_EQ(count, 600u);
+}
+
+// kill -9 of the coordinator: the controller, on the same machine, watches the coordinator's
+// process (its announced process_key) and exits 3 saying so within 2 s, as every syndds member
+// does; elsewhere the coordinator's 10 s DDS lease would tell.
 TEST(CycloneController, ExitsWithStatus3WhenTheCoordinatorIsLost) {
   ASSERT_NO_FATAL_FAILURE(require_controller());
   TestRun run;
@@ -172,9 +229,13 @@ TEST(CycloneController, ExitsWithStatus3WhenTheCoordinatorIsLost) {
   ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
       << describe_logs(procs) << controller.log();
   procs[0]->signal(SIGKILL);
+  const auto t_kill = Clock::now();
   const auto code = controller.wait(20);
+  const double exit_s = std::chrono::duration<double>(Clock::now() - t_kill).count();
   ASSERT_TRUE(code.has_value()) << controller.log();
   EXPECT_EQ(*code, 3) << controller.log();
+  std::printf("kill -9 of the coordinator to the cyclone controller's exit: %.2f s\n", exit_s);
+  EXPECT_LT(exit_s, 2.0) << controller.log();
   EXPECT_NE(controller.log().find("error: the coordinator was lost"), std::string::npos)
       << controller.log();
   wait_all(procs, 20);

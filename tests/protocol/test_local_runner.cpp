@@ -151,7 +151,7 @@ TEST(VehicleAgent, RejectsNaNAndOutOfRangeCommands) {
   bad.source = "external/x";
   bad.throttle = std::numeric_limits<double>::quiet_NaN();
   in.driver_commands.push_back(bad);
-  vehicle.step({1, 0.01, 0.01, {}, {}}, in, out);
+  vehicle.step({1, 0.01, 0.01, {}, {}, {}}, in, out);
   EXPECT_EQ(vehicle.rejected_commands(), 1u);
   ASSERT_EQ(out.vehicle_states.size(), 1u);
   EXPECT_DOUBLE_EQ(out.vehicle_states[0].throttle, 0.0);  // the bad command was not applied

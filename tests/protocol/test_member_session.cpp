@@ -21,6 +21,7 @@ MemberSessionConfig config(const std::string& member = "recorder") {
   c.input_timeout_s = 3.0;
   c.final_timeout_s = 4.0;
   c.interrupt_grace_s = 2.0;
+  c.participant_guid = "0a.0b";
   return c;
 }
 
@@ -36,6 +37,7 @@ MemberAnnounceMsg coordinator(std::vector<std::string> expected = {"recorder", "
   a.pid = 10;
   a.config_fingerprint = kFingerprint;
   a.expected_members = std::move(expected);
+  for (const auto& m : a.expected_members) a.admitted.push_back(m + " 0a.0b");
   return a;
 }
 
@@ -498,4 +500,54 @@ TEST(MemberSession, AResumedMemberRefusesAGrantOfAnotherFrame) {
   ASSERT_EQ(a.kind, Kind::finish);
   EXPECT_NE(a.error.find("granted frame 12 while frame 10 was expected"), std::string::npos)
       << a.error;
+}
+
+// Admission: a member acts on grants only once the coordinator admitted this participant as
+// it; until then grants wait (they are not errors, even when they skip frames).
+TEST(MemberSession, GrantsWaitUntilTheCoordinatorAdmitsThisParticipant) {
+  MemberSession s(states(), config(), 0.0);
+  MemberAnnounceMsg c = coordinator();
+  c.admitted = {"recorder 0c.0d"};  // another participant is the recorder, for now
+  s.on_coordinator(c, 0.1);
+  EXPECT_EQ(s.poll(0.1).kind, Kind::joined);
+  s.on_grant(grant(0), 0.2);
+  EXPECT_EQ(s.poll(0.2).kind, Kind::wait);
+  s.on_grant(grant(1), 0.3);
+  EXPECT_EQ(s.poll(0.3).kind, Kind::wait);
+  s.on_coordinator(coordinator(), 0.4);  // the coordinator's newer word: this participant
+  const auto a = s.poll(0.4);
+  ASSERT_EQ(a.kind, Kind::step);
+  EXPECT_EQ(a.context.frame, 0);
+}
+
+// A claimant the coordinator refused ends with its own outcome, reports no failure (it never
+// took part: its done would be an intrusion) and confirms nothing.
+TEST(MemberSession, ARefusedClaimantEndsRefusedWithTheCoordinatorsReason) {
+  MemberSession s(states(), config(), 0.0);
+  MemberAnnounceMsg c = coordinator();
+  c.admitted = {"recorder 0c.0d"};
+  s.on_coordinator(c, 0.1);
+  EXPECT_EQ(s.poll(0.1).kind, Kind::joined);
+  s.on_grant(grant(411), 0.2);  // a replayed grant of a run under way: not an error
+  EXPECT_EQ(s.poll(0.2).kind, Kind::wait);
+  c.refused = {"recorder 0a.0b participant 0c.0d is recorder"};
+  s.on_coordinator(c, 0.3);
+  const auto a = s.poll(0.3);
+  ASSERT_EQ(a.kind, Kind::finish);
+  EXPECT_EQ(a.outcome, Outcome::refused);
+  EXPECT_TRUE(a.error.empty());
+  EXPECT_FALSE(a.confirm);
+  EXPECT_EQ(a.control.reason,
+            "refused by the coordinator as recorder: participant 0c.0d is recorder");
+}
+
+// A grant's intrusions reach the agents in the frame's context (the recorder writes them).
+TEST(MemberSession, IntrusionsReachTheFrameContext) {
+  MemberSession s = joined();
+  FrameGrantMsg g = grant(0);
+  g.intrusions = {"external/cy 0e.0f wrote a frame_done: participant 0c.0d is external/cy"};
+  s.on_grant(g, 0.2);
+  const auto a = s.poll(0.2);
+  ASSERT_EQ(a.kind, Kind::step);
+  EXPECT_EQ(a.context.intrusions, g.intrusions);
 }
