@@ -34,6 +34,16 @@ std::uint64_t ConfigFiles::fingerprint() const {
   return h.value();
 }
 
+std::vector<std::string> fingerprint_lines(const std::vector<ConfigFile>& files) {
+  std::vector<std::string> out;
+  for (const auto& f : files) {
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(f.hash));
+    out.push_back(f.role + " " + hex);
+  }
+  return out;
+}
+
 std::string describe(const std::vector<ConfigFile>& files) {
   std::string out;
   for (const auto& f : files) {

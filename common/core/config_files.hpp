@@ -33,6 +33,10 @@ class ConfigFiles {
   std::vector<ConfigFile> files_;
 };
 
+/// "role hash" lines, one per file (hash as 16 hex digits): what a process announces, so that
+/// a peer with another fingerprint can name the files that differ.
+std::vector<std::string> fingerprint_lines(const std::vector<ConfigFile>& files);
+
 /// "role path hash" lines, one per file, for logs and error messages.
 std::string describe(const std::vector<ConfigFile>& files);
 

@@ -119,6 +119,12 @@ MemberSession::Action MemberSession::fail(const std::string& why, Outcome outcom
   return a;
 }
 
+std::string MemberSession::differing_files(const MemberAnnounceMsg& coordinator) const {
+  const std::string d = config_file_differences(config_.config_files, coordinator.config_files);
+  return d.empty() ? std::string(kFingerprintHint)
+                   : "files that differ (here, on the coordinator's host): " + d;
+}
+
 std::string MemberSession::check_coordinator() const {
   const auto& c = *coordinator_;
   const auto& expected = c.expected_members;
@@ -130,7 +136,7 @@ std::string MemberSession::check_coordinator() const {
     return "scenario mismatch: the coordinator (host " + c.host +
            ") loaded a different scenario or overrides (fingerprint " +
            fingerprint_hex(c.config_fingerprint) + ", mine " +
-           fingerprint_hex(config_.config_fingerprint) + "); " + kFingerprintHint;
+           fingerprint_hex(config_.config_fingerprint) + "); " + differing_files(c);
   }
   if (c.protocol_version != kProtocolVersion) {
     return "protocol version mismatch: coordinator " + std::to_string(c.protocol_version) +

@@ -32,6 +32,8 @@ struct MemberSessionConfig {
   std::int64_t resume_frame = -1; // >= 0: resumed from the checkpoint of this frame (resume())
   bool rejoin = false;            // restarted after it was lost (on_member_loss: recover): takes
                                   // part from the rollback grant that names it
+  std::vector<std::string> config_files;  // "ROLE HASH" of the fingerprinted files (names the
+                                          // file that differs on a mismatch)
   std::string participant_guid;   // this member's DDS participant: it acts on grants only once
                                   // the coordinator admitted it ("" in tests: no admission step)
 };
@@ -120,6 +122,8 @@ class MemberSession {
   double gather_deadline() const;
   /// Why the announced coordinator cannot be followed ("" when it can).
   std::string check_coordinator() const;
+  /// The files that make the fingerprints differ, or the hint how to find them.
+  std::string differing_files(const MemberAnnounceMsg& coordinator) const;
   /// The coordinator admitted this participant as this member.
   bool confirmed() const;
   /// Why the coordinator refused this participant as this member ("" when it did not).

@@ -1,6 +1,7 @@
 #include "protocol/messages.hpp"
 
 #include <cmath>
+#include <map>
 #include <string>
 
 namespace syndds::proto {
@@ -54,6 +55,35 @@ std::string validate_command(const DriverCommandMsg& cmd) {
 
 std::string_view to_string(RunStatus status) {
   return status == RunStatus::completed ? "completed" : "aborted";
+}
+
+std::string config_file_differences(const std::vector<std::string>& mine,
+                                    const std::vector<std::string>& theirs) {
+  if (mine.empty() || theirs.empty()) return "";
+  auto split = [](const std::vector<std::string>& lines) {
+    std::map<std::string, std::string> out;  // role -> hash
+    for (const auto& line : lines) {
+      const auto space = line.rfind(' ');
+      if (space == std::string::npos) continue;
+      out[line.substr(0, space)] = line.substr(space + 1);
+    }
+    return out;
+  };
+  const auto a = split(mine), b = split(theirs);
+  std::string out;
+  auto add = [&](const std::string& text) { out += (out.empty() ? "" : "; ") + text; };
+  for (const auto& [role, hash] : a) {
+    const auto it = b.find(role);
+    if (it == b.end()) {
+      add(role + " (only here)");
+    } else if (it->second != hash) {
+      add(role + " (" + hash + " here, " + it->second + " there)");
+    }
+  }
+  for (const auto& [role, hash] : b) {
+    if (!a.contains(role)) add(role + " (only there)");
+  }
+  return out;
 }
 
 }  // namespace syndds::proto

@@ -29,6 +29,11 @@
 namespace syndds::proto {
 
 inline constexpr std::int32_t kProtocolVersion = 4;
+/// The files of two fingerprints ("ROLE HASH" lines) that differ: "ROLE (HASH here, HASH
+/// there)", or "ROLE (only here)" / "(only there)", joined by "; ". Empty when either list is
+/// empty (a peer that sends none) or they agree.
+std::string config_file_differences(const std::vector<std::string>& mine,
+                                    const std::vector<std::string>& theirs);
 /// A scenario fingerprint as every log shows it (16 hex digits).
 inline std::string fingerprint_hex(std::uint64_t f) {
   return hex64(f);
@@ -335,12 +340,14 @@ struct MemberAnnounceMsg {
   // The coordinator's word on who is which member (docs/protocol.md, "Admission"):
   std::vector<std::string> admitted;  // "MEMBER PARTICIPANT_GUID"
   std::vector<std::string> refused;   // "MEMBER PARTICIPANT_GUID why"
+  std::vector<std::string> config_files;  // "ROLE HASH" of each file in the fingerprint
   double join_timeout_s = 0.0;        // the coordinator's deadlines, for external members
   double frame_timeout_s = 0.0;
+  std::int64_t checkpoint_every = 0;  // frames between the run's checkpoints (0: none)
 };
 SYNDDS_FIELDS(MemberAnnounceMsg, member_id, kind, run_id, participant_guid, host, pid,
               process_key, protocol_version, config_fingerprint, expected_members, admitted,
-              refused, join_timeout_s, frame_timeout_s)
+              refused, config_files, join_timeout_s, frame_timeout_s, checkpoint_every)
 
 struct FrameGrantMsg {
   std::int64_t frame = 0;

@@ -344,6 +344,34 @@ std::string resolve_model_file(const YamlNode& node, const std::string& model,
   return file.string();
 }
 
+// The meshes a vehicle's renderer will draw (its rig's mesh directory: vehicle_body and every
+// obstacle label) are part of the fingerprint, present or absent: a host with another mesh, or
+// none, would render another world. The renderer checks the bytes again when it loads them.
+void fingerprint_meshes(Scenario& s, ConfigFiles& files) {
+  std::set<std::string> names = {"vehicle_body"};
+  for (const auto& o : s.obstacles) {
+    if (!o.label.empty()) names.insert(o.label);
+  }
+  for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
+    auto& v = s.vehicles[i];
+    if (!v.has_rendered_sensors()) continue;
+    auto& scene = v.sensors->rig.scene;
+    if (scene.mesh_dir.empty()) continue;
+    const std::string role = "vehicles[" + std::to_string(i) + "].sensors.meshes.";
+    const fs::path materials = fs::path(scene.mesh_dir) / "meshes.mtl";
+    if (fs::is_regular_file(materials)) files.read(materials.string(), role + "meshes.mtl");
+    for (const auto& name : names) {
+      const fs::path file = fs::path(scene.mesh_dir) / (name + ".obj");
+      if (fs::is_regular_file(file)) {
+        scene.mesh_hashes[name] = fnv1a64(files.read(file.string(), role + name + ".obj"));
+      } else {
+        files.add(file.string(), role + name + ".obj (absent)", "");
+        scene.mesh_hashes[name] = 0;
+      }
+    }
+  }
+}
+
 // `sensors: default` (a rig name or file) or `sensors: {rig: default, save_images: true, video: false}`.
 VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::string& config_dir,
                                            const TimeConfig& time, ConfigFiles& files) {
@@ -632,6 +660,7 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
     }
   }
   if (s.vehicles.empty()) vehicles.fail("needs at least one vehicle");
+  fingerprint_meshes(s, files);
   // A follower follows another vehicle of this scenario, one that broadcasts V2V.
   {
     const auto nodes = vehicles.elements();
@@ -693,12 +722,8 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
     if (!s.checkpoint.enabled()) {
       policy.fail("recover rolls the run back to its last checkpoint: set checkpoint: every_s");
     }
-    for (const auto& v : s.vehicles) {
-      if (v.controller.type == "external") {
-        policy.fail("recover cannot roll back vehicle " + v.id +
-                    "'s external controller (the user's program); use abort or continue");
-      }
-    }
+    // External controllers take part as well: the user's program keeps its own checkpoints
+    // and rolls back with the rest (docs/protocol.md, "External controllers").
   }
   m.finish();
   if (const auto members = s.member_ids().size(); members > kMaxMembers) {

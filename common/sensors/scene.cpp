@@ -1,9 +1,14 @@
 #include "sensors/scene.hpp"
 
+#include "core/error.hpp"
+#include "core/hash.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
@@ -280,8 +285,25 @@ const TriMesh* Scene::mesh(const std::string& name) {
   auto it = meshes_.find(name);
   if (it == meshes_.end()) {
     const auto file = std::filesystem::path(config_.mesh_dir) / (name + ".obj");
+    const bool present = std::filesystem::is_regular_file(file);
+    if (const auto expected = config_.mesh_hashes.find(name); expected != config_.mesh_hashes.end()) {
+      // The bytes drawn are the bytes fingerprinted: every process of the run agreed on them.
+      std::uint64_t hash = 0;
+      if (present) {
+        std::ifstream in(file, std::ios::binary);
+        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        hash = fnv1a64(bytes);
+      }
+      if (hash != expected->second) {
+        throw ConfigError("mesh " + file.string() + " " +
+                          (present ? "changed" : "disappeared") +
+                          " after the scenario was loaded (the run's fingerprint has " +
+                          (expected->second ? "hash " + hex64(expected->second) : "it absent") +
+                          ", now " + (present ? "hash " + hex64(hash) : "absent") + ")");
+      }
+    }
     std::optional<TriMesh> m;
-    if (std::filesystem::is_regular_file(file)) m = load_mesh(file.string());
+    if (present) m = load_mesh(file.string());
     it = meshes_.emplace(name, std::move(m)).first;
   }
   return it->second ? &*it->second : nullptr;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <string>
 
 #include "core/math.hpp"
@@ -35,6 +36,10 @@ struct SceneConfig {
   // Directory of OBJ meshes (empty: primitives only): an obstacle labelled L is drawn with
   // L.obj when it exists, vehicle bodies with vehicle_body.obj (docs/sensors.md "Meshes").
   std::string mesh_dir;
+  // The content hash (FNV-1a 64; 0: absent) of each mesh by name, as the scenario's fingerprint
+  // has it (scenario loading fills it): a mesh whose bytes differ when it is drawn is an error,
+  // never another shape. Empty: not checked (a scene built without a scenario).
+  std::map<std::string, std::uint64_t> mesh_hashes;
 
   /// Unit vector towards the sun (world ENU).
   Vec3 sun_direction() const;

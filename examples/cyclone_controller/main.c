@@ -69,6 +69,8 @@ typedef struct options {
   const char* interface_name;
   double join_timeout_s;
   double input_timeout_s;
+  const char* checkpoint_dir;
+  bool rejoin;
   bool quiet;
   pursuit_path path;
   pursuit_config control;
@@ -96,6 +98,11 @@ static void usage(FILE* out) {
           "  --interface NAME      network interface for CycloneDDS (e.g. lo); default: its own\n"
           "                        choice. CYCLONEDDS_URI, if set, is applied on top.\n"
           "  --join-timeout S      give up without a coordinator after S s (default 35)\n"
+          "  --checkpoint-dir DIR  where to keep this controller's checkpoints when the run\n"
+          "                        takes them (scenario checkpoint: every_s); without it the\n"
+          "                        run's checkpoints are incomplete and it cannot recover\n"
+          "  --rejoin              restarted after this controller was lost (on_member_loss:\n"
+          "                        recover): take part from the rollback that names it\n"
           "  --input-timeout S     give up when a granted frame's vehicle state is missing\n"
           "                        after S s (default: 3/4 of the coordinator's frame deadline)\n"
           "  --quiet               log only errors\n"
@@ -156,6 +163,10 @@ static int parse_options(int argc, char** argv, options* o) {
       o->quiet = true;
       continue;
     }
+    if (strcmp(opt, "--rejoin") == 0) {
+      o->rejoin = true;
+      continue;
+    }
     if (strncmp(opt, "--", 2) != 0) return bad_option(opt, "unexpected argument");
     if (i + 1 >= argc) return bad_option(opt, "needs a value");
     const char* value = argv[++i];
@@ -207,6 +218,11 @@ static int parse_options(int argc, char** argv, options* o) {
         return bad_option(opt, "\"%s\" is not an interface name", value);
       }
       o->interface_name = value;
+    } else if (strcmp(opt, "--checkpoint-dir") == 0) {
+      if (*value == '\0' || strlen(value) > 1024) {
+        return bad_option(opt, "expected a folder, got \"%s\"", value);
+      }
+      o->checkpoint_dir = value;
     } else if (strcmp(opt, "--join-timeout") == 0) {
       if (!parse_double(opt, value, 0.1, 3600.0, &o->join_timeout_s)) return 0;
     } else if (strcmp(opt, "--input-timeout") == 0) {
@@ -257,6 +273,9 @@ typedef struct needed_input {
 typedef struct pending_grant {
   int64_t frame;
   double sim_time_s;
+  uint32_t epoch;
+  bool rollback;    /* restore the checkpoint of `frame`, report it done (recover) */
+  bool rejoined_us; /* the rollback names this participant as a restarted member */
   size_t needed_count;
   needed_input needed[MAX_NEEDED]; /* vehicle_state samples of our vehicle stamped frame-1 */
 } pending_grant;
@@ -288,6 +307,7 @@ typedef struct controller {
   int32_t coordinator_protocol;
   uint64_t coordinator_fingerprint;
   double coordinator_frame_timeout_s;
+  int64_t coordinator_checkpoint_every; /* frames between the run's checkpoints (0: none) */
   bool expects_us;
   /* Admission: the coordinator names this participant as the member (admitted) or not. */
   bool admitted;
@@ -313,6 +333,15 @@ typedef struct controller {
   int64_t control_final_frame;
   char control_reason[1024];
   char failure[1024];
+
+  /* checkpoints and recovery (docs/protocol.md, "External controllers") */
+  uint32_t epoch;             /* of the grants this controller answers */
+  int64_t restored_from;      /* the checkpoint it rolled back to (-1: none) */
+  bool rejoined;              /* --rejoin: the rollback naming it has come */
+  bool has_resumed_input;     /* the next frame's input comes from the checkpoint */
+  bool resumed_has_state;
+  stored_state resumed_input;
+  bool warned_no_checkpoint_dir;
 
   /* the path follower */
   pursuit_state pursuit;
@@ -648,6 +677,7 @@ static void on_announce(controller* c, const void* sample, const dds_sample_info
   }
   if (guid_is_lost(c, guid)) c->coordinator_lost = true;
   c->coordinator_frame_timeout_s = a->frame_timeout_s;
+  c->coordinator_checkpoint_every = a->checkpoint_every;
   watch_coordinator(c, a->process_key ? a->process_key : "");
   note_admission(c, a);
 }
@@ -718,6 +748,11 @@ static void on_grant(controller* c, const void* sample, const dds_sample_info_t*
   memset(p, 0, sizeof *p);
   p->frame = g->frame;
   p->sim_time_s = g->sim_time_s;
+  p->epoch = g->epoch;
+  p->rollback = g->rollback;
+  for (uint32_t i = 0; i < g->rejoined._length; ++i) {
+    if (entry_is_us(c, g->rejoined._buffer[i], NULL)) p->rejoined_us = true;
+  }
   for (uint32_t i = 0; i < g->manifest._length; ++i) {
     const syndds_msg_TopicCount* t = &g->manifest._buffer[i];
     if (!t->topic || !t->key || strcmp(t->topic, "vehicle_state") != 0 ||
@@ -748,7 +783,7 @@ static void on_control(controller* c, const void* sample, const dds_sample_info_
 /* ---- sending ----------------------------------------------------------------------------- */
 
 static bool send_done(controller* c, int64_t frame, bool published_command, double compute_s,
-                      bool finished, const char* error) {
+                      bool finished, const char* error, uint64_t checkpoint_bytes) {
   syndds_msg_TopicCount entry;
   entry.topic = "driver_command";
   entry.key = (char*)c->opt.vehicle;
@@ -765,6 +800,8 @@ static bool send_done(controller* c, int64_t frame, bool published_command, doub
   d.compute_s = compute_s;
   d.finished = finished;
   d.error = (char*)(error ? error : "");
+  d.checkpoint_bytes = checkpoint_bytes;
+  d.epoch = c->epoch;
   return dds_write(c->done_writer, &d) == DDS_RETCODE_OK;
 }
 
@@ -847,10 +884,144 @@ static bool inputs_complete(const controller* c, const pending_grant* g, char* m
   return true;
 }
 
+/* ---- checkpoints ------------------------------------------------------------------------- */
+
+/* A checkpoint of frame K is this controller's state after frame K and the input of frame
+ * K + 1 (the vehicle state stamped K), as text: doubles with 17 significant digits come back
+ * bit for bit. One file per frame, written whole (temporary file, then rename). */
+static void checkpoint_path(const controller* c, int64_t frame, char* out, size_t size) {
+  snprintf(out, size, "%s/external_%s-%" PRId64 ".state", c->opt.checkpoint_dir, c->opt.vehicle,
+           frame);
+}
+
+static uint64_t save_checkpoint(controller* c, int64_t frame, const stored_state* input) {
+  if (!c->opt.checkpoint_dir) {
+    if (!c->warned_no_checkpoint_dir) {
+      log_error(c, "the run takes checkpoints every %" PRId64 " frames but this controller has "
+                   "no --checkpoint-dir: the run's checkpoints will be incomplete",
+                c->coordinator_checkpoint_every);
+      c->warned_no_checkpoint_dir = true;
+    }
+    return 0;
+  }
+  char path[1200], temp[1300];
+  checkpoint_path(c, frame, path, sizeof path);
+  snprintf(temp, sizeof temp, "%s.tmp", path);
+  FILE* f = fopen(temp, "w");
+  if (!f) {
+    fail(c, "checkpoint of frame %" PRId64 ": cannot write %s: %s", frame, temp, strerror(errno));
+    return 0;
+  }
+  fprintf(f, "syndds_cyclone_controller checkpoint 1\nframe %" PRId64 "\nmember %s\n", frame,
+          c->member_id);
+  fprintf(f, "segment %zu\nprogress_m %.17g\n", c->pursuit.segment, c->pursuit.progress_m);
+  fprintf(f, "frames_done %" PRId64 "\ncommands_sent %" PRId64 "\nlast %.17g %.17g\n",
+          c->frames_done, c->commands_sent, c->last_x, c->last_y);
+  if (input) {
+    fprintf(f, "input 1 %" PRId64 " %s %.17g %.17g %.17g %.17g\n", input->frame, input->source,
+            input->x, input->y, input->yaw, input->forward_speed);
+  } else {
+    fprintf(f, "input 0\n");
+  }
+  const long size = ftell(f);
+  const bool ok = fflush(f) == 0 && fsync(fileno(f)) == 0;
+  if (fclose(f) != 0 || !ok || size <= 0 || rename(temp, path) != 0) {
+    fail(c, "checkpoint of frame %" PRId64 ": cannot write %s: %s", frame, path, strerror(errno));
+    return 0;
+  }
+  return (uint64_t)size;
+}
+
+/* Restores the checkpoint of `frame`; false (with a failure) when it is missing or malformed. */
+static bool restore_checkpoint(controller* c, int64_t frame) {
+  char path[1200];
+  if (!c->opt.checkpoint_dir) {
+    fail(c, "rollback to the checkpoint of frame %" PRId64 ": no --checkpoint-dir", frame);
+    return false;
+  }
+  checkpoint_path(c, frame, path, sizeof path);
+  FILE* f = fopen(path, "r");
+  if (!f) {
+    fail(c, "rollback to the checkpoint of frame %" PRId64 ": cannot read %s: %s", frame, path,
+         strerror(errno));
+    return false;
+  }
+  int version = 0, has_input = 0;
+  int64_t saved_frame = -1;
+  char member[NAME_SIZE] = "";
+  stored_state in;
+  memset(&in, 0, sizeof in);
+  pursuit_state p;
+  int64_t frames_done = 0, commands_sent = 0;
+  double last_x = 0.0, last_y = 0.0;
+  bool ok = fscanf(f, "syndds_cyclone_controller checkpoint %d frame %" SCNd64 " member %255s",
+                   &version, &saved_frame, member) == 3 &&
+            fscanf(f, " segment %zu progress_m %lf", &p.segment, &p.progress_m) == 2 &&
+            fscanf(f, " frames_done %" SCNd64 " commands_sent %" SCNd64 " last %lf %lf",
+                   &frames_done, &commands_sent, &last_x, &last_y) == 4 &&
+            fscanf(f, " input %d", &has_input) == 1;
+  if (ok && has_input) {
+    ok = fscanf(f, " %" SCNd64 " %255s %lf %lf %lf %lf", &in.frame, in.source, &in.x, &in.y,
+                &in.yaw, &in.forward_speed) == 6;
+  }
+  fclose(f);
+  if (!ok || version != 1 || saved_frame != frame || strcmp(member, c->member_id) != 0) {
+    fail(c, "rollback to the checkpoint of frame %" PRId64 ": %s is not a checkpoint of %s at "
+            "that frame",
+         frame, path, c->member_id);
+    return false;
+  }
+  c->pursuit = p;
+  c->frames_done = frames_done;
+  c->commands_sent = commands_sent;
+  c->last_x = last_x;
+  c->last_y = last_y;
+  in.used = true;
+  c->resumed_input = in;
+  c->resumed_has_state = has_input != 0;
+  c->has_resumed_input = true;
+  return true;
+}
+
+/* Every member restores its checkpoint of the granted frame and reports it done in the new
+ * epoch; the next frame is then stepped with the input saved there. */
+static void roll_back(controller* c, const pending_grant* g) {
+  if (!restore_checkpoint(c, g->frame)) return;
+  c->epoch = g->epoch;
+  c->next_frame = g->frame + 1;
+  c->restored_from = g->frame;
+  c->rejoined = true;
+  c->waiting_frame = -1;
+  for (size_t i = 0; i < MAX_STATES; ++i) {
+    if (c->states[i].used && c->states[i].frame < g->frame) c->states[i].used = false;
+  }
+  if (!send_done(c, g->frame, false, 0.0, false, NULL, 0)) {
+    fail(c, "rollback to frame %" PRId64 ": DDS refused a frame_done sample", g->frame);
+    return;
+  }
+  log_info(c, "rolled back to the checkpoint of frame %" PRId64 " (epoch %" PRIu32 ")", g->frame,
+           g->epoch);
+}
+
 static void run_frame(controller* c, const pending_grant* g) {
   const double t0 = now_s();
   const stored_state* s = NULL;
-  if (g->needed_count > 0) s = find_state(c, g->frame - 1, g->needed[0].writer);
+  if (c->has_resumed_input) {
+    /* The first frame after a rollback: its input is the one saved in the checkpoint. */
+    if (c->resumed_has_state) s = &c->resumed_input;
+  } else if (g->needed_count > 0) {
+    s = find_state(c, g->frame - 1, g->needed[0].writer);
+  }
+  /* The checkpoint of frame - 1 (not the one just restored: it exists): the state before this
+   * frame and its input. */
+  uint64_t checkpoint_bytes = 0;
+  const int64_t every = c->coordinator_checkpoint_every;
+  const int64_t of = g->frame - 1;
+  if (every > 0 && of > 0 && of % every == 0 && of != c->restored_from) {
+    checkpoint_bytes = save_checkpoint(c, of, s);
+    if (c->failure[0]) return;
+  }
+  c->has_resumed_input = false;
   bool wrote = false;
   if (s) {
     const pursuit_command cmd = pursuit_update(&c->opt.control, &c->opt.path, &c->pursuit, s->x,
@@ -874,7 +1045,7 @@ static void run_frame(controller* c, const pending_grant* g) {
   }
   /* Without a state (frame 0) there is nothing to steer by: nothing is written, and the
    * done message says so (an empty `published`). */
-  if (!send_done(c, g->frame, wrote, now_s() - t0, false, NULL)) {
+  if (!send_done(c, g->frame, wrote, now_s() - t0, false, NULL, checkpoint_bytes)) {
     fail(c, "frame %" PRId64 ": DDS refused a frame_done sample", g->frame);
     return;
   }
@@ -899,9 +1070,41 @@ static double input_timeout(const controller* c) {
 
 /* Runs every pending grant whose inputs are complete; notes a deadline for the first that is
  * not. */
+static void pop_grant(controller* c) {
+  c->grant_head = (c->grant_head + 1) % MAX_PENDING_GRANTS;
+  --c->grant_count;
+}
+
 static void pump(controller* c) {
+  /* A rollback (a member was lost, on_member_loss: recover) voids every grant before it. */
+  for (size_t k = c->grant_count; k-- > 0;) {
+    const pending_grant* g = &c->grants[(c->grant_head + k) % MAX_PENDING_GRANTS];
+    if (g->rollback && g->epoch > c->epoch && (!c->opt.rejoin || c->rejoined || g->rejoined_us)) {
+      c->grant_head = (c->grant_head + k) % MAX_PENDING_GRANTS;
+      c->grant_count -= k;
+      break;
+    }
+  }
   while (c->grant_count > 0 && !c->failure[0]) {
     const pending_grant* g = &c->grants[c->grant_head];
+    if (g->epoch < c->epoch) { /* an older epoch's grant, replayed */
+      pop_grant(c);
+      continue;
+    }
+    if (g->rollback && g->epoch > c->epoch) {
+      if (c->opt.rejoin && !c->rejoined && !g->rejoined_us) { /* an earlier recovery's */
+        pop_grant(c);
+        continue;
+      }
+      const pending_grant grant = *g;
+      pop_grant(c);
+      roll_back(c, &grant);
+      continue;
+    }
+    if (c->opt.rejoin && !c->rejoined) { /* restarted: waits for the rollback naming it */
+      pop_grant(c);
+      continue;
+    }
     if (g->frame < c->next_frame) { /* a duplicate queued before its frame ran */
       c->grant_head = (c->grant_head + 1) % MAX_PENDING_GRANTS;
       --c->grant_count;
@@ -970,7 +1173,7 @@ static int finish(controller* c) {
     log_error(c, "not every reader acknowledged the last driver commands within 2 s");
   }
   /* The finished reply carries the run's final frame (RunControl.final_frame). */
-  if (!send_done(c, c->control_final_frame, false, 0.0, true, NULL) ||
+  if (!send_done(c, c->control_final_frame, false, 0.0, true, NULL, 0) ||
       dds_wait_for_acks(c->done_writer, DDS_SECS(2)) != DDS_RETCODE_OK) {
     log_error(c, "could not confirm the end of the run to the coordinator");
   }
@@ -981,7 +1184,7 @@ static int finish(controller* c) {
 static int give_up(controller* c, int code) {
   log_error(c, "%s", c->failure);
   if (c->admitted && c->done_writer > 0 && !c->coordinator_lost) {
-    if (send_done(c, c->next_frame, false, 0.0, false, c->failure)) {
+    if (send_done(c, c->next_frame, false, 0.0, false, c->failure, 0)) {
       dds_wait_for_acks(c->done_writer, DDS_SECS(1));
     }
   }
@@ -1058,6 +1261,7 @@ int main(int argc, char** argv) {
   }
   snprintf(c->member_id, sizeof c->member_id, "external/%s", c->opt.vehicle);
   c->waiting_frame = -1;
+  c->restored_from = -1;
   pursuit_reset(&c->pursuit);
   setvbuf(stderr, NULL, _IOLBF, 0);
 

@@ -166,6 +166,7 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
   dds::MemberRuntimeOptions o;
   o.dds = dds_options(a, s);
   o.config_fingerprint = s.fingerprint;
+  o.config_files = fingerprint_lines(s.files);
   o.heartbeat_s = s.time.heartbeat_s;
   o.join_timeout_s = s.coordinator.join_timeout_s + 5.0;
   // Shorter than the coordinator's frame deadline: a member stuck waiting for announced data

@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
     o.dds = service::dds_options(common, s);
     o.dds.identity = "coordinator";
     o.config_fingerprint = s.fingerprint;
+    o.config_files = syndds::fingerprint_lines(s.files);
     o.scenario_name = s.name;
     if (const char* env = std::getenv("SYNDDS_DEBUG_EXIT_NOTICE_DELAY_MS");
         env != nullptr && exit_notice_delay_ms == 0) {

@@ -63,11 +63,13 @@ void CoordinatorService::setup() {
   a.pid = process_id();
   a.process_key = own_process_key();
   a.config_fingerprint = options_.config_fingerprint;
+  a.config_files = options_.config_files;
   a.expected_members = options_.barrier.members;
   a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
                             options_.barrier.late_members.end());
   a.join_timeout_s = options_.barrier.join_timeout_s;
   a.frame_timeout_s = options_.barrier.frame_timeout_s;
+  a.checkpoint_every = options_.barrier.checkpoint_every;
   announce_reader_ = participant_->make_reader<msg::MemberAnnounce>(
       topics::kMemberAnnounce, profiles::kProtocolReader,
       [this](msg::MemberAnnounce&& m, const fdds::SampleInfo& info) {
@@ -119,6 +121,12 @@ void CoordinatorService::malformed(const std::string& what, const std::string& e
   advance_locked();
 }
 
+std::string CoordinatorService::differing_files(const proto::MemberAnnounceMsg& a) const {
+  const std::string d = proto::config_file_differences(options_.config_files, a.config_files);
+  return d.empty() ? std::string(proto::kFingerprintHint)
+                   : "files that differ (here, on " + a.host + "): " + d;
+}
+
 void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a, const std::string& writer) {
   std::lock_guard lock(mutex_);
   if (a.participant_guid != writer) {
@@ -144,7 +152,7 @@ void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
     mismatch = "on " + a.host + " loaded a different scenario or overrides (fingerprint " +
                proto::fingerprint_hex(a.config_fingerprint) + ", coordinator " +
                proto::fingerprint_hex(options_.config_fingerprint) + "); " +
-               proto::kFingerprintHint;
+               differing_files(a);
   } else if (a.protocol_version != proto::kProtocolVersion) {
     mismatch = "speaks protocol version " + std::to_string(a.protocol_version);
   }

@@ -22,6 +22,7 @@ struct CoordinatorOptions {
   DdsOptions dds;
   proto::BarrierConfig barrier;
   std::uint64_t config_fingerprint = 0;
+  std::vector<std::string> config_files;  // "ROLE HASH" of the fingerprinted files
   double finish_timeout_s = 10.0;  // after stop/abort: waiting for members to confirm
   std::string scenario_name;
   std::string run_dir;  // where checkpoints are declared complete (docs/checkpoints.md)
@@ -67,6 +68,8 @@ class CoordinatorService {
   void on_done(const proto::FrameDoneMsg& done, const std::string& writer);
   /// Writes the coordinator's announcement with the current admitted and refused lists.
   void announce_locked();
+  /// The files that make a member's fingerprint differ, or the hint how to find them.
+  std::string differing_files(const proto::MemberAnnounceMsg& a) const;
   /// Logs new intrusions, keeps them for the next grant, announces a changed admission.
   void note_intrusions_locked();
   void on_lost(const std::string& guid, bool graceful);

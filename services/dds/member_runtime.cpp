@@ -76,6 +76,7 @@ proto::MemberSessionConfig MemberRuntime::session_config() const {
   c.resume_frame = options_.resume_frame;
   c.rejoin = options_.rejoin;
   c.participant_guid = participant_->guid_prefix();
+  c.config_files = options_.config_files;
   return c;
 }
 
@@ -333,6 +334,7 @@ void MemberRuntime::announce() {
   a.pid = process_id();
   a.process_key = own_process_key();
   a.config_fingerprint = options_.config_fingerprint;
+  a.config_files = options_.config_files;
   announce_writer_->write(to_dds(a));
 }
 

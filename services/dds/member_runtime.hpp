@@ -27,6 +27,7 @@ namespace syndds::dds {
 struct MemberRuntimeOptions {
   DdsOptions dds;
   std::uint64_t config_fingerprint = 0;
+  std::vector<std::string> config_files;  // "ROLE HASH" of the fingerprinted files
   double heartbeat_s = 0.01;      // frame length, from the scenario
   double join_timeout_s = 30.0;   // waiting for the coordinator's announcement
   double input_timeout_s = 10.0;  // waiting for announced samples once a frame is granted

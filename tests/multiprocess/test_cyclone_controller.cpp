@@ -215,6 +215,57 @@ TEST(CycloneController, ASecondCopyJoiningMidRunIsRefusedAndChangesNothing) {
   EXPECT_EQ(count, 600u);
 }
 
+// on_member_loss: recover with the controller's own checkpoints (--checkpoint-dir): killed
+// with -9 mid-run and restarted with --rejoin, it rolls back with every other member to the
+// last checkpoint, and the run ends byte-identical to an undisturbed one.
+TEST(CycloneController, KilledAndRestartedUnderRecoverEndsByteIdentical) {
+  ASSERT_NO_FATAL_FAILURE(require_controller());
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/cyclone_recover.yaml";
+  const std::string paced = "--realtime";  // 6 s: time to kill and restart mid-run
+  auto start = [&](const std::string& name, std::vector<Planned>& processes) {
+    processes = plan(run, scenario, (run.dir / name).string(), paced);
+    std::vector<std::unique_ptr<Process>> procs;
+    for (const auto& p : processes) {
+      procs.push_back(std::make_unique<Process>(p.command, run.dir / (name + "-" + log_name(p.member))));
+    }
+    return procs;
+  };
+  auto controller = [&](const std::string& name, const std::string& extra) {
+    fs::create_directories(run.dir / (name + "-state"));
+    return controller_command(run) + " --checkpoint-dir " + (run.dir / (name + "-state")).string() +
+           extra;
+  };
+
+  std::vector<Planned> processes;
+  auto procs = start("undisturbed", processes);
+  Process first(controller("undisturbed", ""), run.dir / "undisturbed-cyclone.log");
+  for (auto code : wait_all(procs, 60)) EXPECT_EQ(code, 0) << describe_logs(procs);
+  EXPECT_EQ(first.wait(20), 0) << first.log();
+  const std::string undisturbed = read_file(run.dir / "undisturbed" / "vehicles.csv");
+  ASSERT_EQ(count_lines(undisturbed), 602u);
+  // Its checkpoints, one a second (frames 100 ... 500).
+  EXPECT_TRUE(fs::exists(run.dir / "undisturbed-state" / "external_cy-300.state"));
+
+  procs = start("disturbed", processes);
+  const fs::path out = run.dir / "disturbed";
+  auto victim = std::make_unique<Process>(controller("disturbed", ""), run.dir / "victim.log");
+  // Past the checkpoint of frame 200 (the coordinator declared it complete).
+  ASSERT_TRUE(wait_until([&] { return fs::exists(out / "checkpoints" / "frame_000000200" / "complete.yaml") &&
+                                      count_lines(read_file(out / "vehicles.csv")) > 250; }, 30))
+      << describe_logs(procs) << victim->log();
+  victim->signal(SIGKILL);
+  ASSERT_TRUE(victim->wait(5).has_value());
+  Process restarted(controller("disturbed", " --rejoin"), run.dir / "restarted.log");
+  for (auto code : wait_all(procs, 60)) EXPECT_EQ(code, 0) << describe_logs(procs) << restarted.log();
+  EXPECT_EQ(restarted.wait(20), 0) << restarted.log();
+  EXPECT_NE(restarted.log().find("rolled back to the checkpoint of frame "), std::string::npos)
+      << restarted.log();
+  EXPECT_EQ(read_file(out / "vehicles.csv"), undisturbed);
+  const std::string recoveries = read_file(out / "recoveries.csv");
+  EXPECT_NE(recoveries.find(",external/cy,\"its process exited\""), std::string::npos) << recoveries;
+}
+
 // kill -9 of the coordinator: the controller, on the same machine, watches the coordinator's
 // process (its announced process_key) and exits 3 saying so within 2 s, as every syndds member
 // does; elsewhere the coordinator's 10 s DDS lease would tell.

@@ -1,5 +1,6 @@
 // Multi-process tests: the real programs, started as a user (or the launcher) would start them.
 #include <nlohmann/json.hpp>
+#include <fstream>
 #include <set>
 
 #include "harness.hpp"
@@ -775,4 +776,82 @@ TEST(Cli, BadScenariosGiveClearErrors) {
     EXPECT_NE(p.log().find(file.string()), std::string::npos) << p.log();
     EXPECT_NE(p.log().find(cases[i].expected), std::string::npos) << p.log();
   }
+}
+
+// A syndds member started twice (here vehicle/a's program, with the launcher's own command line)
+// while the run goes on: the coordinator refuses the copy (docs/protocol.md, "Admission"), the
+// copy exits 4 having stepped nothing, the run completes byte-identical to the single-process
+// run, and the claim is an intrusion of vehicle a in events.csv and summary.json.
+TEST(Admission, AVehicleStartedTwiceIsRefusedAndTheRunIsUnchanged) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/two_vehicles.yaml";
+  const std::string single = single_process_csv(run, scenario, "--duration 4");
+  auto launcher = start_launcher(run, scenario, "--duration 4 --realtime");
+  const fs::path out = run.dir / "out";
+  ASSERT_TRUE(wait_until([&] { return count_lines(read_file(out / "vehicles.csv")) > 100; }, 30))
+      << launcher->log();
+  std::string command;
+  for (const auto& p : plan(run, scenario, (run.dir / "copy-out").string(), "--duration 4 --realtime")) {
+    if (p.member == "vehicle/a") command = p.command;
+  }
+  ASSERT_FALSE(command.empty());
+  Process copy(command, run.dir / "copy.log");
+  const auto copy_code = copy.wait(30);
+  ASSERT_TRUE(copy_code.has_value()) << copy.log();
+  EXPECT_EQ(*copy_code, 4) << copy.log();
+  EXPECT_NE(copy.log().find("refused by the coordinator as vehicle/a: participant "),
+            std::string::npos)
+      << copy.log();
+
+  const auto code = launcher->wait(60);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  EXPECT_EQ(*code, 0) << launcher->log();
+  EXPECT_EQ(read_file(out / "vehicles.csv"), single);
+  EXPECT_NE(read_file(out / "events.csv").find(",intrusion,a,participant "), std::string::npos)
+      << read_file(out / "events.csv");
+  const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+  ASSERT_EQ(summary["intrusions"].size(), 1u) << summary.dump(2);
+  EXPECT_EQ(summary["intrusions"][0]["member"], "vehicle/a");
+  EXPECT_NE(read_file(out / "summary.txt").find("intrusion (frame "), std::string::npos);
+}
+
+// One process reads another mesh than the rest (its config folder, as on another host, has a
+// different rock.obj): its fingerprint differs, and both sides name the file that differs.
+// Before meshes were fingerprinted the camera silently drew another rock.
+TEST(Fingerprint, AnotherMeshInOneProcessIsNamedAtStart) {
+  TestRun run;
+  const fs::path other = run.dir / "other-config";
+  fs::copy(kConfig, other, fs::copy_options::recursive);
+  {
+    std::ofstream rock(other / "meshes" / "rock.obj", std::ios::app);
+    rock << "# this host's rock\n";
+  }
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/camera_view.yaml";
+  auto processes = plan(run, scenario, (run.dir / "out").string(), "");
+  auto procs = start_all(run, processes, [&](const Planned& p) {
+    std::string cmd = p.command;
+    if (p.member == "sensor/a") {
+      const std::string from = "--config-dir " + kConfig;
+      const auto at = cmd.find(from);
+      EXPECT_NE(at, std::string::npos) << cmd;
+      if (at != std::string::npos) cmd.replace(at, from.size(), "--config-dir " + other.string());
+    }
+    return cmd;
+  });
+  const auto codes = wait_all(procs, 60);
+  const std::string role = "vehicles[0].sensors.meshes.rock.obj (";
+  for (std::size_t i = 0; i < processes.size(); ++i) {
+    SCOPED_TRACE(processes[i].member);
+    if (processes[i].member == "sensor/a") {
+      EXPECT_EQ(codes[i], 3);
+      EXPECT_NE(procs[i]->log().find("files that differ (here, on the coordinator's host): " + role),
+                std::string::npos)
+          << procs[i]->log();
+    } else {
+      EXPECT_EQ(codes[i], 2) << procs[i]->log();
+    }
+  }
+  ASSERT_EQ(processes[0].member, "coordinator");
+  EXPECT_NE(procs[0]->log().find("member sensor/a on "), std::string::npos) << procs[0]->log();
+  EXPECT_NE(procs[0]->log().find(role), std::string::npos) << procs[0]->log();
 }

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "protocol/messages.hpp"
 #include "scenario/scenario.hpp"
 
 using namespace syndds;
@@ -117,6 +118,56 @@ TEST(ConfigFingerprint, CoversEveryFileTheScenarioLoads) {
   const auto hills0 = cfg.fingerprint(kHeightmapScenario);
   cfg.append("heightmaps/hills.png", std::string(1, '\0'));
   EXPECT_NE(cfg.fingerprint(kHeightmapScenario), hills0) << "height-map image";
+}
+
+// The meshes a camera draws (its rig's mesh folder: every obstacle label and vehicle_body) are
+// in the fingerprint, present or absent, and a mismatch names the mesh file.
+TEST(ConfigFingerprint, CoversTheMeshesARendererDraws) {
+  const ScratchConfig cfg("meshes");
+  fs::copy_file(kConfigDir + "/sensors/default.yaml", cfg.dir / "sensors/default.yaml");
+  fs::copy(kConfigDir + "/meshes", cfg.dir / "meshes");
+  const std::string text = R"(time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}
+obstacles:
+  - {id: r1, label: rock, shape: sphere, position: [25, 6], radius_m: 1.5}
+  - {id: w1, label: wall, shape: box, position: [5, 9], size_m: [1, 1, 1]}
+vehicles:
+  - id: a
+    model: hmmwv
+    start: {x: 0, y: 0}
+    sensors: default
+)";
+  const std::string file = (cfg.dir / "scenarios/s.yaml").string();
+  std::ofstream(file) << text;
+  const auto before = load_scenario_config(file, {}, cfg.dir.string());
+  std::vector<std::string> roles;
+  for (const auto& f : before.files) roles.push_back(f.role);
+  for (const char* role : {"vehicles[0].sensors.meshes.meshes.mtl",
+                           "vehicles[0].sensors.meshes.rock.obj",
+                           "vehicles[0].sensors.meshes.vehicle_body.obj",
+                           "vehicles[0].sensors.meshes.wall.obj (absent)"}) {
+    EXPECT_NE(std::find(roles.begin(), roles.end(), role), roles.end()) << role;
+  }
+  // The renderer is told the hashes, to check the bytes it draws.
+  const auto& hashes = before.find_vehicle("a")->sensors->rig.scene.mesh_hashes;
+  EXPECT_NE(hashes.at("rock"), 0u);
+  EXPECT_EQ(hashes.at("wall"), 0u);
+
+  cfg.append("meshes/rock.obj", "# another host's rock\n");
+  const auto after = load_scenario_config(file, {}, cfg.dir.string());
+  EXPECT_NE(after.fingerprint, before.fingerprint);
+  const std::string d = proto::config_file_differences(fingerprint_lines(before.files),
+                                                       fingerprint_lines(after.files));
+  EXPECT_EQ(d.find("vehicles[0].sensors.meshes.rock.obj ("), 0u) << d;
+  EXPECT_EQ(d.find(';'), std::string::npos) << d;  // only that one
+
+  fs::remove(cfg.dir / "meshes/rock.obj");
+  const auto gone = load_scenario_config(file, {}, cfg.dir.string());
+  EXPECT_NE(gone.fingerprint, before.fingerprint);
+  EXPECT_NE(gone.fingerprint, after.fingerprint);
+  EXPECT_NE(proto::config_file_differences(fingerprint_lines(before.files),
+                                           fingerprint_lines(gone.files))
+                .find("vehicles[0].sensors.meshes.rock.obj (absent) (only there)"),
+            std::string::npos);
 }
 
 // time.end_time_s 1e17 made final_frame() negative: a run that "completed" after frame 0.
