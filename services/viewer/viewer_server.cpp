@@ -100,6 +100,11 @@ bool is_mesh_file(const fs::path& p) {
   return p.extension() == ".obj" || p.extension() == ".mtl";
 }
 
+// The page's own files: its HTML, scripts and style (not package.json, not node_modules).
+bool is_page_file(const fs::path& p) {
+  return p.extension() == ".html" || p.extension() == ".js" || p.extension() == ".css";
+}
+
 }  // namespace
 
 struct ViewerServer::Client {
@@ -126,20 +131,21 @@ ViewerServer::ViewerServer(ServerOptions options, std::string scene, LiveState* 
   }
   mg_init_library(0);
   const std::string ports = options_.bind + ":" + std::to_string(options_.port);
-  const std::string root = options_.web_root.string();
-  const char* opts[] = {"listening_ports", ports.c_str(), "document_root", root.c_str(),
-                        "num_threads", "16", "enable_directory_listing", "no",
-                        "websocket_timeout_ms", "3600000", nullptr};
+  // No document_root: every file is served by a handler that knows what it may serve.
+  const char* opts[] = {"listening_ports",      ports.c_str(), "num_threads", "16",
+                        "websocket_timeout_ms", "3600000",     nullptr};
   mg_callbacks callbacks{};
   ctx_ = mg_start(&callbacks, this, opts);
   if (!ctx_) {
     mg_exit_library();
     throw ConfigError("viewer: cannot listen on " + ports + " (address in use or not local?)");
   }
+  // Most specific first: civetweb takes the first handler whose prefix matches.
   mg_set_request_handler(ctx_, "/api/", &ViewerServer::handle_api, this);
   mg_set_request_handler(ctx_, "/run/", &ViewerServer::handle_run_file, this);
   mg_set_request_handler(ctx_, "/vendor/three/", &ViewerServer::handle_three, this);
   mg_set_request_handler(ctx_, "/meshes/", &ViewerServer::handle_mesh, this);
+  mg_set_request_handler(ctx_, "/", &ViewerServer::handle_page, this);
   if (live_) {
     mg_set_websocket_handler(ctx_, "/live", &ViewerServer::ws_connect, &ViewerServer::ws_ready,
                              &ViewerServer::ws_data, &ViewerServer::ws_close, this);
@@ -170,6 +176,15 @@ std::string ViewerServer::url() const {
 std::size_t ViewerServer::connections() const {
   std::lock_guard lock(clients_mutex_);
   return clients_.size();
+}
+
+int ViewerServer::handle_page(mg_connection* conn, void* self_ptr) {
+  auto* self = static_cast<ViewerServer*>(self_ptr);
+  const std::string rel = after_prefix(conn, "/");
+  const std::string name = rel.empty() ? "index.html" : rel;
+  // Directly in the web root, nothing below it (node_modules is not the page's).
+  if (name.find('/') != std::string::npos || !is_page_file(name)) return send_file(conn, {});
+  return send_file(conn, file_inside(self->options_.web_root, name));
 }
 
 int ViewerServer::handle_api(mg_connection* conn, void* self_ptr) {
@@ -207,8 +222,9 @@ int ViewerServer::handle_run_file(mg_connection* conn, void* self_ptr) {
 int ViewerServer::handle_three(mg_connection* conn, void* self_ptr) {
   auto* self = static_cast<ViewerServer*>(self_ptr);
   const std::string rel = after_prefix(conn, "/vendor/three/");
-  // The module and its add-ons only, not the rest of node_modules.
-  if (rel.rfind("build/", 0) != 0 && rel.rfind("examples/jsm/", 0) != 0) return send_file(conn, {});
+  // The module and its add-ons (the modules the page imports, index.html's import map) only.
+  const bool module = rel.rfind("build/", 0) == 0 || rel.rfind("examples/jsm/", 0) == 0;
+  if (!module || fs::path(rel).extension() != ".js") return send_file(conn, {});
   return send_file(conn, file_inside(self->options_.three_dir, rel));
 }
 

@@ -76,6 +76,7 @@ class ViewerServer {
 
  private:
   struct Client;
+  static int handle_page(mg_connection* conn, void* self);
   static int handle_api(mg_connection* conn, void* self);
   static int handle_run_file(mg_connection* conn, void* self);
   static int handle_three(mg_connection* conn, void* self);

@@ -266,8 +266,20 @@ struct WebFixture {
     std::ofstream(dir / "meshes" / "meshes.mtl") << "newmtl rock\n";
     std::ofstream(dir / "meshes" / "notes.txt") << "not a mesh\n";
     std::ofstream(dir / "web" / "index.html") << "<html>page</html>";
+    std::ofstream(dir / "web" / "viewer.js") << "// the page's script";
+    std::ofstream(dir / "web" / "style.css") << "body {}";
+    std::ofstream(dir / "web" / "package.json") << "{}";
+    // What npm installs beside the page: not the page's, never served from here.
+    fs::create_directories(dir / "web" / "node_modules" / "three" / "build");
+    fs::create_directories(dir / "web" / "node_modules" / "other");
+    std::ofstream(dir / "web" / "node_modules" / "three" / "package.json") << "{}";
+    std::ofstream(dir / "web" / "node_modules" / "three" / "build" / "three.module.js") << "x";
+    std::ofstream(dir / "web" / "node_modules" / "other" / "index.js") << "secret";
     std::ofstream(dir / "three" / "build" / "three.module.js") << "export const x = 1;";
     std::ofstream(dir / "three" / "package.json") << "{}";
+    fs::create_directories(dir / "three" / "examples" / "jsm" / "controls");
+    std::ofstream(dir / "three" / "examples" / "jsm" / "controls" / "OrbitControls.js") << "y";
+    std::ofstream(dir / "three" / "examples" / "jsm" / "README.md") << "not a module";
     std::ofstream(dir / "run" / "vehicles.csv") << "frame\n0\n";
   }
   ~WebFixture() { fs::remove_all(dir); }
@@ -352,6 +364,36 @@ TEST(ViewerServer, RefusesAWebRootWithoutThePage) {
   o = web.options(false);
   o.three_dir = web.dir / "web";
   EXPECT_THROW(viewer::ViewerServer(o, "{}", nullptr, nullptr), ConfigError);
+}
+
+TEST(ViewerServer, ServesThePagesFilesAndThreesModulesButNothingElseOfNodeModules) {
+  WebFixture web;
+  viewer::ViewerServer server(web.options(true), "{}", nullptr, nullptr);
+  const int p = server.port();
+  EXPECT_EQ(get(p, "/index.html"), std::make_pair(200, std::string("<html>page</html>")));
+  EXPECT_EQ(get(p, "/viewer.js").first, 200);
+  EXPECT_EQ(get(p, "/style.css").first, 200);
+  // What the page imports (index.html's import map): three's build and its add-ons.
+  EXPECT_EQ(get(p, "/vendor/three/build/three.module.js").first, 200);
+  EXPECT_EQ(get(p, "/vendor/three/examples/jsm/controls/OrbitControls.js").first, 200);
+  EXPECT_EQ(get(p, "/vendor/three/examples/jsm/README.md").first, 404);  // not a module
+  EXPECT_EQ(get(p, "/vendor/three/package.json").first, 404);
+  // Nothing npm installed is served as it lies, nor the page folder's package files.
+  for (const char* path :
+       {"/package.json", "/node_modules/three/package.json", "/node_modules/other/index.js",
+        "/node_modules/three/build/three.module.js", "/node_modules/", "/node_modules"}) {
+    EXPECT_EQ(get(p, path).first, 404) << path;
+  }
+  // Out of the served folders, plain and encoded.
+  for (const char* path :
+       {"/vendor/three/build/../package.json", "/vendor/three/build/%2e%2e/package.json",
+        "/vendor/three/build/%2e%2e%2f%2e%2e%2f%2e%2e%2fweb%2fpackage.json",
+        "/vendor/three/examples/jsm/../../../web/node_modules/other/index.js",
+        "/node_modules/three/%2e%2e/%2e%2e/package.json", "/%2e%2e/three/package.json",
+        "/..%2fthree%2fpackage.json", "/vendor/three/build/%2fetc%2fpasswd",
+        "/node_modules%2fother%2findex.js"}) {
+    EXPECT_EQ(get(p, path).first, 404) << path;
+  }
 }
 
 namespace {
