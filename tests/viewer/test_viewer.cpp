@@ -2,6 +2,7 @@
 // bookkeeping, and the HTTP/WebSocket server (civetweb's own client talks to it).
 #include <civetweb.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -295,19 +296,39 @@ struct WebFixture {
   }
 };
 
-// GET `path`: status and body.
-std::pair<int, std::string> get(int port, const std::string& path) {
-  char err[256] = {};
-  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err,
-                                 "GET %s HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n", path.c_str());
-  if (!c) return {0, err};
-  const int status = mg_get_response_info(c)->status_code;
+struct Response {
+  int status = 0;
   std::string body;
+  std::map<std::string, std::string> headers;  // names in lower case
+};
+
+// `path` with `headers` (each ending in \r\n; by default a browser's Host for the port).
+Response request(int port, const std::string& path, std::string headers = "") {
+  if (headers.empty()) headers = "Host: 127.0.0.1:" + std::to_string(port) + "\r\n";
+  char err[256] = {};
+  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err, "GET %s HTTP/1.1\r\n%s\r\n",
+                                 path.c_str(), headers.c_str());
+  if (!c) return {0, err, {}};
+  Response r;
+  const mg_response_info* info = mg_get_response_info(c);
+  r.status = info->status_code;
+  for (int k = 0; k < info->num_headers; ++k) {
+    std::string name = info->http_headers[k].name;
+    for (char& ch : name) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    r.headers[name] = info->http_headers[k].value;
+  }
   char buf[4096];
   int n;
-  while ((n = mg_read(c, buf, sizeof buf)) > 0) body.append(buf, n);
+  // A 101 (WebSocket) answer has no body: the connection stays open.
+  while (r.status != 101 && (n = mg_read(c, buf, sizeof buf)) > 0) r.body.append(buf, n);
   mg_close_connection(c);
-  return {status, body};
+  return r;
+}
+
+// GET `path` as a browser on 127.0.0.1 asks for it: status and body.
+std::pair<int, std::string> get(int port, const std::string& path) {
+  const Response r = request(port, path);
+  return {r.status, r.body};
 }
 
 }  // namespace
@@ -465,4 +486,183 @@ TEST(ViewerServer, StreamsTheSceneThenLiveUpdatesAndTheSelectedCamera) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   EXPECT_EQ(server.connections(), 0u);
+}
+
+TEST(ViewerAccess, AnswersTheBoundAddressAndLocalhostAtTheBoundPortOnly) {
+  const viewer::AccessList access(viewer::parse_bind("127.0.0.1"), {}, {});
+  for (const char* host : {"127.0.0.1:8080", "localhost:8080", "LocalHost:8080", "[::1]:8080",
+                           "[0:0:0:0:0:0:0:1]:8080", "localhost"}) {
+    EXPECT_TRUE(access.host_allowed(host, 8080)) << host;
+  }
+  // Another site's name (DNS rebinding sends it), another port, nonsense.
+  for (const char* host :
+       {"evil.example:8080", "evil.example", "localhost:8081", "127.0.0.2:8080",
+        "localhost.evil.example:8080", "", ":8080", "localhost:", "localhost:0", "localhost:99999",
+        "[::1", "[evil]:8080", "local host:8080", "localhost:80a"}) {
+    EXPECT_FALSE(access.host_allowed(host, 8080)) << host;
+  }
+  EXPECT_TRUE(access.origin_allowed("http://127.0.0.1:8080", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://localhost:8080", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://[::1]:8080", 8080));
+  for (const char* origin :
+       {"http://evil.example", "http://localhost:3000", "https://127.0.0.1:8080",
+        "http://localhost", "null", "file://", "http://127.0.0.1:8080/x", ""}) {
+    EXPECT_FALSE(access.origin_allowed(origin, 8080)) << origin;
+  }
+}
+
+TEST(ViewerAccess, AddsTheHostsAndOriginsGivenAndRejectsMalformedOnesByOption) {
+  const viewer::AccessList access(viewer::parse_bind("127.0.0.1"),
+                                  {"viewer.lab", "Tunnel.lab:9000", "[::2]"},
+                                  {"https://proxy.example", "http://other.lab:81/"});
+  EXPECT_TRUE(access.host_allowed("viewer.lab:8080", 8080));
+  EXPECT_FALSE(access.host_allowed("viewer.lab:9000", 8080));
+  EXPECT_TRUE(access.host_allowed("tunnel.lab:9000", 8080));
+  EXPECT_FALSE(access.host_allowed("tunnel.lab:8080", 8080));
+  EXPECT_TRUE(access.host_allowed("[::2]:8080", 8080));
+  // The pages of the allowed hosts, and the origins given exactly (scheme, name and port).
+  EXPECT_TRUE(access.origin_allowed("http://viewer.lab:8080", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://tunnel.lab:9000", 8080));
+  EXPECT_TRUE(access.origin_allowed("https://proxy.example", 8080));
+  EXPECT_TRUE(access.origin_allowed("https://proxy.example:443", 8080));
+  EXPECT_FALSE(access.origin_allowed("http://proxy.example", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://other.lab:81", 8080));
+  EXPECT_FALSE(access.origin_allowed("http://other.lab", 8080));
+  EXPECT_FALSE(access.host_allowed("proxy.example", 8080));  // an origin is not a host
+  const auto refused = [](std::vector<std::string> hosts, std::vector<std::string> origins,
+                          const std::string& option) {
+    try {
+      viewer::AccessList(viewer::parse_bind("127.0.0.1"), hosts, origins);
+    } catch (const ConfigError& e) {
+      return std::string(e.what()).find(option) != std::string::npos;
+    }
+    return false;
+  };
+  for (const char* bad : {"", "::1", "a b", "host:port", "host:0", "http://host", "[::1]x"}) {
+    EXPECT_TRUE(refused({bad}, {}, "--allow-host")) << bad;
+  }
+  for (const char* bad :
+       {"", "host", "ftp://host", "http://host/path", "http://", "null", "http://host:99999"}) {
+    EXPECT_TRUE(refused({}, {bad}, "--allow-origin")) << bad;
+  }
+}
+
+TEST(ViewerAccess, AWildcardAddressAnswersThisMachinesAddressesAndName) {
+  const viewer::AccessList access(viewer::parse_bind("0.0.0.0"), {}, {});
+  EXPECT_TRUE(access.host_allowed("127.0.0.1:8080", 8080));
+  EXPECT_TRUE(access.host_allowed("localhost:8080", 8080));
+  EXPECT_FALSE(access.host_allowed("0.0.0.0:8080", 8080));
+  EXPECT_FALSE(access.host_allowed("evil.example:8080", 8080));
+  char name[256] = {};
+  ASSERT_EQ(gethostname(name, sizeof name - 1), 0);
+  EXPECT_TRUE(access.host_allowed(std::string(name) + ":8080", 8080)) << name;
+}
+
+TEST(ViewerAccess, TheBindAddressIsCheckedAndNamedInErrors) {
+  EXPECT_EQ(viewer::parse_bind("127.0.0.1").host, "127.0.0.1");
+  EXPECT_TRUE(viewer::parse_bind("0.0.0.0").wildcard);
+  EXPECT_EQ(viewer::parse_bind("LocalHost").host, "localhost");
+  for (const char* bad : {"", "[127.0.0.1]", "not an address", "1.2.3.4:80", "[::1", "::1"}) {
+    try {
+      viewer::parse_bind(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--bind"), std::string::npos) << e.what();
+    }
+  }
+}
+
+namespace {
+
+// A WebSocket upgrade request's headers, with `host` and `origin` (none when empty).
+std::string upgrade(const std::string& host, const std::string& origin = "") {
+  return "Host: " + host +
+         "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+         "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
+         (origin.empty() ? "" : "Origin: " + origin + "\r\n");
+}
+
+}  // namespace
+
+TEST(ViewerServer, AnswersOnlyRequestsForItsOwnHostsWithoutCorsHeaders) {
+  WebFixture web;
+  viewer::ViewerServer server(web.options(true), "{}", nullptr, nullptr);
+  const std::string port = std::to_string(server.port());
+  const auto status = [&](const std::string& path, const std::string& headers) {
+    return request(server.port(), path, headers).status;
+  };
+  EXPECT_EQ(status("/", "Host: 127.0.0.1:" + port + "\r\n"), 200);
+  EXPECT_EQ(status("/", "Host: localhost:" + port + "\r\n"), 200);
+  // DNS rebinding: a page of evil.example whose name now leads here sends its own name.
+  EXPECT_EQ(status("/", "Host: evil.example:" + port + "\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", "Host: evil.example:" + port + "\r\n"), 403);
+  EXPECT_EQ(status("/api/scene", "Host: evil.example:" + port + "\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", "Host: localhost:1\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", "X-None: 1\r\n"), 403);  // no Host at all
+  // Another site's page asking for a run file: refused; the viewer's own page: answered, and
+  // no response invites other sites to read it.
+  const std::string host = "Host: 127.0.0.1:" + port + "\r\n";
+  EXPECT_EQ(status("/run/vehicles.csv", host + "Origin: http://evil.example\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", host + "Origin: http://127.0.0.1:1\r\n"), 403);
+  const Response own = request(server.port(), "/run/vehicles.csv",
+                               host + "Origin: http://127.0.0.1:" + port + "\r\n");
+  EXPECT_EQ(own.status, 200);
+  EXPECT_EQ(own.headers.count("access-control-allow-origin"), 0u);
+  for (const char* path : {"/", "/api/info", "/vendor/three/build/three.module.js"}) {
+    const Response r =
+        request(server.port(), path, host + "Origin: http://127.0.0.1:" + port + "\r\n");
+    EXPECT_EQ(r.status, 200) << path;
+    EXPECT_EQ(r.headers.count("access-control-allow-origin"), 0u) << path;
+  }
+  // The names given are answered too.
+  auto o = web.options(true);
+  o.allow_hosts = {"viewer.lab"};
+  viewer::ViewerServer named(o, "{}", nullptr, nullptr);
+  const std::string nport = std::to_string(named.port());
+  EXPECT_EQ(request(named.port(), "/", "Host: viewer.lab:" + nport + "\r\n").status, 200);
+  EXPECT_EQ(request(named.port(), "/", "Host: evil.example:" + nport + "\r\n").status, 403);
+}
+
+TEST(ViewerServer, RefusesAWebSocketFromAnotherSitesPage) {
+  WebFixture web;
+  viewer::LiveState live;
+  viewer::ViewerServer server(web.options(false), R"({"format":1})", &live, nullptr);
+  const std::string port = std::to_string(server.port());
+  const std::string host = "127.0.0.1:" + port;
+  // Cross-site WebSocket hijacking: a page of another site opens the stream.
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "http://evil.example")).status, 403);
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "http://localhost:3000")).status, 403);
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "null")).status, 403);
+  EXPECT_EQ(request(server.port(), "/live", upgrade("evil.example:" + port)).status, 403);
+  WsInbox inbox;
+  char err[256] = {};
+  mg_connection* c =
+      mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err, "/live",
+                                  "http://evil.example", ws_data, ws_close, &inbox);
+  EXPECT_EQ(c, nullptr);
+  if (c) mg_close_connection(c);
+  EXPECT_EQ(server.connections(), 0u);
+  // The viewer's own page: its origin is the host it was loaded from.
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "http://" + host)).status, 101);
+  EXPECT_EQ(
+      request(server.port(), "/live", upgrade("localhost:" + port, "http://localhost:" + port))
+          .status,
+      101);
+  c = mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err, "/live",
+                                  ("http://" + host).c_str(), ws_data, ws_close, &inbox);
+  ASSERT_NE(c, nullptr) << err;
+  {
+    std::unique_lock lock(inbox.mutex);
+    ASSERT_TRUE(
+        inbox.cv.wait_for(lock, std::chrono::seconds(10), [&] { return !inbox.texts.empty(); }));
+    EXPECT_EQ(nlohmann::json::parse(inbox.texts.front())["type"], "scene");
+  }
+  mg_close_connection(c);
+  // An origin the user allowed.
+  auto o = web.options(false);
+  o.allow_origins = {"https://proxy.example"};
+  viewer::ViewerServer proxied(o, "{}", &live, nullptr);
+  const std::string phost = "127.0.0.1:" + std::to_string(proxied.port());
+  EXPECT_EQ(request(proxied.port(), "/live", upgrade(phost, "https://proxy.example")).status, 101);
+  EXPECT_EQ(request(proxied.port(), "/live", upgrade(phost, "http://proxy.example")).status, 403);
 }
