@@ -260,6 +260,8 @@ const char* reason_of(int status) {
       return "OK";
     case 403:
       return "Forbidden";
+    case 503:
+      return "Service Unavailable";
     default:
       return "Not Found";
   }
@@ -338,16 +340,28 @@ ViewerServer::ViewerServer(ServerOptions options, std::string scene, LiveState* 
                       ": three.js not found (build/three.module.js); run launch_scripts/setup.sh "
                       "(npm ci in services/viewer/web) or pass --three-dir");
   }
+  if (options_.max_live < 1 || options_.threads <= options_.max_live ||
+      options_.request_timeout_ms < 1) {
+    throw ConfigError("viewer: expected 1 <= max_live < threads and request_timeout_ms >= 1");
+  }
   mg_init_library(0);
   const std::string ports = bind_.host + ":" + std::to_string(options_.port);
+  const std::string threads = std::to_string(options_.threads);
+  const std::string timeout = std::to_string(options_.request_timeout_ms);
   // No document_root: every file is served by a handler that knows what it may serve. Empty
   // access_control_* values: no CORS headers, so no other site's page may read a response.
   const char* opts[] = {"listening_ports",
                         ports.c_str(),
                         "num_threads",
-                        "16",
+                        threads.c_str(),
+                        "request_timeout_ms",
+                        timeout.c_str(),
                         "websocket_timeout_ms",
-                        "3600000",
+                        timeout.c_str(),
+                        "enable_websocket_ping_pong",
+                        "yes",
+                        "enable_keep_alive",
+                        "no",
                         "access_control_allow_origin",
                         "",
                         "access_control_allow_methods",
@@ -357,6 +371,7 @@ ViewerServer::ViewerServer(ServerOptions options, std::string scene, LiveState* 
                         nullptr};
   mg_callbacks callbacks{};
   callbacks.begin_request = &ViewerServer::begin_request;
+  callbacks.connection_close = &ViewerServer::connection_close;
   ctx_ = mg_start(&callbacks, this, opts);
   if (!ctx_) {
     mg_exit_library();
@@ -429,6 +444,13 @@ int ViewerServer::begin_request(mg_connection* conn) {
   }
   send_text(conn, 403, "text/plain", "forbidden: " + refused + "\n");
   return 403;
+}
+
+void ViewerServer::connection_close(const mg_connection* conn) {
+  auto* self = static_cast<ViewerServer*>(mg_get_user_data(mg_get_context(conn)));
+  // A connection ws_connect accepted carries the server as its data until civetweb closes it,
+  // whether or not its handshake completed.
+  if (mg_get_user_connection_data(conn) == self) --self->live_slots_;
 }
 
 int ViewerServer::handle_page(mg_connection* conn, void* self_ptr) {
@@ -505,7 +527,22 @@ int ViewerServer::handle_mesh(mg_connection* conn, void* self_ptr) {
   return send_file(conn, file_inside(self->options_.mesh_dir, rel));
 }
 
-int ViewerServer::ws_connect(const mg_connection*, void*) { return 0; }  // 0: accept
+int ViewerServer::ws_connect(const mg_connection* conn, void* self_ptr) {
+  auto* self = static_cast<ViewerServer*>(self_ptr);
+  int live = self->live_slots_.load();
+  do {
+    if (live >= self->options_.max_live) {
+      const mg_request_info* info = mg_get_request_info(conn);
+      spdlog::warn("viewer: refused a live page at {}: {} open already", info->remote_addr, live);
+      // Before the handshake the connection still speaks HTTP (civetweb passes it as const).
+      send_text(const_cast<mg_connection*>(conn), 503, "text/plain",
+                "too many live pages open (" + std::to_string(live) + ")\n");
+      return 1;  // no handshake
+    }
+  } while (!self->live_slots_.compare_exchange_weak(live, live + 1));
+  mg_set_user_connection_data(conn, self);
+  return 0;  // accept
+}
 
 void ViewerServer::ws_ready(mg_connection* conn, void* self_ptr) {
   auto* self = static_cast<ViewerServer*>(self_ptr);

@@ -113,6 +113,15 @@ struct ServerOptions {
   std::filesystem::path mesh_dir;  // OBJ meshes shared with the sensors (empty: none)
   double update_hz = 20.0;         // live updates per connection, at most
   std::size_t max_vertices_per_update = 50000;
+  // Connections. Every open connection holds one of `threads` workers: a live page for as long
+  // as it is open, any other until it has been answered. At most `max_live` live pages at once
+  // (more are refused with 503), so at least threads - max_live workers answer requests. A
+  // connection that has not sent its request within `request_timeout_ms`, or whose peer takes
+  // nothing of a response for as long, is closed; a live page that answers no WebSocket ping
+  // for about 6 pings (one every `request_timeout_ms` without a message from it) too.
+  int threads = 24;
+  int max_live = 8;
+  int request_timeout_ms = 10000;
 };
 
 class ViewerServer {
@@ -132,6 +141,7 @@ class ViewerServer {
  private:
   struct Client;
   static int begin_request(mg_connection* conn);
+  static void connection_close(const mg_connection* conn);
   static int handle_page(mg_connection* conn, void* self);
   static int handle_api(mg_connection* conn, void* self);
   static int handle_run_file(mg_connection* conn, void* self);
@@ -152,6 +162,7 @@ class ViewerServer {
   SensorStore* sensors_;
   mg_context* ctx_ = nullptr;
   int port_ = 0;
+  std::atomic<int> live_slots_{0};         // live pages accepted and not yet closed (<= max_live)
   std::atomic<std::uint64_t> refused_{0};  // requests refused by the access list, for the log
   mutable std::mutex clients_mutex_;
   std::map<const mg_connection*, std::unique_ptr<Client>> clients_;

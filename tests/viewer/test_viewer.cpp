@@ -1,7 +1,11 @@
 // The viewer's parts without a browser: the scene document, the live state's latest-only
-// bookkeeping, and the HTTP/WebSocket server (civetweb's own client talks to it).
+// bookkeeping, and the HTTP/WebSocket server (civetweb's own client and plain sockets talk to
+// it).
 #include <civetweb.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -582,6 +586,17 @@ std::string upgrade(const std::string& host, const std::string& origin = "") {
          (origin.empty() ? "" : "Origin: " + origin + "\r\n");
 }
 
+// Waits (bounded) until `pred` holds.
+template <class Pred>
+bool eventually(Pred pred, std::chrono::milliseconds limit = std::chrono::seconds(10)) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
 }  // namespace
 
 TEST(ViewerServer, AnswersOnlyRequestsForItsOwnHostsWithoutCorsHeaders) {
@@ -665,4 +680,119 @@ TEST(ViewerServer, RefusesAWebSocketFromAnotherSitesPage) {
   const std::string phost = "127.0.0.1:" + std::to_string(proxied.port());
   EXPECT_EQ(request(proxied.port(), "/live", upgrade(phost, "https://proxy.example")).status, 101);
   EXPECT_EQ(request(proxied.port(), "/live", upgrade(phost, "http://proxy.example")).status, 403);
+}
+
+TEST(ViewerServer, RefusesLivePagesBeyondItsLimitAndTakesOneWhenAnotherCloses) {
+  WebFixture web;
+  viewer::LiveState live;
+  auto o = web.options(false);
+  o.threads = 4;
+  o.max_live = 2;
+  viewer::ViewerServer server(o, "{}", &live, nullptr);
+  std::vector<WsInbox> inboxes(3);
+  std::vector<mg_connection*> open;
+  char err[256] = {};
+  for (int k = 0; k < 2; ++k) {
+    open.push_back(mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err,
+                                               "/live", nullptr, ws_data, ws_close, &inboxes[k]));
+    ASSERT_NE(open.back(), nullptr) << err;
+  }
+  ASSERT_TRUE(eventually([&] { return server.connections() == 2; }));
+  const std::string host = "127.0.0.1:" + std::to_string(server.port());
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host)).status, 503);
+  EXPECT_EQ(get(server.port(), "/").first, 200);  // the page is still served
+  mg_close_connection(open[0]);
+  ASSERT_TRUE(eventually([&] { return server.connections() == 1; }));
+  mg_connection* again = nullptr;
+  // The slot is free once civetweb has closed the connection (just after connections() fell).
+  ASSERT_TRUE(eventually([&] {
+    again = mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err, "/live",
+                                        nullptr, ws_data, ws_close, &inboxes[2]);
+    return again != nullptr;
+  }));
+  mg_close_connection(again);
+  mg_close_connection(open[1]);
+}
+
+namespace {
+
+// A TCP connection to 127.0.0.1:`port` (-1 when refused).
+int connect_to(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Whether the peer closed `fd` (end of stream) by `deadline`.
+bool closed_by_peer(int fd, std::chrono::steady_clock::time_point deadline) {
+  char buf[4096];
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    pollfd p{fd, POLLIN, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<long>(0, left.count())));
+    if (ready <= 0) return false;
+    if (::read(fd, buf, sizeof buf) <= 0) return true;
+  }
+}
+
+// Reads until the peer closes or `deadline`; what was read.
+std::string read_until_closed(int fd, std::chrono::steady_clock::time_point deadline) {
+  std::string got;
+  char buf[4096];
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return got;
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n <= 0) return got;
+    got.append(buf, static_cast<std::size_t>(n));
+  }
+}
+
+}  // namespace
+
+TEST(ViewerServer, IdleConnectionsDoNotStarveANewRequest) {
+  WebFixture web;
+  viewer::LiveState live;
+  const viewer::ServerOptions defaults;
+  viewer::ViewerServer server(web.options(false), "{}", &live, nullptr);
+  // More connections than workers, all silent: each holds a worker until it times out.
+  std::vector<int> idle;
+  for (int k = 0; k < defaults.threads + 4; ++k) {
+    const int fd = connect_to(server.port());
+    ASSERT_GE(fd, 0);
+    idle.push_back(fd);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const int fd = connect_to(server.port());
+  ASSERT_GE(fd, 0);
+  const std::string req =
+      "GET /api/info HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(server.port()) + "\r\n\r\n";
+  ASSERT_EQ(::write(fd, req.data(), req.size()), static_cast<ssize_t>(req.size()));
+  // Answered once the idle ones time out: within the request timeout and a margin.
+  const auto bound = std::chrono::milliseconds(defaults.request_timeout_ms + 5000);
+  const std::string answer = read_until_closed(fd, start + bound);
+  const auto took = std::chrono::steady_clock::now() - start;
+  ::close(fd);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << "no answer within " << bound.count() << " ms";
+  EXPECT_LT(took, bound);
+  // The server closed idle connections to free the worker that answered: at least those queued
+  // before the request (civetweb hands connections to workers in the order it accepted them).
+  std::size_t closed = 0;
+  const auto grace = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  for (const int i : idle) {
+    closed += closed_by_peer(i, grace);
+    ::close(i);
+  }
+  EXPECT_GE(closed, idle.size() - static_cast<std::size_t>(defaults.threads) + 1);
 }
