@@ -43,7 +43,9 @@ int main(int argc, char** argv) {
   std::string web_root, three_dir, mesh_dir, url_file;
   double exit_after_run_s = -1.0;
   app.add_option("--replay", replay, "Replay this run directory (written by the recorder)");
-  app.add_option("--bind", server.bind, "Address to listen on (0.0.0.0: every interface)")
+  app.add_option("--bind", server.bind,
+                 "Address to listen on (0.0.0.0: every interface; an IPv6 address, ::1 or [::1], "
+                 "needs a civetweb built with IPv6)")
       ->capture_default_str();
   app.add_option("--allow-host", server.allow_hosts,
                  "Also answer requests for this host name (NAME or NAME:PORT; repeatable). "

@@ -154,13 +154,30 @@ std::vector<std::string> machine_names() {
 
 }  // namespace
 
+bool civetweb_has_ipv6() { return mg_check_feature(8) != 0; }
+
 BindAddress parse_bind(const std::string& bind) {
-  in_addr v4{};
-  if (inet_pton(AF_INET, bind.c_str(), &v4) == 1) return {bind, v4.s_addr == INADDR_ANY};
-  if (!is_host_name(bind)) {
-    throw ConfigError("--bind '" + bind + "': expected an IPv4 address (127.0.0.1) or a host name");
+  std::string text = bind;
+  const bool bracketed = text.size() >= 2 && text.front() == '[' && text.back() == ']';
+  if (bracketed) text = text.substr(1, text.size() - 2);
+  if (const auto v6 = canonical_ipv6(text)) {
+    if (!civetweb_has_ipv6()) {
+      throw ConfigError("--bind " + bind +
+                        ": an IPv6 address, but the civetweb library this viewer uses was built "
+                        "without IPv6; bind an IPv4 address (127.0.0.1, or 0.0.0.0 for every "
+                        "interface)");
+    }
+    return {"[" + *v6 + "]", true, *v6 == "::"};
   }
-  return {lower(bind), false};
+  if (bracketed) throw ConfigError("--bind " + bind + ": not an IPv6 address in brackets");
+  in_addr v4{};
+  if (inet_pton(AF_INET, text.c_str(), &v4) == 1) return {text, false, v4.s_addr == INADDR_ANY};
+  if (!is_host_name(text)) {
+    throw ConfigError("--bind '" + bind +
+                      "': expected an IPv4 address (127.0.0.1), an IPv6 address (::1 or [::1]) or "
+                      "a host name");
+  }
+  return {lower(text), false, false};
 }
 
 AccessList::AccessList(const BindAddress& bind, const std::vector<std::string>& hosts,
@@ -411,7 +428,7 @@ ViewerServer::~ViewerServer() {
 }
 
 std::string ViewerServer::url() const {
-  const std::string host = bind_.wildcard ? "127.0.0.1" : bind_.host;
+  const std::string host = bind_.wildcard ? (bind_.ipv6 ? "[::1]" : "127.0.0.1") : bind_.host;
   return "http://" + host + ":" + std::to_string(port_) + "/";
 }
 

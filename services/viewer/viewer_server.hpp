@@ -56,15 +56,19 @@ class SensorStore {
   std::uint64_t changes_ = 0;
 };
 
-/// The listening address as the server uses it: `host` for URLs and Host headers, and whether
-/// it is a wildcard (every interface).
+/// The listening address as the server uses it: `host` for URLs and Host headers (IPv6 in
+/// brackets), whether it is IPv6 and whether it is a wildcard (every interface).
 struct BindAddress {
   std::string host;
+  bool ipv6 = false;
   bool wildcard = false;
 };
-/// `bind`: the --bind value (an IPv4 address or a host name). Throws ConfigError naming --bind
-/// when it is malformed.
+/// `bind`: the --bind value (an IPv4 address, an IPv6 address with or without brackets, or a
+/// host name). Throws ConfigError naming --bind when it is malformed, or IPv6 while the civetweb
+/// library was built without IPv6.
 BindAddress parse_bind(const std::string& bind);
+/// Whether the civetweb library in use was built with IPv6 (mg_check_feature(8)).
+bool civetweb_has_ipv6();
 
 /// The Host headers and Origins the server answers. Hosts: the listening address (for a wildcard
 /// address, 0.0.0.0 or ::, every address of this machine's interfaces and its host name),
@@ -103,7 +107,8 @@ class AccessList {
 };
 
 struct ServerOptions {
-  std::string bind = "127.0.0.1";  // the address to listen on (0.0.0.0: every interface)
+  std::string bind = "127.0.0.1";  // the address to listen on (0.0.0.0: every interface; IPv6
+                                   // as ::1 or [::1], with a civetweb built with IPv6)
   int port = 8080;                 // 0: any free port (port() tells which)
   std::vector<std::string> allow_hosts;    // AccessList's extra hosts (--allow-host)
   std::vector<std::string> allow_origins;  // AccessList's extra origins (--allow-origin)
@@ -133,7 +138,7 @@ class ViewerServer {
   ViewerServer& operator=(const ViewerServer&) = delete;
 
   int port() const { return port_; }
-  /// The page's URL (a wildcard address as its loopback, 127.0.0.1).
+  /// The page's URL (a wildcard address as its loopback: 127.0.0.1 or [::1]).
   std::string url() const;
   /// Live connections open now.
   std::size_t connections() const;

@@ -1,6 +1,7 @@
 // The viewer's parts without a browser: the scene document, the live state's latest-only
 // bookkeeping, and the HTTP/WebSocket server (civetweb's own client and plain sockets talk to
 // it).
+#include <arpa/inet.h>
 #include <civetweb.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
@@ -566,12 +567,26 @@ TEST(ViewerAccess, TheBindAddressIsCheckedAndNamedInErrors) {
   EXPECT_EQ(viewer::parse_bind("127.0.0.1").host, "127.0.0.1");
   EXPECT_TRUE(viewer::parse_bind("0.0.0.0").wildcard);
   EXPECT_EQ(viewer::parse_bind("LocalHost").host, "localhost");
-  for (const char* bad : {"", "[127.0.0.1]", "not an address", "1.2.3.4:80", "[::1", "::1"}) {
+  for (const char* bad : {"", "[127.0.0.1]", "not an address", "1.2.3.4:80", "[::1"}) {
     try {
       viewer::parse_bind(bad);
       ADD_FAILURE() << bad << " accepted";
     } catch (const ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find("--bind"), std::string::npos) << e.what();
+    }
+  }
+  for (const char* v6 : {"::1", "[::1]", "::"}) {
+    if (viewer::civetweb_has_ipv6()) {
+      EXPECT_TRUE(viewer::parse_bind(v6).ipv6) << v6;
+    } else {
+      // Named: the option, and why it cannot work with this library.
+      try {
+        viewer::parse_bind(v6);
+        ADD_FAILURE() << v6 << " accepted without IPv6 in civetweb";
+      } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("--bind"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("IPv6"), std::string::npos) << e.what();
+      }
     }
   }
 }
@@ -795,4 +810,41 @@ TEST(ViewerServer, IdleConnectionsDoNotStarveANewRequest) {
     ::close(i);
   }
   EXPECT_GE(closed, idle.size() - static_cast<std::size_t>(defaults.threads) + 1);
+}
+
+TEST(ViewerServer, ListensOnIpv6) {
+  WebFixture web;
+  auto o = web.options(true);
+  o.bind = "::1";
+  if (!viewer::civetweb_has_ipv6()) {
+    // The error names the option and the reason instead of "cannot listen".
+    try {
+      viewer::ViewerServer server(o, "{}", nullptr, nullptr);
+      ADD_FAILURE() << "--bind ::1 accepted by a civetweb without IPv6";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--bind ::1"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("IPv6"), std::string::npos) << e.what();
+    }
+    GTEST_SKIP() << "the system's civetweb library is built without IPv6 (mg_check_feature(8) "
+                    "is 0): --bind ::1 is refused with a clear error instead";
+  }
+  for (const char* bind : {"::1", "[::1]"}) {
+    o.bind = bind;
+    viewer::ViewerServer server(o, "{}", nullptr, nullptr);
+    EXPECT_EQ(server.url(), "http://[::1]:" + std::to_string(server.port()) + "/");
+    const int fd = ::socket(AF_INET6, SOCK_STREAM, 0);
+    sockaddr_in6 a{};
+    a.sin6_family = AF_INET6;
+    a.sin6_port = htons(static_cast<std::uint16_t>(server.port()));
+    a.sin6_addr = in6addr_loopback;
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << bind;
+    const std::string req =
+        "GET /run/vehicles.csv HTTP/1.1\r\nHost: [::1]:" + std::to_string(server.port()) +
+        "\r\n\r\n";
+    ASSERT_EQ(::write(fd, req.data(), req.size()), static_cast<ssize_t>(req.size()));
+    const std::string answer =
+        read_until_closed(fd, std::chrono::steady_clock::now() + std::chrono::seconds(10));
+    ::close(fd);
+    EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << answer;
+  }
 }
