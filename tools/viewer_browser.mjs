@@ -11,15 +11,20 @@ const require = createRequire(new URL('../services/viewer/web/package.json', imp
 
 export const CHROMIUM = process.env.SYNDDS_CHROMIUM || '/usr/bin/chromium';
 
-/// Opens the viewer at `url` and waits until it has drawn its first picture.
-export async function openViewer(url, { width = 1280, height = 720, timeoutMs = 60000 } = {}) {
+/// Headless Chromium, with `args` added to its command line.
+export async function launchChromium(args = []) {
   const { chromium } = require('playwright-core');
   if (!existsSync(CHROMIUM)) throw new Error(`${CHROMIUM} not found (apt-get install chromium)`);
   // WebGL without a GPU: SwiftShader. No sandbox: tests and CI run as root.
-  const browser = await chromium.launch({
+  return chromium.launch({
     executablePath: CHROMIUM,
-    args: ['--no-sandbox', '--use-gl=angle', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+    args: ['--no-sandbox', '--use-gl=angle', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', ...args],
   });
+}
+
+/// Opens the viewer at `url` and waits until it has drawn its first picture.
+export async function openViewer(url, { width = 1280, height = 720, timeoutMs = 60000 } = {}) {
+  const browser = await launchChromium();
   const page = await browser.newPage({ viewport: { width, height } });
   const errors = [];
   page.on('pageerror', (e) => errors.push(e.message));

@@ -43,8 +43,19 @@ int main(int argc, char** argv) {
   std::string web_root, three_dir, mesh_dir, url_file;
   double exit_after_run_s = -1.0;
   app.add_option("--replay", replay, "Replay this run directory (written by the recorder)");
-  app.add_option("--bind", server.bind, "Address to listen on (0.0.0.0: every interface)")
+  app.add_option("--bind", server.bind,
+                 "Address to listen on (0.0.0.0: every interface; an IPv6 address, ::1 or [::1], "
+                 "needs a civetweb built with IPv6)")
       ->capture_default_str();
+  app.add_option("--allow-host", server.allow_hosts,
+                 "Also answer requests for this host name (NAME or NAME:PORT; repeatable). "
+                 "Always answered: the --bind address, localhost, 127.0.0.1 and [::1] at --port "
+                 "(docs/viewer.md)")
+      ->allow_extra_args(false);
+  app.add_option("--allow-origin", server.allow_origins,
+                 "Also let pages of this origin (http[s]://HOST[:PORT], e.g. a reverse proxy's) "
+                 "open the live WebSocket; repeatable (docs/viewer.md)")
+      ->allow_extra_args(false);
   app.add_option("--port", server.port, "TCP port (0: any free port)")->capture_default_str();
   app.add_option("--web-root", web_root, "Folder with the page (default: the source tree's)");
   app.add_option("--three-dir", three_dir, "The three.js package (default: WEB_ROOT/node_modules/three)");

@@ -5,6 +5,12 @@
 // thread that sends the newest state whenever its browser has taken the previous update, so a
 // slow or dead browser only ever slows itself. No DDS here: services/viewer/viewer_feed.hpp
 // feeds the LiveState and the sensor store.
+//
+// Who may connect (docs/viewer.md, "Who may connect"): a request is answered only when its Host
+// names this server (AccessList), and a request with an Origin header only when that origin is
+// one of its pages' or one the user allowed: a page of another site open in the same browser
+// can neither open /live nor read any file (DNS rebinding, cross-site WebSocket hijacking). No
+// response carries CORS headers.
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
@@ -50,15 +56,77 @@ class SensorStore {
   std::uint64_t changes_ = 0;
 };
 
+/// The listening address as the server uses it: `host` for URLs and Host headers (IPv6 in
+/// brackets), whether it is IPv6 and whether it is a wildcard (every interface).
+struct BindAddress {
+  std::string host;
+  bool ipv6 = false;
+  bool wildcard = false;
+};
+/// `bind`: the --bind value (an IPv4 address, an IPv6 address with or without brackets, or a
+/// host name). Throws ConfigError naming --bind when it is malformed, or IPv6 while the civetweb
+/// library was built without IPv6.
+BindAddress parse_bind(const std::string& bind);
+/// Whether the civetweb library in use was built with IPv6 (mg_check_feature(8)).
+bool civetweb_has_ipv6();
+
+/// The Host headers and Origins the server answers. Hosts: the listening address (for a wildcard
+/// address, 0.0.0.0 or ::, every address of this machine's interfaces and its host name),
+/// localhost, 127.0.0.1 and [::1], each at the port listened on, and the extra ones given. A
+/// Host header matches an allowed host when its name is the same (case-insensitive, IPv6 in
+/// brackets) and its port is the allowed one or absent (clients other than browsers may leave
+/// it out; a browser always names the port it connected to). Origins: http://HOST:PORT of every
+/// allowed host, and the extra origins given (scheme://host[:port], exactly).
+class AccessList {
+ public:
+  /// `hosts`: --allow-host values (NAME or NAME:PORT, NAME a host name, an IPv4 address or an
+  /// IPv6 address in brackets; no port: the port listened on); `origins`: --allow-origin values
+  /// (http:// or https:// URL without a path). Throws ConfigError naming the option for a
+  /// malformed value.
+  AccessList(const BindAddress& bind, const std::vector<std::string>& hosts,
+             const std::vector<std::string>& origins);
+  /// `host`: a request's Host header; `port`: the port the request arrived on.
+  bool host_allowed(const std::string& host, int port) const;
+  /// `origin`: a request's Origin header ("null" and schemes other than http and https are
+  /// never allowed); `port`: the port the request arrived on.
+  bool origin_allowed(const std::string& origin, int port) const;
+  /// Every allowed host as name:port and every extra origin, `port` the port listened on.
+  std::vector<std::string> describe(int port) const;
+
+ private:
+  struct Host {
+    std::string name;  // lower case, IPv6 in brackets
+    int port = 0;      // 0: the port listened on
+  };
+  struct Origin {
+    std::string scheme, name;
+    int port = 0;
+  };
+  std::vector<Host> hosts_;
+  std::vector<Origin> origins_;
+};
+
 struct ServerOptions {
-  std::string bind = "127.0.0.1";  // the address to listen on (0.0.0.0: every interface)
+  std::string bind = "127.0.0.1";  // the address to listen on (0.0.0.0: every interface; IPv6
+                                   // as ::1 or [::1], with a civetweb built with IPv6)
   int port = 8080;                 // 0: any free port (port() tells which)
+  std::vector<std::string> allow_hosts;    // AccessList's extra hosts (--allow-host)
+  std::vector<std::string> allow_origins;  // AccessList's extra origins (--allow-origin)
   std::filesystem::path web_root;  // index.html, viewer.js, style.css
   std::filesystem::path three_dir; // the three package (node_modules/three)
   std::filesystem::path run_dir;   // replay: the recorded run; empty: live only
   std::filesystem::path mesh_dir;  // OBJ meshes shared with the sensors (empty: none)
   double update_hz = 20.0;         // live updates per connection, at most
   std::size_t max_vertices_per_update = 50000;
+  // Connections. Every open connection holds one of `threads` workers: a live page for as long
+  // as it is open, any other until it has been answered. At most `max_live` live pages at once
+  // (more are refused with 503), so at least threads - max_live workers answer requests. A
+  // connection that has not sent its request within `request_timeout_ms`, or whose peer takes
+  // nothing of a response for as long, is closed; a live page that answers no WebSocket ping
+  // for about 6 pings (one every `request_timeout_ms` without a message from it) too.
+  int threads = 24;
+  int max_live = 8;
+  int request_timeout_ms = 10000;
 };
 
 class ViewerServer {
@@ -70,12 +138,16 @@ class ViewerServer {
   ViewerServer& operator=(const ViewerServer&) = delete;
 
   int port() const { return port_; }
+  /// The page's URL (a wildcard address as its loopback: 127.0.0.1 or [::1]).
   std::string url() const;
   /// Live connections open now.
   std::size_t connections() const;
 
  private:
   struct Client;
+  static int begin_request(mg_connection* conn);
+  static void connection_close(const mg_connection* conn);
+  static int handle_page(mg_connection* conn, void* self);
   static int handle_api(mg_connection* conn, void* self);
   static int handle_run_file(mg_connection* conn, void* self);
   static int handle_three(mg_connection* conn, void* self);
@@ -88,11 +160,15 @@ class ViewerServer {
   void send_loop(Client& client);
 
   ServerOptions options_;
+  BindAddress bind_;
+  AccessList access_;
   std::string scene_;
   LiveState* live_;
   SensorStore* sensors_;
   mg_context* ctx_ = nullptr;
   int port_ = 0;
+  std::atomic<int> live_slots_{0};         // live pages accepted and not yet closed (<= max_live)
+  std::atomic<std::uint64_t> refused_{0};  // requests refused by the access list, for the log
   mutable std::mutex clients_mutex_;
   std::map<const mg_connection*, std::unique_ptr<Client>> clients_;
 };

@@ -6,8 +6,11 @@
 //   node browser_tests.mjs watch URL [sensors]        a live run: states arrive (with
 //                                                     `sensors`: lead's camera and lidar too);
 //                                                     then watches until killed
+//   node browser_tests.mjs origin URL LIVE_URL        a replay viewer (URL) and a live one:
+//                                                     other sites' pages cannot reach either
 import assert from 'node:assert/strict';
-import { openViewer } from '../../tools/viewer_browser.mjs';
+import http from 'node:http';
+import { launchChromium, openViewer } from '../../tools/viewer_browser.mjs';
 
 const [kind, url, shot] = process.argv.slice(2);
 const log = (...a) => console.log(`browser_tests ${kind}:`, ...a);
@@ -137,6 +140,74 @@ async function watch() {
   }
 }
 
-const cases = { replay, ruts, live, watch };
+// In a page: opens the live viewer's WebSocket and fetches a run file of the replay viewer, as
+// a script of that page may. ws: 'open' or 'refused'; run: 'read', 'status N' (a response the
+// page may read) or 'blocked' (the browser kept the response from the page).
+async function reachViewer({ live, replay }) {
+  const ws = await new Promise((resolve) => {
+    const s = new WebSocket(`${live.replace(/^http/, 'ws')}live`);
+    const bound = setTimeout(() => resolve('no answer in 20 s'), 20000);
+    s.onopen = () => { clearTimeout(bound); s.close(); resolve('open'); };
+    s.onclose = () => { clearTimeout(bound); resolve('refused'); };
+  });
+  let run;
+  try {
+    const r = await fetch(`${replay}run/vehicles.csv`);
+    run = r.ok ? 'read' : `status ${r.status}`;
+  } catch {
+    run = 'blocked';
+  }
+  return { ws, run };
+}
+
+async function origin() {
+  const liveUrl = shot;
+  // Another site: a page served from another port of this machine (another origin).
+  const site = http.createServer((req, res) => {
+    res.writeHead(200, { 'Content-Type': 'text/html' });
+    res.end('<!doctype html><title>another site</title><p>another site</p>');
+  });
+  await new Promise((resolve) => site.listen(0, '127.0.0.1', resolve));
+  // DNS rebinding: a name of another site that resolves to this machine (Chromium's resolver
+  // told so), so the viewer is the same origin as that site's page.
+  const browser = await launchChromium(['--host-resolver-rules=MAP rebind.test 127.0.0.1',
+    '--no-proxy-server']);
+  try {
+    const page = await browser.newPage();
+    await page.goto(`http://127.0.0.1:${site.address().port}/`);
+    const cross = await page.evaluate(reachViewer, { live: liveUrl, replay: url });
+    log('from another site\'s page', JSON.stringify(cross));
+    assert.deepEqual(cross, { ws: 'refused', run: 'blocked' });
+    const rebound = (u) => u.replace('127.0.0.1', 'rebind.test');
+    const first = await page.goto(rebound(url));
+    assert.equal(first.status(), 403, 'the viewer refuses a page of another name');
+    const same = await page.evaluate(reachViewer, { live: rebound(liveUrl), replay: rebound(url) });
+    log('from a rebound name', JSON.stringify(same));
+    assert.deepEqual(same, { ws: 'refused', run: 'status 403' });
+  } finally {
+    await browser.close();
+    site.close();
+  }
+  // The viewer's own pages still work: the replay loads its run, the live page its stream.
+  const replay = await openViewer(url);
+  try {
+    assert.ok(await replay.page.evaluate(() => window.syndds.frames) > 0, 'the run is loaded');
+    // Its own run file; the live viewer, on another port, is another site to it.
+    const own = await replay.page.evaluate(reachViewer, { live: liveUrl, replay: url });
+    log('from the replay page', JSON.stringify(own));
+    assert.deepEqual(own, { ws: 'refused', run: 'read' });
+  } finally {
+    await replay.browser.close();
+  }
+  const live = await openViewer(liveUrl);
+  try {
+    await live.page.waitForFunction(() => window.syndds.updates > 0, null, { timeout: 60000 });
+    log('the live page gets updates');
+  } finally {
+    await live.browser.close();
+  }
+}
+
+const cases = { replay, ruts, live, watch, origin };
 if (!cases[kind]) { console.error(`unknown case ${kind}`); process.exit(1); }
 cases[kind]().then(() => log('passed'), (e) => { console.error(`browser_tests ${kind}: FAILED: ${e.message}`); process.exit(1); });

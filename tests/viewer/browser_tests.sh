@@ -2,13 +2,16 @@
 # The viewer as a user meets it, in headless Chromium: one case per call (CTest runs each in its
 # own network namespace through tests/netns_exec.sh). Exit 77 (skipped) without chromium or the
 # npm packages (launch_scripts/setup.sh installs both).
-#   browser_tests.sh replay|ruts|live|kill OUT_DIR
+#   browser_tests.sh replay|ruts|live|kill|origin OUT_DIR
 #     replay  the default scenario recorded: loads, the slider moves the vehicles, screenshot
 #     ruts    scm_crossing recorded: the ruts are replayed and change the picture, screenshot
 #     live    scm_crossing live with --view: ruts appear while it runs; vehicles.csv is
 #             byte-identical to the single-process run
 #     kill    the default scenario live: the viewer is killed (SIGKILL) while a browser watches;
 #             the run completes with vehicles.csv byte-identical to the single-process run
+#     origin  a replay viewer and a live one (no run): pages of another site (another port) and
+#             of a name rebound to this machine open neither the WebSocket nor a run file; the
+#             viewers' own pages work
 set -euo pipefail
 CASE=$1; OUT=$2
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -19,8 +22,11 @@ CHROMIUM=${SYNDDS_CHROMIUM:-/usr/bin/chromium}
   { echo "skipped: npm packages missing (launch_scripts/setup.sh)"; exit 77; }
 mkdir -p "$OUT"
 work=$(mktemp -d)
-vpid=""
-cleanup() { [ -z "$vpid" ] || kill "$vpid" 2>/dev/null || true; rm -rf "$work"; }
+vpid=""; lvpid=""
+cleanup() {
+  for p in $vpid $lvpid; do kill "$p" 2>/dev/null || true; done
+  rm -rf "$work"
+}
 trap cleanup EXIT
 export SYNDDS_BUILD_DIR=$(dirname "$BIN")
 
@@ -79,6 +85,20 @@ case "$CASE" in
     cmp "$work/live/vehicles.csv" "$work/single/vehicles.csv"
     cmp "$work/live/commands.csv" "$work/single/commands.csv"
     echo "browser_tests kill: the run completed byte-identical after its viewer and browser were killed"
+    ;;
+  origin)
+    single default 2 "$work/run"
+    replay_viewer "$work/run"
+    # Live without a run: it serves the page and the stream (the scene, an empty world).
+    "$BIN/syndds_viewer" "$ROOT/config/scenarios/default.yaml" --run-id "origin-$$" --port 0 \
+        --url-file "$work/live_url" > "$work/live_viewer.log" 2>&1 &
+    lvpid=$!
+    wait_file "$work/live_url"
+    node "$ROOT/tests/viewer/browser_tests.mjs" origin "$(cat "$work/url")" "$(cat "$work/live_url")"
+    # Refused by the viewers themselves (not only by the browser), and said so in their logs.
+    grep -q "refused GET /run/vehicles.csv" "$work/viewer.log" ||
+      { cat "$work/viewer.log" >&2; exit 1; }
+    grep -q "refused GET /live" "$work/live_viewer.log" || { cat "$work/live_viewer.log" >&2; exit 1; }
     ;;
   *) echo "unknown case $CASE" >&2; exit 1 ;;
 esac

@@ -1,7 +1,13 @@
 // The viewer's parts without a browser: the scene document, the live state's latest-only
-// bookkeeping, and the HTTP/WebSocket server (civetweb's own client talks to it).
+// bookkeeping, and the HTTP/WebSocket server (civetweb's own client and plain sockets talk to
+// it).
+#include <arpa/inet.h>
 #include <civetweb.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -266,8 +272,20 @@ struct WebFixture {
     std::ofstream(dir / "meshes" / "meshes.mtl") << "newmtl rock\n";
     std::ofstream(dir / "meshes" / "notes.txt") << "not a mesh\n";
     std::ofstream(dir / "web" / "index.html") << "<html>page</html>";
+    std::ofstream(dir / "web" / "viewer.js") << "// the page's script";
+    std::ofstream(dir / "web" / "style.css") << "body {}";
+    std::ofstream(dir / "web" / "package.json") << "{}";
+    // What npm installs beside the page: not the page's, never served from here.
+    fs::create_directories(dir / "web" / "node_modules" / "three" / "build");
+    fs::create_directories(dir / "web" / "node_modules" / "other");
+    std::ofstream(dir / "web" / "node_modules" / "three" / "package.json") << "{}";
+    std::ofstream(dir / "web" / "node_modules" / "three" / "build" / "three.module.js") << "x";
+    std::ofstream(dir / "web" / "node_modules" / "other" / "index.js") << "secret";
     std::ofstream(dir / "three" / "build" / "three.module.js") << "export const x = 1;";
     std::ofstream(dir / "three" / "package.json") << "{}";
+    fs::create_directories(dir / "three" / "examples" / "jsm" / "controls");
+    std::ofstream(dir / "three" / "examples" / "jsm" / "controls" / "OrbitControls.js") << "y";
+    std::ofstream(dir / "three" / "examples" / "jsm" / "README.md") << "not a module";
     std::ofstream(dir / "run" / "vehicles.csv") << "frame\n0\n";
   }
   ~WebFixture() { fs::remove_all(dir); }
@@ -283,19 +301,39 @@ struct WebFixture {
   }
 };
 
-// GET `path`: status and body.
-std::pair<int, std::string> get(int port, const std::string& path) {
-  char err[256] = {};
-  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err,
-                                 "GET %s HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n", path.c_str());
-  if (!c) return {0, err};
-  const int status = mg_get_response_info(c)->status_code;
+struct Response {
+  int status = 0;
   std::string body;
+  std::map<std::string, std::string> headers;  // names in lower case
+};
+
+// `path` with `headers` (each ending in \r\n; by default a browser's Host for the port).
+Response request(int port, const std::string& path, std::string headers = "") {
+  if (headers.empty()) headers = "Host: 127.0.0.1:" + std::to_string(port) + "\r\n";
+  char err[256] = {};
+  mg_connection* c = mg_download("127.0.0.1", port, 0, err, sizeof err, "GET %s HTTP/1.1\r\n%s\r\n",
+                                 path.c_str(), headers.c_str());
+  if (!c) return {0, err, {}};
+  Response r;
+  const mg_response_info* info = mg_get_response_info(c);
+  r.status = info->status_code;
+  for (int k = 0; k < info->num_headers; ++k) {
+    std::string name = info->http_headers[k].name;
+    for (char& ch : name) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    r.headers[name] = info->http_headers[k].value;
+  }
   char buf[4096];
   int n;
-  while ((n = mg_read(c, buf, sizeof buf)) > 0) body.append(buf, n);
+  // A 101 (WebSocket) answer has no body: the connection stays open.
+  while (r.status != 101 && (n = mg_read(c, buf, sizeof buf)) > 0) r.body.append(buf, n);
   mg_close_connection(c);
-  return {status, body};
+  return r;
+}
+
+// GET `path` as a browser on 127.0.0.1 asks for it: status and body.
+std::pair<int, std::string> get(int port, const std::string& path) {
+  const Response r = request(port, path);
+  return {r.status, r.body};
 }
 
 }  // namespace
@@ -352,6 +390,36 @@ TEST(ViewerServer, RefusesAWebRootWithoutThePage) {
   o = web.options(false);
   o.three_dir = web.dir / "web";
   EXPECT_THROW(viewer::ViewerServer(o, "{}", nullptr, nullptr), ConfigError);
+}
+
+TEST(ViewerServer, ServesThePagesFilesAndThreesModulesButNothingElseOfNodeModules) {
+  WebFixture web;
+  viewer::ViewerServer server(web.options(true), "{}", nullptr, nullptr);
+  const int p = server.port();
+  EXPECT_EQ(get(p, "/index.html"), std::make_pair(200, std::string("<html>page</html>")));
+  EXPECT_EQ(get(p, "/viewer.js").first, 200);
+  EXPECT_EQ(get(p, "/style.css").first, 200);
+  // What the page imports (index.html's import map): three's build and its add-ons.
+  EXPECT_EQ(get(p, "/vendor/three/build/three.module.js").first, 200);
+  EXPECT_EQ(get(p, "/vendor/three/examples/jsm/controls/OrbitControls.js").first, 200);
+  EXPECT_EQ(get(p, "/vendor/three/examples/jsm/README.md").first, 404);  // not a module
+  EXPECT_EQ(get(p, "/vendor/three/package.json").first, 404);
+  // Nothing npm installed is served as it lies, nor the page folder's package files.
+  for (const char* path :
+       {"/package.json", "/node_modules/three/package.json", "/node_modules/other/index.js",
+        "/node_modules/three/build/three.module.js", "/node_modules/", "/node_modules"}) {
+    EXPECT_EQ(get(p, path).first, 404) << path;
+  }
+  // Out of the served folders, plain and encoded.
+  for (const char* path :
+       {"/vendor/three/build/../package.json", "/vendor/three/build/%2e%2e/package.json",
+        "/vendor/three/build/%2e%2e%2f%2e%2e%2f%2e%2e%2fweb%2fpackage.json",
+        "/vendor/three/examples/jsm/../../../web/node_modules/other/index.js",
+        "/node_modules/three/%2e%2e/%2e%2e/package.json", "/%2e%2e/three/package.json",
+        "/..%2fthree%2fpackage.json", "/vendor/three/build/%2fetc%2fpasswd",
+        "/node_modules%2fother%2findex.js"}) {
+    EXPECT_EQ(get(p, path).first, 404) << path;
+  }
 }
 
 namespace {
@@ -423,4 +491,360 @@ TEST(ViewerServer, StreamsTheSceneThenLiveUpdatesAndTheSelectedCamera) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   EXPECT_EQ(server.connections(), 0u);
+}
+
+TEST(ViewerAccess, AnswersTheBoundAddressAndLocalhostAtTheBoundPortOnly) {
+  const viewer::AccessList access(viewer::parse_bind("127.0.0.1"), {}, {});
+  for (const char* host : {"127.0.0.1:8080", "localhost:8080", "LocalHost:8080", "[::1]:8080",
+                           "[0:0:0:0:0:0:0:1]:8080", "localhost"}) {
+    EXPECT_TRUE(access.host_allowed(host, 8080)) << host;
+  }
+  // Another site's name (DNS rebinding sends it), another port, nonsense.
+  for (const char* host :
+       {"evil.example:8080", "evil.example", "localhost:8081", "127.0.0.2:8080",
+        "localhost.evil.example:8080", "", ":8080", "localhost:", "localhost:0", "localhost:99999",
+        "[::1", "[evil]:8080", "local host:8080", "localhost:80a"}) {
+    EXPECT_FALSE(access.host_allowed(host, 8080)) << host;
+  }
+  EXPECT_TRUE(access.origin_allowed("http://127.0.0.1:8080", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://localhost:8080", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://[::1]:8080", 8080));
+  for (const char* origin :
+       {"http://evil.example", "http://localhost:3000", "https://127.0.0.1:8080",
+        "http://localhost", "null", "file://", "http://127.0.0.1:8080/x", ""}) {
+    EXPECT_FALSE(access.origin_allowed(origin, 8080)) << origin;
+  }
+}
+
+TEST(ViewerAccess, AddsTheHostsAndOriginsGivenAndRejectsMalformedOnesByOption) {
+  const viewer::AccessList access(viewer::parse_bind("127.0.0.1"),
+                                  {"viewer.lab", "Tunnel.lab:9000", "[::2]"},
+                                  {"https://proxy.example", "http://other.lab:81/"});
+  EXPECT_TRUE(access.host_allowed("viewer.lab:8080", 8080));
+  EXPECT_FALSE(access.host_allowed("viewer.lab:9000", 8080));
+  EXPECT_TRUE(access.host_allowed("tunnel.lab:9000", 8080));
+  EXPECT_FALSE(access.host_allowed("tunnel.lab:8080", 8080));
+  EXPECT_TRUE(access.host_allowed("[::2]:8080", 8080));
+  // The pages of the allowed hosts, and the origins given exactly (scheme, name and port).
+  EXPECT_TRUE(access.origin_allowed("http://viewer.lab:8080", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://tunnel.lab:9000", 8080));
+  EXPECT_TRUE(access.origin_allowed("https://proxy.example", 8080));
+  EXPECT_TRUE(access.origin_allowed("https://proxy.example:443", 8080));
+  EXPECT_FALSE(access.origin_allowed("http://proxy.example", 8080));
+  EXPECT_TRUE(access.origin_allowed("http://other.lab:81", 8080));
+  EXPECT_FALSE(access.origin_allowed("http://other.lab", 8080));
+  EXPECT_FALSE(access.host_allowed("proxy.example", 8080));  // an origin is not a host
+  const auto refused = [](std::vector<std::string> hosts, std::vector<std::string> origins,
+                          const std::string& option) {
+    try {
+      viewer::AccessList(viewer::parse_bind("127.0.0.1"), hosts, origins);
+    } catch (const ConfigError& e) {
+      return std::string(e.what()).find(option) != std::string::npos;
+    }
+    return false;
+  };
+  for (const char* bad : {"", "::1", "a b", "host:port", "host:0", "http://host", "[::1]x"}) {
+    EXPECT_TRUE(refused({bad}, {}, "--allow-host")) << bad;
+  }
+  for (const char* bad :
+       {"", "host", "ftp://host", "http://host/path", "http://", "null", "http://host:99999"}) {
+    EXPECT_TRUE(refused({}, {bad}, "--allow-origin")) << bad;
+  }
+}
+
+TEST(ViewerAccess, AWildcardAddressAnswersThisMachinesAddressesAndName) {
+  const viewer::AccessList access(viewer::parse_bind("0.0.0.0"), {}, {});
+  EXPECT_TRUE(access.host_allowed("127.0.0.1:8080", 8080));
+  EXPECT_TRUE(access.host_allowed("localhost:8080", 8080));
+  EXPECT_FALSE(access.host_allowed("0.0.0.0:8080", 8080));
+  EXPECT_FALSE(access.host_allowed("evil.example:8080", 8080));
+  char name[256] = {};
+  ASSERT_EQ(gethostname(name, sizeof name - 1), 0);
+  EXPECT_TRUE(access.host_allowed(std::string(name) + ":8080", 8080)) << name;
+}
+
+TEST(ViewerAccess, TheBindAddressIsCheckedAndNamedInErrors) {
+  EXPECT_EQ(viewer::parse_bind("127.0.0.1").host, "127.0.0.1");
+  EXPECT_TRUE(viewer::parse_bind("0.0.0.0").wildcard);
+  EXPECT_EQ(viewer::parse_bind("LocalHost").host, "localhost");
+  for (const char* bad : {"", "[127.0.0.1]", "not an address", "1.2.3.4:80", "[::1"}) {
+    try {
+      viewer::parse_bind(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--bind"), std::string::npos) << e.what();
+    }
+  }
+  for (const char* v6 : {"::1", "[::1]", "::"}) {
+    if (viewer::civetweb_has_ipv6()) {
+      EXPECT_TRUE(viewer::parse_bind(v6).ipv6) << v6;
+    } else {
+      // Named: the option, and why it cannot work with this library.
+      try {
+        viewer::parse_bind(v6);
+        ADD_FAILURE() << v6 << " accepted without IPv6 in civetweb";
+      } catch (const ConfigError& e) {
+        EXPECT_NE(std::string(e.what()).find("--bind"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("IPv6"), std::string::npos) << e.what();
+      }
+    }
+  }
+}
+
+namespace {
+
+// A WebSocket upgrade request's headers, with `host` and `origin` (none when empty).
+std::string upgrade(const std::string& host, const std::string& origin = "") {
+  return "Host: " + host +
+         "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+         "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n" +
+         (origin.empty() ? "" : "Origin: " + origin + "\r\n");
+}
+
+// Waits (bounded) until `pred` holds.
+template <class Pred>
+bool eventually(Pred pred, std::chrono::milliseconds limit = std::chrono::seconds(10)) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST(ViewerServer, AnswersOnlyRequestsForItsOwnHostsWithoutCorsHeaders) {
+  WebFixture web;
+  viewer::ViewerServer server(web.options(true), "{}", nullptr, nullptr);
+  const std::string port = std::to_string(server.port());
+  const auto status = [&](const std::string& path, const std::string& headers) {
+    return request(server.port(), path, headers).status;
+  };
+  EXPECT_EQ(status("/", "Host: 127.0.0.1:" + port + "\r\n"), 200);
+  EXPECT_EQ(status("/", "Host: localhost:" + port + "\r\n"), 200);
+  // DNS rebinding: a page of evil.example whose name now leads here sends its own name.
+  EXPECT_EQ(status("/", "Host: evil.example:" + port + "\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", "Host: evil.example:" + port + "\r\n"), 403);
+  EXPECT_EQ(status("/api/scene", "Host: evil.example:" + port + "\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", "Host: localhost:1\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", "X-None: 1\r\n"), 403);  // no Host at all
+  // Another site's page asking for a run file: refused; the viewer's own page: answered, and
+  // no response invites other sites to read it.
+  const std::string host = "Host: 127.0.0.1:" + port + "\r\n";
+  EXPECT_EQ(status("/run/vehicles.csv", host + "Origin: http://evil.example\r\n"), 403);
+  EXPECT_EQ(status("/run/vehicles.csv", host + "Origin: http://127.0.0.1:1\r\n"), 403);
+  const Response own = request(server.port(), "/run/vehicles.csv",
+                               host + "Origin: http://127.0.0.1:" + port + "\r\n");
+  EXPECT_EQ(own.status, 200);
+  EXPECT_EQ(own.headers.count("access-control-allow-origin"), 0u);
+  for (const char* path : {"/", "/api/info", "/vendor/three/build/three.module.js"}) {
+    const Response r =
+        request(server.port(), path, host + "Origin: http://127.0.0.1:" + port + "\r\n");
+    EXPECT_EQ(r.status, 200) << path;
+    EXPECT_EQ(r.headers.count("access-control-allow-origin"), 0u) << path;
+  }
+  // The names given are answered too.
+  auto o = web.options(true);
+  o.allow_hosts = {"viewer.lab"};
+  viewer::ViewerServer named(o, "{}", nullptr, nullptr);
+  const std::string nport = std::to_string(named.port());
+  EXPECT_EQ(request(named.port(), "/", "Host: viewer.lab:" + nport + "\r\n").status, 200);
+  EXPECT_EQ(request(named.port(), "/", "Host: evil.example:" + nport + "\r\n").status, 403);
+}
+
+TEST(ViewerServer, RefusesAWebSocketFromAnotherSitesPage) {
+  WebFixture web;
+  viewer::LiveState live;
+  viewer::ViewerServer server(web.options(false), R"({"format":1})", &live, nullptr);
+  const std::string port = std::to_string(server.port());
+  const std::string host = "127.0.0.1:" + port;
+  // Cross-site WebSocket hijacking: a page of another site opens the stream.
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "http://evil.example")).status, 403);
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "http://localhost:3000")).status, 403);
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "null")).status, 403);
+  EXPECT_EQ(request(server.port(), "/live", upgrade("evil.example:" + port)).status, 403);
+  WsInbox inbox;
+  char err[256] = {};
+  mg_connection* c =
+      mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err, "/live",
+                                  "http://evil.example", ws_data, ws_close, &inbox);
+  EXPECT_EQ(c, nullptr);
+  if (c) mg_close_connection(c);
+  EXPECT_EQ(server.connections(), 0u);
+  // The viewer's own page: its origin is the host it was loaded from.
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host, "http://" + host)).status, 101);
+  EXPECT_EQ(
+      request(server.port(), "/live", upgrade("localhost:" + port, "http://localhost:" + port))
+          .status,
+      101);
+  c = mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err, "/live",
+                                  ("http://" + host).c_str(), ws_data, ws_close, &inbox);
+  ASSERT_NE(c, nullptr) << err;
+  {
+    std::unique_lock lock(inbox.mutex);
+    ASSERT_TRUE(
+        inbox.cv.wait_for(lock, std::chrono::seconds(10), [&] { return !inbox.texts.empty(); }));
+    EXPECT_EQ(nlohmann::json::parse(inbox.texts.front())["type"], "scene");
+  }
+  mg_close_connection(c);
+  // An origin the user allowed.
+  auto o = web.options(false);
+  o.allow_origins = {"https://proxy.example"};
+  viewer::ViewerServer proxied(o, "{}", &live, nullptr);
+  const std::string phost = "127.0.0.1:" + std::to_string(proxied.port());
+  EXPECT_EQ(request(proxied.port(), "/live", upgrade(phost, "https://proxy.example")).status, 101);
+  EXPECT_EQ(request(proxied.port(), "/live", upgrade(phost, "http://proxy.example")).status, 403);
+}
+
+TEST(ViewerServer, RefusesLivePagesBeyondItsLimitAndTakesOneWhenAnotherCloses) {
+  WebFixture web;
+  viewer::LiveState live;
+  auto o = web.options(false);
+  o.threads = 4;
+  o.max_live = 2;
+  viewer::ViewerServer server(o, "{}", &live, nullptr);
+  std::vector<WsInbox> inboxes(3);
+  std::vector<mg_connection*> open;
+  char err[256] = {};
+  for (int k = 0; k < 2; ++k) {
+    open.push_back(mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err,
+                                               "/live", nullptr, ws_data, ws_close, &inboxes[k]));
+    ASSERT_NE(open.back(), nullptr) << err;
+  }
+  ASSERT_TRUE(eventually([&] { return server.connections() == 2; }));
+  const std::string host = "127.0.0.1:" + std::to_string(server.port());
+  EXPECT_EQ(request(server.port(), "/live", upgrade(host)).status, 503);
+  EXPECT_EQ(get(server.port(), "/").first, 200);  // the page is still served
+  mg_close_connection(open[0]);
+  ASSERT_TRUE(eventually([&] { return server.connections() == 1; }));
+  mg_connection* again = nullptr;
+  // The slot is free once civetweb has closed the connection (just after connections() fell).
+  ASSERT_TRUE(eventually([&] {
+    again = mg_connect_websocket_client("127.0.0.1", server.port(), 0, err, sizeof err, "/live",
+                                        nullptr, ws_data, ws_close, &inboxes[2]);
+    return again != nullptr;
+  }));
+  mg_close_connection(again);
+  mg_close_connection(open[1]);
+}
+
+namespace {
+
+// A TCP connection to 127.0.0.1:`port` (-1 when refused).
+int connect_to(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Whether the peer closed `fd` (end of stream) by `deadline`.
+bool closed_by_peer(int fd, std::chrono::steady_clock::time_point deadline) {
+  char buf[4096];
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    pollfd p{fd, POLLIN, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::max<long>(0, left.count())));
+    if (ready <= 0) return false;
+    if (::read(fd, buf, sizeof buf) <= 0) return true;
+  }
+}
+
+// Reads until the peer closes or `deadline`; what was read.
+std::string read_until_closed(int fd, std::chrono::steady_clock::time_point deadline) {
+  std::string got;
+  char buf[4096];
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return got;
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n <= 0) return got;
+    got.append(buf, static_cast<std::size_t>(n));
+  }
+}
+
+}  // namespace
+
+TEST(ViewerServer, IdleConnectionsDoNotStarveANewRequest) {
+  WebFixture web;
+  viewer::LiveState live;
+  const viewer::ServerOptions defaults;
+  viewer::ViewerServer server(web.options(false), "{}", &live, nullptr);
+  // More connections than workers, all silent: each holds a worker until it times out.
+  std::vector<int> idle;
+  for (int k = 0; k < defaults.threads + 4; ++k) {
+    const int fd = connect_to(server.port());
+    ASSERT_GE(fd, 0);
+    idle.push_back(fd);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const int fd = connect_to(server.port());
+  ASSERT_GE(fd, 0);
+  const std::string req =
+      "GET /api/info HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(server.port()) + "\r\n\r\n";
+  ASSERT_EQ(::write(fd, req.data(), req.size()), static_cast<ssize_t>(req.size()));
+  // Answered once the idle ones time out: within the request timeout and a margin.
+  const auto bound = std::chrono::milliseconds(defaults.request_timeout_ms + 5000);
+  const std::string answer = read_until_closed(fd, start + bound);
+  const auto took = std::chrono::steady_clock::now() - start;
+  ::close(fd);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << "no answer within " << bound.count() << " ms";
+  EXPECT_LT(took, bound);
+  // The server closed idle connections to free the worker that answered: at least those queued
+  // before the request (civetweb hands connections to workers in the order it accepted them).
+  std::size_t closed = 0;
+  const auto grace = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  for (const int i : idle) {
+    closed += closed_by_peer(i, grace);
+    ::close(i);
+  }
+  EXPECT_GE(closed, idle.size() - static_cast<std::size_t>(defaults.threads) + 1);
+}
+
+TEST(ViewerServer, ListensOnIpv6) {
+  WebFixture web;
+  auto o = web.options(true);
+  o.bind = "::1";
+  if (!viewer::civetweb_has_ipv6()) {
+    // The error names the option and the reason instead of "cannot listen".
+    try {
+      viewer::ViewerServer server(o, "{}", nullptr, nullptr);
+      ADD_FAILURE() << "--bind ::1 accepted by a civetweb without IPv6";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--bind ::1"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("IPv6"), std::string::npos) << e.what();
+    }
+    GTEST_SKIP() << "the system's civetweb library is built without IPv6 (mg_check_feature(8) "
+                    "is 0): --bind ::1 is refused with a clear error instead";
+  }
+  for (const char* bind : {"::1", "[::1]"}) {
+    o.bind = bind;
+    viewer::ViewerServer server(o, "{}", nullptr, nullptr);
+    EXPECT_EQ(server.url(), "http://[::1]:" + std::to_string(server.port()) + "/");
+    const int fd = ::socket(AF_INET6, SOCK_STREAM, 0);
+    sockaddr_in6 a{};
+    a.sin6_family = AF_INET6;
+    a.sin6_port = htons(static_cast<std::uint16_t>(server.port()));
+    a.sin6_addr = in6addr_loopback;
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << bind;
+    const std::string req =
+        "GET /run/vehicles.csv HTTP/1.1\r\nHost: [::1]:" + std::to_string(server.port()) +
+        "\r\n\r\n";
+    ASSERT_EQ(::write(fd, req.data(), req.size()), static_cast<ssize_t>(req.size()));
+    const std::string answer =
+        read_until_closed(fd, std::chrono::steady_clock::now() + std::chrono::seconds(10));
+    ::close(fd);
+    EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << answer;
+  }
 }
