@@ -132,6 +132,8 @@ void listen_twice(fdds::DomainParticipantQos& qos) {
 // Built against a Fast DDS without the race (the other definition: fastdds_security_race.cpp).
 #if !SYNDDS_FASTDDS_SECURITY_RACE_WORKAROUND
 bool security_race_workaround() { return false; }
+std::string security_race_check() { return ""; }
+std::uint64_t security_race_lock_calls() { return 0; }
 #endif
 
 Participant::Participant(const DdsOptions& options) : options_(options) {
@@ -168,6 +170,10 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
       }
     }
     if (!options_.security_dir.empty() && security_race_workaround()) {
+      // Secure discovery without the lock loses participant pairs for good: refuse it.
+      if (const std::string why = security_race_check(); !why.empty()) {
+        throw ConfigError("DDS Security cannot run safely in this process: " + why);
+      }
       spdlog::debug("DDS Security: Fast DDS 2.9.1's built-in endpoint matching runs under a lock");
     }
     participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(options_.domain_id),
@@ -183,14 +189,22 @@ Participant::Participant(const DdsOptions& options) : options_(options) {
   fdds::SubscriberQos sub_qos = participant_->get_default_subscriber_qos();
   sub_qos.partition().push_back(options_.run_id.c_str());
   subscriber_ = participant_->create_subscriber(sub_qos);
-  if (!publisher_ || !subscriber_) fail("cannot create publisher/subscriber");
+  if (!publisher_ || !subscriber_) {
+    // The destructor does not run for a constructor that throws: the participant, whose
+    // listener is this object, goes first.
+    release();
+    fail("cannot create publisher/subscriber");
+  }
 }
 
-Participant::~Participant() {
+Participant::~Participant() { release(); }
+
+void Participant::release() {
   if (!participant_) return;
   participant_->set_listener(nullptr);
   participant_->delete_contained_entities();
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+  participant_ = nullptr;
 }
 
 void MatchedReaders::on_publication_matched(fdds::DataWriter*,

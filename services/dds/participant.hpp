@@ -54,6 +54,14 @@ std::vector<std::pair<std::string, std::string>> security_properties(const DdsOp
 /// True when this program carries the lock around Fast DDS 2.9.0/2.9.1's secure built-in
 /// endpoint matching (services/dds/fastdds_security_race.cpp; not needed from 2.9.2 on).
 bool security_race_workaround();
+/// With the workaround: checks, in the running process, that the lock is in effect (the loaded
+/// libfastrtps is the version it was built for, defines both functions and calls them through
+/// its PLT, and the dynamic linker finds this program's locked versions first). Returns why
+/// not, or "" (always "" without the workaround). Participants with security refuse to start
+/// when it says no.
+std::string security_race_check();
+/// How many calls of the library went through the locked versions in this process.
+std::uint64_t security_race_lock_calls();
 
 /// Topic names, defined once. Protocol topics and one per data topic.
 namespace topics {
@@ -331,6 +339,8 @@ class Participant : private fdds::DomainParticipantListener {
       fdds::DomainParticipant* participant,
       eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) override;
   [[noreturn]] void fail(const std::string& what) const;
+  /// Deletes the DDS participant and everything in it (idempotent).
+  void release();
   fdds::Publisher* data_publisher(const std::string& vehicle_id);
   fdds::Subscriber* data_subscriber(const std::string& vehicle_id);  // "": every vehicle
 

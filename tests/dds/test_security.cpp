@@ -7,7 +7,10 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
+#include <set>
 #include <thread>
+#include <vector>
 
 #include <dlfcn.h>
 
@@ -164,3 +167,70 @@ TEST(Security, FastDdsBuiltinEndpointMatchingRunsUnderTheLock) {
   }
 }
 
+
+// The lock is in effect in this process (security_race_check) and carries the library's
+// matching when secure participants discover each other at once: five participants created
+// from five threads at the same moment all authenticate each other (each reads the other
+// four's announcements), and every discovery went through the locked versions.
+TEST(Security, ParticipantsCreatedConcurrentlyAllAuthenticateThroughTheLock) {
+  const bool race = SYNDDS_TEST_FASTDDS_SECURITY_RACE;
+  EXPECT_EQ(sdds::security_race_check(), "");
+  const std::uint64_t calls_before = sdds::security_race_lock_calls();
+  const std::vector<std::string> ids = {"vehicle/a", "vehicle/b", "controller/a", "controller/b",
+                                        "recorder"};
+  struct Peer {
+    std::unique_ptr<sdds::Participant> participant;
+    std::unique_ptr<sdds::Writer<msg::MemberAnnounce>> writer;
+    std::unique_ptr<sdds::Reader<msg::MemberAnnounce>> reader;
+    std::mutex mutex;
+    std::set<std::string> heard;
+  };
+  std::vector<Peer> peers(ids.size());
+  std::vector<std::thread> threads;
+  std::atomic<int> ready{0};
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    threads.emplace_back([&, i] {
+      ++ready;
+      while (ready < static_cast<int>(ids.size())) std::this_thread::yield();  // all at once
+      Peer& p = peers[i];
+      p.participant = std::make_unique<sdds::Participant>(options(ids[i]));
+      p.reader = p.participant->make_reader<msg::MemberAnnounce>(
+          sdds::topics::kMemberAnnounce, sdds::profiles::kProtocolReader,
+          [&p](msg::MemberAnnounce&& m) {
+            std::lock_guard lock(p.mutex);
+            p.heard.insert(m.member_id());
+          });
+      p.writer = p.participant->make_writer<msg::MemberAnnounce>(sdds::topics::kMemberAnnounce,
+                                                                 sdds::profiles::kProtocolWriter);
+    });
+  }
+  for (auto& t : threads) t.join();
+  auto everyone_heard = [&] {
+    for (auto& p : peers) {
+      std::lock_guard lock(p.mutex);
+      if (p.heard.size() < ids.size()) return false;  // the other four, and its own
+    }
+    return true;
+  };
+  const bool all = wait_until([&] {
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      proto::MemberAnnounceMsg a;
+      a.member_id = ids[i];
+      a.participant_guid = peers[i].participant->guid_prefix();
+      peers[i].writer->write(sdds::to_dds(a));
+    }
+    return everyone_heard();
+  }, 40.0);
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    std::lock_guard lock(peers[i].mutex);
+    EXPECT_EQ(peers[i].heard, std::set<std::string>(ids.begin(), ids.end()))
+        << ids[i] << " did not hear every peer";
+  }
+  EXPECT_TRUE(all);
+  if (race) {
+    // Each participant matched the built-in endpoints of each of the four others it discovered.
+    EXPECT_GE(sdds::security_race_lock_calls() - calls_before, ids.size() * (ids.size() - 1));
+  } else {
+    EXPECT_EQ(sdds::security_race_lock_calls(), 0u);
+  }
+}
