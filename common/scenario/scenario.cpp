@@ -167,6 +167,7 @@ TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir,
     t.heightmap = terrain::parse_heightmap_spec(heightmap,
                                                 fs::path(node.file()).parent_path().string());
     const std::string image = files.read(t.heightmap.image_file, heightmap.path() + ".image");
+    t.heightmap.image_hash = fnv1a64(image);
     // Every process that builds the terrain decodes the whole image: bound it from the PNG
     // header (other formats are checked when decoded).
     const auto png = png_size(image);

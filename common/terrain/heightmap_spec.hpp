@@ -2,6 +2,7 @@
 // What a scenario's height-map block says (docs/scenario.md): the image file and where it lies.
 // Plain data read without decoding the image; HeightmapTerrain (heightmap_terrain.hpp) loads
 // the image when a process builds the terrain.
+#include <cstdint>
 #include <string>
 
 #include "core/math.hpp"
@@ -11,6 +12,9 @@ namespace syndds::terrain {
 
 struct HeightmapSpec {
   std::string image_file;
+  // FNV-1a 64 of the image's bytes as the run's fingerprint has them (0: not checked): the
+  // terrain is built from one read of the file whose bytes must hash to this.
+  std::uint64_t image_hash = 0;
   double size_x_m = 0.0;
   double size_y_m = 0.0;
   double min_height_m = 0.0;

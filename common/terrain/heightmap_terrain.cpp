@@ -7,8 +7,13 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string_view>
+#include <vector>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 
 namespace syndds::terrain {
 namespace {
@@ -18,7 +23,22 @@ std::vector<double> read_image_heights(const HeightmapSpec& spec, int& columns, 
   if (!std::filesystem::is_regular_file(spec.image_file, ec)) {
     throw ConfigError(spec.image_file + ": cannot read height-map image (no such file)");
   }
-  const cv::Mat img = cv::imread(spec.image_file, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
+  // One read: the bytes hashed against the fingerprint are the bytes decoded.
+  std::ifstream in(spec.image_file, std::ios::binary);
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                         std::istreambuf_iterator<char>());
+  if (!in.eof() && in.fail()) throw ConfigError(spec.image_file + ": cannot read height-map image");
+  if (spec.image_hash != 0) {
+    const std::uint64_t hash =
+        fnv1a64(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+    if (hash != spec.image_hash) {
+      throw ConfigError(spec.image_file + ": height-map image changed after the scenario was "
+                        "loaded (the run's fingerprint has hash " + hex64(spec.image_hash) +
+                        ", now " + hex64(hash) + ")");
+    }
+  }
+  const cv::Mat img = bytes.empty() ? cv::Mat()
+                                    : cv::imdecode(bytes, cv::IMREAD_ANYDEPTH | cv::IMREAD_GRAYSCALE);
   if (img.empty()) throw ConfigError(spec.image_file + ": cannot read height-map image");
   double g_max = 0.0;
   if (img.depth() == CV_8U) {

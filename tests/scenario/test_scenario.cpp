@@ -384,3 +384,38 @@ TEST(Scenario, AMemberThatCannotCheckpointIsNamed) {
         << e.what();
   }
 }
+
+// The height map is decoded from the same single read whose bytes are checked against the
+// fingerprint: an image changed between loading the scenario and building the terrain is an
+// error naming the file, never another terrain.
+TEST(Scenario, HeightMapChangedAfterLoadingIsRefusedWhenTheTerrainIsBuilt) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(testing::TempDir()) / ("syndds_hills_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fs::copy_file(kConfigDir + "/heightmaps/rolling_hills.png", dir / "hills.png");
+  const std::string file = (dir / "s.yaml").string();
+  std::ofstream(file) << R"(time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}
+terrain:
+  type: heightmap
+  heightmap: {image: hills.png, size_m: [200, 200], height_range_m: [0, 6]}
+vehicles:
+  - id: a
+    model: hmmwv
+    start: {x: 0, y: 0}
+)";
+  const auto s = load_scenario_config(file, {}, kConfigDir);
+  EXPECT_NE(s.terrain.heightmap.image_hash, 0u);
+  EXPECT_NO_THROW(make_terrain(s.terrain));
+  std::ofstream(dir / "hills.png", std::ios::app | std::ios::binary) << '\0';
+  try {
+    make_terrain(s.terrain);
+    ADD_FAILURE() << "a changed height map was used";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("hills.png: height-map image changed after the scenario "
+                                         "was loaded"),
+              std::string::npos)
+        << e.what();
+  }
+  fs::remove_all(dir);
+}
