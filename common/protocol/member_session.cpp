@@ -142,6 +142,11 @@ std::string MemberSession::check_coordinator() const {
     return "protocol version mismatch: coordinator " + std::to_string(c.protocol_version) +
            ", mine " + std::to_string(kProtocolVersion);
   }
+  if (!c.build_id.empty() && !config_.build_id.empty() && c.build_id != config_.build_id) {
+    return "build mismatch: the coordinator (host " + c.host + ") runs syndds build " +
+           c.build_id + ", this process build " + config_.build_id +
+           " (other physics or protocol sources: build every host from the same commit)";
+  }
   return "";
 }
 

@@ -32,6 +32,7 @@ struct MemberSessionConfig {
   std::int64_t resume_frame = -1; // >= 0: resumed from the checkpoint of this frame (resume())
   bool rejoin = false;            // restarted after it was lost (on_member_loss: recover): takes
                                   // part from the rollback grant that names it
+  std::string build_id;           // this program's build (core/build_identity.hpp); "": unchecked
   std::vector<std::string> config_files;  // "ROLE HASH" of the fingerprinted files (names the
                                           // file that differs on a mismatch)
   std::string participant_guid;   // this member's DDS participant: it acts on grants only once

@@ -340,6 +340,7 @@ struct MemberAnnounceMsg {
   // The coordinator's word on who is which member (docs/protocol.md, "Admission"):
   std::vector<std::string> admitted;  // "MEMBER PARTICIPANT_GUID"
   std::vector<std::string> refused;   // "MEMBER PARTICIPANT_GUID why"
+  std::string build_id;  // version+hash of the sources (core/build_identity.hpp); "": unchecked
   std::vector<std::string> config_files;  // "ROLE HASH" of each file in the fingerprint
   double join_timeout_s = 0.0;        // the coordinator's deadlines, for external members
   double frame_timeout_s = 0.0;
@@ -347,7 +348,7 @@ struct MemberAnnounceMsg {
 };
 SYNDDS_FIELDS(MemberAnnounceMsg, member_id, kind, run_id, participant_guid, host, pid,
               process_key, protocol_version, config_fingerprint, expected_members, admitted,
-              refused, config_files, join_timeout_s, frame_timeout_s, checkpoint_every)
+              refused, build_id, config_files, join_timeout_s, frame_timeout_s, checkpoint_every)
 
 struct FrameGrantMsg {
   std::int64_t frame = 0;

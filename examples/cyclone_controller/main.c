@@ -848,6 +848,7 @@ static bool announce(controller* c) {
   process_key(key, sizeof key);
   a.process_key = key;
   a.protocol_version = PROTOCOL_VERSION;
+  a.build_id = (char*)""; /* not a syndds build: unchecked */
   a.config_fingerprint = c->coordinator_fingerprint;
   return dds_write(c->announce_writer, &a) == DDS_RETCODE_OK;
 }

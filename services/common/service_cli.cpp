@@ -113,6 +113,9 @@ void add_debug_options(CLI::App& app, DebugArgs& d) {
   app.add_flag("--debug-skip-data-barrier", d.skip_data_barrier,
                "Start frames without waiting for announced data (shows why the barrier exists)")
       ->group(group);
+  app.add_option("--debug-build-id", d.build_id,
+                 "Announce this build identity instead of the program's own (another build)")
+      ->group(group);
 }
 
 scenario::Scenario load_scenario_config(const CommonArgs& a) {
@@ -173,6 +176,7 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
   // reports which sample is missing before the coordinator can only say who is late.
   o.input_timeout_s = 0.75 * s.coordinator.frame_timeout_s;
   o.debug_frame_delay_ms = d.frame_delay_ms;
+  o.debug_build_id = d.build_id;
   o.debug_publish_delay_ms = d.publish_delay_ms;
   o.debug_skip_data_barrier = d.skip_data_barrier;
   o.run_dir = a.run_dir;

@@ -47,6 +47,7 @@ struct DebugArgs {
   int frame_delay_ms = 0;
   int publish_delay_ms = 0;
   bool skip_data_barrier = false;
+  std::string build_id;  // announce this build identity instead of the program's own
 };
 
 void add_common_options(CLI::App& app, CommonArgs& args);

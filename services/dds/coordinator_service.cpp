@@ -8,6 +8,7 @@
 #include <fstream>
 #include <thread>
 
+#include "core/build_identity.hpp"
 #include "dds/convert.hpp"
 #include "dds/member_runtime.hpp"
 #include "record/checkpoint.hpp"
@@ -64,6 +65,7 @@ void CoordinatorService::setup() {
   a.process_key = own_process_key();
   a.config_fingerprint = options_.config_fingerprint;
   a.config_files = options_.config_files;
+  a.build_id = build_identity();
   a.expected_members = options_.barrier.members;
   a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
                             options_.barrier.late_members.end());
@@ -155,6 +157,10 @@ void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
                differing_files(a);
   } else if (a.protocol_version != proto::kProtocolVersion) {
     mismatch = "speaks protocol version " + std::to_string(a.protocol_version);
+  } else if (!a.build_id.empty() && a.build_id != announcement_.build_id) {
+    mismatch = "on " + a.host + " runs syndds build " + a.build_id + ", the coordinator build " +
+               announcement_.build_id +
+               " (other physics or protocol sources: build every host from the same commit)";
   }
   if (!mismatch.empty()) {
     // A member the start waits for aborts the run; a late one is refused and the run goes on.

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <thread>
 
+#include "core/build_identity.hpp"
 #include "core/error.hpp"
 #include "dds/convert.hpp"
 #include "protocol/admission.hpp"
@@ -77,6 +78,7 @@ proto::MemberSessionConfig MemberRuntime::session_config() const {
   c.rejoin = options_.rejoin;
   c.participant_guid = participant_->guid_prefix();
   c.config_files = options_.config_files;
+  c.build_id = options_.debug_build_id.empty() ? build_identity() : options_.debug_build_id;
   return c;
 }
 
@@ -335,6 +337,7 @@ void MemberRuntime::announce() {
   a.process_key = own_process_key();
   a.config_fingerprint = options_.config_fingerprint;
   a.config_files = options_.config_files;
+  a.build_id = options_.debug_build_id.empty() ? build_identity() : options_.debug_build_id;
   announce_writer_->write(to_dds(a));
 }
 

@@ -49,6 +49,7 @@ struct MemberRuntimeOptions {
   int debug_publish_delay_ms = 0;  // send done first, data this long after: data that arrives
                                    // after the grant it belongs to
   bool debug_skip_data_barrier = false;  // start frames without waiting for announced data
+  std::string debug_build_id;            // announced instead of build_identity() (another build)
 };
 
 /// Process exit codes shared by every service (documented in docs/protocol.md).
