@@ -2,6 +2,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -24,6 +26,25 @@ std::string read_all(const fs::path& path) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// The checkpoint directories of `run_dir` (frame_<digits>), oldest first.
+std::vector<std::pair<std::int64_t, fs::path>> checkpoint_dirs(const fs::path& run_dir) {
+  std::vector<std::pair<std::int64_t, fs::path>> out;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(run_dir / "checkpoints", ec)) {
+    const std::string name = entry.path().filename().string();
+    constexpr std::string_view kPrefix = "frame_";
+    if (!name.starts_with(kPrefix) || name.size() == kPrefix.size()) continue;
+    std::int64_t frame = -1;
+    const char* first = name.data() + kPrefix.size();
+    const char* last = name.data() + name.size();
+    const auto [end, error] = std::from_chars(first, last, frame);
+    if (error != std::errc() || end != last || frame < 0 || !entry.is_directory(ec)) continue;
+    out.emplace_back(frame, entry.path());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace
@@ -131,16 +152,46 @@ CheckpointInfo read_checkpoint_info(const fs::path& run_dir, std::int64_t frame)
 }
 
 std::optional<std::int64_t> latest_complete_checkpoint(const fs::path& run_dir) {
-  std::optional<std::int64_t> latest;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(run_dir / "checkpoints", ec)) {
-    const std::string name = entry.path().filename().string();
-    long long frame = 0;
-    if (std::sscanf(name.c_str(), "frame_%lld", &frame) != 1) continue;
-    if (!fs::exists(entry.path() / kComplete)) continue;
-    if (!latest || frame > *latest) latest = frame;
+  const auto frames = complete_checkpoints(run_dir);
+  if (frames.empty()) return std::nullopt;
+  return frames.back();
+}
+
+std::vector<std::int64_t> complete_checkpoints(const fs::path& run_dir) {
+  std::vector<std::int64_t> out;
+  for (const auto& [frame, dir] : checkpoint_dirs(run_dir)) {
+    if (fs::exists(dir / kComplete)) out.push_back(frame);
   }
-  return latest;
+  return out;
+}
+
+std::vector<std::int64_t> prune_checkpoints(const fs::path& run_dir, std::int64_t completed,
+                                            std::int64_t keep_last) {
+  if (keep_last < 1) throw std::invalid_argument("prune_checkpoints: keep_last must be >= 1");
+  std::vector<std::pair<std::int64_t, fs::path>> doomed;
+  std::int64_t kept = 1;  // `completed`
+  const auto dirs = checkpoint_dirs(run_dir);
+  for (auto it = dirs.rbegin(); it != dirs.rend(); ++it) {
+    const auto& [frame, dir] = *it;
+    if (frame >= completed) continue;
+    if (fs::exists(dir / kComplete) && kept < keep_last) {
+      ++kept;
+      continue;
+    }
+    doomed.emplace_back(frame, dir);
+  }
+  std::vector<std::int64_t> deleted;
+  for (auto it = doomed.rbegin(); it != doomed.rend(); ++it) {
+    const auto& [frame, dir] = *it;
+    // complete.yaml first: a prune cut short leaves an incomplete checkpoint (deleted by the
+    // next prune), never a complete one with files missing.
+    std::error_code ec;
+    fs::remove(dir / kComplete, ec);
+    if (!ec) fs::remove_all(dir, ec);
+    if (ec) throw WriteError(dir.string() + ": cannot delete: " + ec.message());
+    deleted.push_back(frame);
+  }
+  return deleted;
 }
 
 CheckpointInfo write_local_checkpoint(const fs::path& run_dir, proto::FrameStepper& stepper,
