@@ -9,8 +9,10 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/state_io.hpp"
+#include "core/yaml.hpp"
 #include "protocol/sample_state.hpp"
 #include "record/run_files.hpp"
 
@@ -116,6 +118,7 @@ void mark_checkpoint_complete(const fs::path& run_dir, const CheckpointInfo& inf
   out << YAML::Key << "frame" << YAML::Value << info.frame;
   out << YAML::Key << "sim_time_s" << YAML::Value << info.sim_time_s;
   out << YAML::Key << "fingerprint" << YAML::Value << "0x" + hex64(info.fingerprint);
+  out << YAML::Key << "member_count" << YAML::Value << info.members.size();
   out << YAML::Key << "members" << YAML::Value << YAML::BeginSeq;
   for (const auto& m : info.members) {
     out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << m.member_id
@@ -127,27 +130,68 @@ void mark_checkpoint_complete(const fs::path& run_dir, const CheckpointInfo& inf
 }
 
 CheckpointInfo read_checkpoint_info(const fs::path& run_dir, std::int64_t frame) {
-  const fs::path file = checkpoint_dir(run_dir, frame) / kComplete;
+  const fs::path dir = checkpoint_dir(run_dir, frame);
+  const fs::path file = dir / kComplete;
   if (!fs::exists(file)) {
-    throw core::StateError(checkpoint_dir(run_dir, frame).string() +
-                           ": not a complete checkpoint (no " + kComplete +
+    if (!fs::exists(dir)) {
+      std::string kept;
+      for (const auto f : complete_checkpoints(run_dir)) {
+        kept += (kept.empty() ? "" : ", ") + std::to_string(f);
+      }
+      throw core::StateError(dir.string() + ": no such checkpoint (complete checkpoints: " +
+                             (kept.empty() ? std::string("none") : kept) +
+                             "; checkpoint.keep_last says how many a run keeps)");
+    }
+    throw core::StateError(dir.string() + ": not a complete checkpoint (no " + kComplete +
                            "; some member never wrote its state)");
   }
+  // Every error names the file, the line and the key (YamlNode); a damaged file may still be
+  // valid YAML, so every key is required and the member list is checked against its count.
   try {
-    const YAML::Node root = YAML::LoadFile(file.string());
+    const YamlNode root = YamlNode::load_file(file.string());
+    MapReader m(root);
     CheckpointInfo info;
-    info.frame = root["frame"].as<std::int64_t>();
-    info.sim_time_s = root["sim_time_s"].as<double>();
-    info.fingerprint = std::stoull(root["fingerprint"].as<std::string>(), nullptr, 16);
-    for (const auto& m : root["members"]) {
-      info.members.push_back({m["id"].as<std::string>(), m["bytes"].as<std::uint64_t>()});
-    }
+    const YamlNode frame_node = m.required("frame");
+    info.frame = frame_node.as_int();
     if (info.frame != frame) {
-      throw core::StateError(file.string() + ": says frame " + std::to_string(info.frame));
+      frame_node.fail("says frame " + std::to_string(info.frame) + ", but the checkpoint is of " +
+                      "frame " + std::to_string(frame));
     }
+    info.sim_time_s = m.get<double>("sim_time_s");
+    const YamlNode fingerprint = m.required("fingerprint");
+    const std::string text = fingerprint.as_string();
+    std::uint64_t value = 0;
+    const char* first = text.data() + std::min<std::size_t>(2, text.size());
+    const char* last = text.data() + text.size();
+    const auto [end, error] = std::from_chars(first, last, value, 16);
+    if (!text.starts_with("0x") || first == last || error != std::errc() || end != last ||
+        text.size() > 18) {
+      fingerprint.fail("expected 0x and up to 16 hexadecimal digits, got '" + text + "'");
+    }
+    info.fingerprint = value;
+    const std::optional<YamlNode> count = m.optional("member_count");
+    const YamlNode members = m.required("members");
+    for (const auto& node : members.elements()) {
+      MapReader member(node);
+      CheckpointMember entry;
+      entry.member_id = member.get<std::string>("id");
+      if (entry.member_id.empty()) member.required("id").fail("empty member id");
+      const YamlNode bytes = member.required("bytes");
+      const std::int64_t n = bytes.as_int();
+      if (n <= 0) bytes.fail("expected a positive number of bytes, got " + std::to_string(n));
+      entry.bytes = static_cast<std::uint64_t>(n);
+      member.finish();
+      info.members.push_back(std::move(entry));
+    }
+    if (info.members.empty()) members.fail("no members (expected at least one)");
+    if (count && count->as_int() != static_cast<std::int64_t>(info.members.size())) {
+      members.fail(std::to_string(info.members.size()) + " members listed, member_count says " +
+                   std::to_string(count->as_int()) + " (the file is cut short?)");
+    }
+    m.finish();
     return info;
-  } catch (const YAML::Exception& e) {
-    throw core::StateError(file.string() + ": " + e.what());
+  } catch (const ConfigError& e) {
+    throw core::StateError(std::string("malformed checkpoint declaration: ") + e.what());
   }
 }
 

@@ -140,6 +140,16 @@ TEST(Checkpoint, ADistributedCheckpointResumesInOneProcess) {
               run.dir / "sim.log");
   ASSERT_EQ(sim.wait(120), std::optional<int>(0)) << sim.log();
   expect_same_run(want, out);
+  EXPECT_EQ(checkpoint_folders(out), kept);
+  // The deleted ones are named as such.
+  Process gone(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
+                   " --resume-from 200" + run.common_args(),
+               run.dir / "gone.log");
+  ASSERT_EQ(gone.wait(60), std::optional<int>(1)) << gone.log();
+  EXPECT_NE(gone.log().find("frame_000000200: no such checkpoint (complete checkpoints: 300, "
+                            "400, 500"),
+            std::string::npos)
+      << gone.log();
 }
 
 // A damaged state file is refused with its name before anything runs.

@@ -1,10 +1,11 @@
 // Checkpoint files of a run directory (record/checkpoint.hpp, docs/checkpoints.md): which
-// checkpoints a run keeps.
+// checkpoints a run keeps and how damaged ones are refused.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "core/state_io.hpp"
 #include "record/checkpoint.hpp"
@@ -23,6 +24,13 @@ fs::path fresh_dir() {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
 }
 
 // A member with a few numbers of state.
@@ -130,4 +138,151 @@ TEST(CheckpointFiles, PruningLeavesOtherFilesAlone) {
   EXPECT_EQ(prune_checkpoints(run, 200, 1), (Frames{100}));
   EXPECT_TRUE(fs::exists(run / "checkpoints" / "frame_notes"));
   EXPECT_TRUE(fs::exists(run / "checkpoints" / "frame_000000050"));
+}
+
+// ---- damaged files ----
+
+namespace {
+
+// The error read_checkpoint_info gives for `text` as complete.yaml of frame 300.
+std::string complete_yaml_error(const std::string& text) {
+  const fs::path run = fresh_dir();
+  fs::create_directories(checkpoint_dir(run, 300));
+  std::ofstream(checkpoint_dir(run, 300) / "complete.yaml", std::ios::binary) << text;
+  try {
+    read_checkpoint_info(run, 300);
+  } catch (const core::StateError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::string written_complete_yaml() {
+  const fs::path run = fresh_dir();
+  write_checkpoint(run, 300);
+  return read_file(checkpoint_dir(run, 300) / "complete.yaml");
+}
+
+}  // namespace
+
+TEST(CheckpointFiles, AMalformedDeclarationNamesTheFileAndWhatIsWrong) {
+  const std::string good = written_complete_yaml();
+  ASSERT_EQ(complete_yaml_error(good), "");
+  const auto expect_error = [](const std::string& text, const std::string& what) {
+    const std::string err = complete_yaml_error(text);
+    EXPECT_NE(err.find("frame_000000300/complete.yaml:"), std::string::npos) << err;
+    EXPECT_NE(err.find(what), std::string::npos) << "wanted '" << what << "' in: " << err;
+  };
+  // Truncated: empty, inside a line, at a line end (still valid YAML, members lost).
+  expect_error("", "expected a mapping");
+  expect_error(good.substr(0, good.find("fingerprint") + 16), "missing required key 'members'");
+  const std::string first_member = good.substr(0, good.find("\n", good.find("- {")) + 1);
+  expect_error(first_member, "1 members listed, member_count says 2");
+  expect_error(good.substr(0, good.find("member_count")), "missing required key 'members'");
+  // Wrong types.
+  std::string bad = good;
+  bad.replace(bad.find("frame: 300"), 10, "frame: [300]");
+  expect_error(bad, "frame: expected an integer");
+  bad = good;
+  bad.replace(bad.find("sim_time_s: 3"), 13, "sim_time_s: soon");
+  expect_error(bad, "sim_time_s: expected a number, got 'soon'");
+  bad = good;
+  bad.replace(bad.find("0x"), 2, "0y");
+  expect_error(bad, "fingerprint: expected 0x and up to 16 hexadecimal digits");
+  bad = good;
+  bad.replace(bad.find("bytes: "), 7, "bytes: -");
+  expect_error(bad, "members[0].bytes: expected a positive number of bytes");
+  bad = good;
+  bad.replace(bad.find("members:"), 8, "members: 2\nx:");
+  expect_error(bad, "members: expected a list");
+  // Missing and unknown keys; a declaration of another frame.
+  bad = good;
+  bad.replace(bad.find("sim_time_s"), 10, "sim_time");
+  expect_error(bad, "missing required key 'sim_time_s'");
+  bad = good;
+  bad.replace(bad.find("id: "), 4, "name: ");
+  expect_error(bad, "missing required key 'id'");
+  bad = good;
+  bad.replace(bad.find("frame: 300"), 10, "frame: 200");
+  expect_error(bad, "frame: says frame 200, but the checkpoint is of frame 300");
+  expect_error(good + "extra: 1\n", "unknown key 'extra'");
+  expect_error("frame: 300\n  bad: [\n", "YAML syntax error");
+}
+
+TEST(CheckpointFiles, AMissingCheckpointNamesTheOnesThereAre) {
+  const fs::path run = fresh_dir();
+  write_checkpoint(run, 300);
+  write_checkpoint(run, 400);
+  write_checkpoint(run, 500, false);
+  try {
+    read_checkpoint_info(run, 200);
+    FAIL();
+  } catch (const core::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("frame_000000200: no such checkpoint (complete "
+                                         "checkpoints: 300, 400; checkpoint.keep_last"),
+              std::string::npos)
+        << e.what();
+  }
+  try {
+    read_checkpoint_info(run, 500);
+    FAIL();
+  } catch (const core::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("frame_000000500: not a complete checkpoint"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// A member's state file whose header or member section is wrong is refused with its name.
+TEST(CheckpointFiles, AMalformedMemberFileNamesTheFileAndWhatIsWrong) {
+  const fs::path run = fresh_dir();
+  write_checkpoint(run, 300);
+  const fs::path file = checkpoint_dir(run, 300) / "vehicle.a.state";
+  const std::string good = read_file(file);
+  const auto error_for = [&](const std::string& bytes, const std::string& member = "vehicle/a",
+                             std::int64_t frame = 300,
+                             std::uint64_t fingerprint = kFingerprint) -> std::string {
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes;
+    Counter agent(member);
+    try {
+      read_member_checkpoint(run, frame, fingerprint, agent);
+    } catch (const core::StateError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const auto expect_error = [&](const std::string& err, const std::string& what) {
+    EXPECT_NE(err.find("vehicle.a.state"), std::string::npos) << err;
+    EXPECT_NE(err.find(what), std::string::npos) << "wanted '" << what << "' in: " << err;
+  };
+  ASSERT_EQ(error_for(good), "");
+  const std::size_t header_end = good.find('\n', good.find('\n') + 1) + 1;
+  expect_error(error_for(""), "not a syndds state file");
+  expect_error(error_for(good.substr(0, 20)), "the header line is cut off");
+  expect_error(error_for(good.substr(0, header_end + 10)), "the file is truncated");
+  std::string bad = good;
+  bad.replace(good.find('\n') + 1, 0, "-");
+  expect_error(error_for(bad), "malformed header '-");
+  bad = good;
+  bad.replace(header_end - 5, 4, "XYZW");
+  expect_error(error_for(bad), "16-digit hexadecimal checksum");
+  bad = good;
+  bad[header_end + 20] ^= 0x01;
+  expect_error(error_for(bad), "checksum");
+  // Whole files, but not this member's, frame's or scenario's.
+  fs::copy_file(checkpoint_dir(run, 300) / "controller.a.state", file,
+                fs::copy_options::overwrite_existing);
+  expect_error(error_for(read_file(file)),
+               "the state of member 'controller/a', not of 'vehicle/a'");
+  expect_error(error_for(good, "vehicle/a", 300, kFingerprint + 1),
+               "a resumed run needs the same scenario files and overrides");
+  const fs::path missing = checkpoint_dir(run, 300) / "sensor.a.state";
+  Counter sensor("sensor/a");
+  try {
+    read_member_checkpoint(run, 300, kFingerprint, sensor);
+    FAIL();
+  } catch (const core::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find(missing.string() + ": cannot be read"), std::string::npos)
+        << e.what();
+  }
 }
