@@ -77,9 +77,7 @@ std::uint64_t write_member_checkpoint(const fs::path& run_dir, std::int64_t fram
   proto::save_samples(w, next_inputs);
   w.end();
   const fs::path dir = checkpoint_dir(run_dir, frame);
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw WriteError(dir.string() + ": cannot create: " + ec.message());
+  create_directories_durably(dir);
   const std::string framed = core::frame_state(w.bytes());
   write_file_atomically(dir / member_state_file(agent.member_id()), framed);
   return framed.size();

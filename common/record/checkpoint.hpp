@@ -8,7 +8,9 @@
 // stamped K it will step frame K+1 with; a run resumed from it starts with frame K+1. Only a
 // checkpoint with complete.yaml is ever resumed from. Each state file is framed with its length
 // and checksum (core::frame_state) and written atomically, so a member killed while writing
-// leaves the previous file or none, never a partial one.
+// leaves the previous file or none, never a partial one; every file and directory is synced
+// (directories too, after the rename that publishes a file), so a checkpoint declared complete
+// survives a power loss.
 #include <cstdint>
 #include <filesystem>
 #include <optional>

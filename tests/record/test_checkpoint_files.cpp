@@ -1,6 +1,8 @@
 // Checkpoint files of a run directory (record/checkpoint.hpp, docs/checkpoints.md): which
-// checkpoints a run keeps and how damaged ones are refused.
+// checkpoints a run keeps, how the files are published, and how damaged ones are refused.
+#include <dlfcn.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -138,6 +140,83 @@ TEST(CheckpointFiles, PruningLeavesOtherFilesAlone) {
   EXPECT_EQ(prune_checkpoints(run, 200, 1), (Frames{100}));
   EXPECT_TRUE(fs::exists(run / "checkpoints" / "frame_notes"));
   EXPECT_TRUE(fs::exists(run / "checkpoints" / "frame_000000050"));
+}
+
+// ---- durability ----
+
+namespace {
+
+// Every rename and every fsync of a directory this process makes, in order ("rename TO",
+// "fsync DIR"): this program's own definitions stand in for the C library's (found with
+// dlsym(RTLD_NEXT)), so the order of the calls the writer makes can be checked.
+std::vector<std::string>& file_calls() {
+  static std::vector<std::string> calls;
+  return calls;
+}
+
+std::string fd_path(int fd) {
+  std::error_code ec;
+  return fs::read_symlink("/proc/self/fd/" + std::to_string(fd), ec).string();
+}
+
+}  // namespace
+
+extern "C" int fsync(int fd) {
+  using Fn = int (*)(int);
+  static const auto real = reinterpret_cast<Fn>(dlsym(RTLD_NEXT, "fsync"));
+  struct stat st {};
+  if (::fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) file_calls().push_back("fsync " + fd_path(fd));
+  return real(fd);
+}
+
+extern "C" int rename(const char* from, const char* to) noexcept {
+  using Fn = int (*)(const char*, const char*);
+  static const auto real = reinterpret_cast<Fn>(dlsym(RTLD_NEXT, "rename"));
+  const int rc = real(from, to);
+  if (rc == 0) file_calls().push_back("rename " + fs::canonical(to).string());
+  return rc;
+}
+
+// A member's file and complete.yaml are each followed by a sync of their directory, and a
+// checkpoint directory created for them by a sync of its parent: after a power loss the
+// renames that published them are not lost.
+TEST(CheckpointFiles, EveryPublishedFileIsFollowedByASyncOfItsDirectory) {
+  const fs::path run = fs::canonical(fresh_dir());
+  file_calls().clear();
+  write_checkpoint(run, 100);
+  const std::string dir = checkpoint_dir(run, 100).string();
+  const std::vector<std::string> want = {
+      "fsync " + run.string(),                    // checkpoints/ created in RUN_DIR
+      "fsync " + (run / "checkpoints").string(),  // frame_000000100 created
+      "rename " + dir + "/vehicle.a.state",
+      "fsync " + dir,
+      "rename " + dir + "/controller.a.state",
+      "fsync " + dir,
+      "rename " + dir + "/complete.yaml",
+      "fsync " + dir};
+  EXPECT_EQ(file_calls(), want);
+  // The files are whole and read back.
+  Counter c("controller/a");
+  read_member_checkpoint(run, 100, kFingerprint, c);
+  EXPECT_EQ(c.count, 100);
+  EXPECT_EQ(read_checkpoint_info(run, 100).members.size(), 2u);
+  EXPECT_FALSE(fs::exists(dir + "/complete.yaml.tmp"));
+  // The next checkpoint's directory needs only its own entry synced.
+  file_calls().clear();
+  write_checkpoint(run, 200);
+  ASSERT_FALSE(file_calls().empty());
+  EXPECT_EQ(file_calls().front(), "fsync " + (run / "checkpoints").string());
+}
+
+TEST(CheckpointFiles, ADirectoryThatCannotBeSyncedIsNamed) {
+  try {
+    sync_directory("/nonexistent-syndds-dir");
+    FAIL();
+  } catch (const WriteError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent-syndds-dir: cannot open the directory"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // ---- damaged files ----
