@@ -23,7 +23,8 @@ std::vector<fs::path> result_files(const fs::path& dir) {
     const std::string first = rel.begin()->string();
     if (first == "logs" || first.starts_with("logs.") || first == "checkpoints" ||
         first == "summary.json" || first == "summary.txt" || first == "recoveries.csv" ||
-        first == "launcher.log" || rel.filename().string().starts_with(".")) {
+        first == "launcher.log" || first == "launch.args" ||
+        rel.filename().string().starts_with(".")) {
       continue;
     }
     out.push_back(rel);
@@ -123,7 +124,40 @@ TEST(Checkpoint, ARunResumedAfterEveryProcessWasKilledIsByteIdentical) {
   expect_same_run(want, out);
 }
 
-// The same checkpoint files resume a single-process run: the layouts share them.
+// `--resume RUN_DIR` alone: the launcher starts the run again with the scenario and the options
+// it recorded when the run started (here --duration, which is in the fingerprint, --processes,
+// and the test's --domain and --run-id).
+TEST(Checkpoint, AResumeWithoutTheScenarioUsesTheRecordedOne) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const fs::path want = run.dir / "reference";
+  Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --duration 4.5 --output " +
+                  want.string() + run.common_args(),
+              run.dir / "reference.log");
+  ASSERT_EQ(sim.wait(120), std::optional<int>(0)) << sim.log();
+  auto launcher = start_launcher(run, kScenario, "--duration 4.5 --processes per_vehicle");
+  kill_everything_after(*launcher, out, 200);
+  if (HasFatalFailure()) return;
+  const std::string recorded = read_file(out / "launch.args");
+  EXPECT_EQ(recorded.substr(0, recorded.find('\n')), kScenario);
+  EXPECT_NE(recorded.find("\n--duration\n4.5\n"), std::string::npos) << recorded;
+
+  Process resumed("env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
+                      "/launch_scripts/run_scenario.sh --resume " + out.string(),
+                  run.dir / "resume.log");
+  ASSERT_EQ(resumed.wait(180), std::optional<int>(0)) << resumed.log();
+  const std::string coordinator = read_file(out / "logs" / "coordinator.log");
+  EXPECT_NE(coordinator.find("resuming from the checkpoint of frame"), std::string::npos)
+      << coordinator;
+  EXPECT_NE(coordinator.find("on domain " + std::to_string(run.domain)), std::string::npos)
+      << coordinator;
+  EXPECT_TRUE(fs::exists(out / "logs" / "group_a.log")) << "not started per_vehicle";
+  EXPECT_EQ(read_file(out / "launch.args"), recorded);  // written once, when the run started
+  expect_same_run(want, out);
+}
+
+// The same checkpoint files resume a single-process run: the layouts share them. Only the
+// keep_last (3) newest complete checkpoints stay.
 TEST(Checkpoint, ADistributedCheckpointResumesInOneProcess) {
   TestRun run;
   const fs::path want = reference(run);
