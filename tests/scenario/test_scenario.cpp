@@ -384,8 +384,8 @@ TEST(Scenario, CheckpointsKeptAreAWholeNumberOfAtLeastOne) {
   EXPECT_NE(err.find("unknown key 'keep'"), std::string::npos) << err;
 }
 
-// The learned-policy controller and external controllers cannot checkpoint yet: a scenario
-// that asks is refused naming the member, before anything runs.
+// External controllers cannot checkpoint yet: a scenario that asks is refused naming the
+// member, before anything runs.
 TEST(Scenario, AMemberThatCannotCheckpointIsNamed) {
   const auto s = parse(kMinimal + "checkpoint: {every_s: 0.5}\n");
   struct NoState : proto::Agent {
