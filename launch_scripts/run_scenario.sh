@@ -6,7 +6,7 @@
 #       [--single-process] [--processes per_member|per_vehicle|N] [--print-commands]
 #       [--domain D] [--run-id ID] [--transport default|udp|udp_redundant] [--discovery-server ADDR:PORT]
 #       [--log-level LEVEL] [--security-dir DIR] [--view [--view-port P] [--view-bind ADDR]]
-#   launch_scripts/run_scenario.sh SCENARIO.yaml --resume RUN_DIR [--from-frame K] [options]
+#   launch_scripts/run_scenario.sh [SCENARIO.yaml] --resume RUN_DIR [--from-frame K] [options]
 #
 # --view also starts the browser viewer (syndds_viewer, docs/viewer.md) on the live run and
 # prints its URL (port 8080 unless --view-port; 0: any free port; on 127.0.0.1 unless
@@ -19,7 +19,8 @@
 #
 # --resume continues the run in RUN_DIR from its latest complete checkpoint (or the one of
 # frame K) with the same scenario and overrides (docs/checkpoints.md); its files are cut back
-# to the checkpoint and go on from there.
+# to the checkpoint and go on from there. The scenario and the options of the run's first start
+# are in RUN_DIR/launch.args: without SCENARIO they are used again; options typed now win.
 #
 # Exit status: 0 completed, 1 bad scenario or command line or more than this host can start,
 # 2 run aborted, a process failed, or the run completed without its recorder, 130 interrupted.
@@ -33,38 +34,95 @@ PROCESS_MB=${SYNDDS_PROCESS_MB:-100}   # memory one process of a run needs (docs
 GROUP_MB=${SYNDDS_GROUP_MB:-200}       # a syndds_group process (it links libtorch): ~180 MB
 
 die() { echo "run_scenario: $*" >&2; exit "${2:-1}"; }
-usage() { sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; }
 
 [ $# -ge 1 ] || { usage >&2; exit 1; }
 case "$1" in -h|--help) usage; exit 0 ;; esac
-SCENARIO=$1; shift
-[ -f "$SCENARIO" ] || die "scenario file not found: $SCENARIO"
+SCENARIO=""
+case "$1" in --resume) ;; *) SCENARIO=$1; shift ;; esac
 for p in syndds_plan syndds_coordinator syndds_vehicle syndds_controller syndds_policy_controller syndds_recorder syndds_sensor syndds_group syndds_sim; do
   [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
 done
 
-OUTPUT=""; RUN_ID=""; SINGLE=0; PRINT=0; PASS=(); LAYOUT=(); RESUME=""; FROM=latest
+OUTPUT=""; SINGLE=0; PRINT=0; RESUME=""; FROM=latest
 VIEW=0; VIEW_PORT=8080; VIEW_BIND=127.0.0.1
-while [ $# -gt 0 ]; do
-  case "$1" in
-    --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
-    --run-id) [ $# -ge 2 ] || die "--run-id needs a value"; RUN_ID=$2; shift ;;
-    --resume) [ $# -ge 2 ] || die "--resume needs a run directory"; RESUME=$2; shift ;;
-    --from-frame) [ $# -ge 2 ] || die "--from-frame needs a frame number"; FROM=$2; shift ;;
-    --duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir|--security-dir)
-      [ $# -ge 2 ] || die "$1 needs a value"; PASS+=("$1" "$2"); shift ;;
-    --processes) [ $# -ge 2 ] || die "--processes needs a value"; LAYOUT=(--processes "$2"); shift ;;
-    --realtime) PASS+=("$1") ;;
-    --single-process) SINGLE=1 ;;
-    --print-commands) PRINT=1 ;;
-    --view) VIEW=1 ;;
-    --view-port) [ $# -ge 2 ] || die "--view-port needs a port"; VIEW_PORT=$2; shift ;;
-    --view-bind) [ $# -ge 2 ] || die "--view-bind needs an address"; VIEW_BIND=$2; shift ;;
-    -h|--help) usage; exit 0 ;;
-    *) die "unknown option: $1 (see --help)" ;;
+# The options that make the run what it is (scenario overrides, DDS setup, process layout, run
+# id), in the order first given: RUN_DIR/launch.args records them, --resume reads them back.
+declare -A RUN_OPT=(); RUN_KEYS=()
+DEFAULTS=0   # 1 while the recorded options are read: they do not replace options typed now
+set_run_opt() {  # $1 = option, $2 = its value ("" for a flag)
+  if [ -n "${RUN_OPT[$1]+set}" ]; then
+    [ $DEFAULTS = 1 ] && return
+  else
+    RUN_KEYS+=("$1")
+  fi
+  RUN_OPT[$1]=$2
+}
+parse_args() {
+  while [ $# -gt 0 ]; do
+    case "$1" in
+      --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
+      --resume) [ $# -ge 2 ] || die "--resume needs a run directory"; RESUME=$2; shift ;;
+      --from-frame) [ $# -ge 2 ] || die "--from-frame needs a frame number"; FROM=$2; shift ;;
+      --run-id|--duration|--domain|--transport|--discovery-server|--log-level|--dds-profiles|--config-dir|--security-dir|--processes)
+        [ $# -ge 2 ] || die "$1 needs a value"; set_run_opt "$1" "$2"; shift ;;
+      --realtime) set_run_opt "$1" "" ;;
+      --single-process) SINGLE=1 ;;
+      --print-commands) PRINT=1 ;;
+      --view) VIEW=1 ;;
+      --view-port) [ $# -ge 2 ] || die "--view-port needs a port"; VIEW_PORT=$2; shift ;;
+      --view-bind) [ $# -ge 2 ] || die "--view-bind needs an address"; VIEW_BIND=$2; shift ;;
+      -h|--help) usage; exit 0 ;;
+      *) die "unknown option: $1 (see --help)" ;;
+    esac
+    shift
+  done
+}
+parse_args "$@"
+
+# RUN_DIR/launch.args: the scenario, then the options of RUN_KEYS, one argument per line.
+LAUNCH_ARGS=launch.args
+if [ -n "$RESUME" ]; then
+  if [ -f "$RESUME/$LAUNCH_ARGS" ]; then
+    mapfile -t recorded < "$RESUME/$LAUNCH_ARGS"
+    [ ${#recorded[@]} -ge 1 ] || die "--resume $RESUME: $RESUME/$LAUNCH_ARGS is empty"
+    [ -n "$SCENARIO" ] || SCENARIO=${recorded[0]}
+    DEFAULTS=1; parse_args "${recorded[@]:1}"; DEFAULTS=0
+  elif [ -z "$SCENARIO" ]; then
+    die "--resume $RESUME: no $LAUNCH_ARGS there (the run was not started by this launcher, or by an older one): name the scenario and its overrides again: run_scenario.sh SCENARIO.yaml --resume $RESUME [options]"
+  fi
+fi
+[ -n "$SCENARIO" ] || die "no scenario file given (see --help)"
+[ -f "$SCENARIO" ] || die "scenario file not found: $SCENARIO"
+RUN_ID=${RUN_OPT[--run-id]-}
+PASS=(); LAYOUT=()
+for k in "${RUN_KEYS[@]}"; do
+  case "$k" in
+    --run-id) ;;
+    --processes) LAYOUT=(--processes "${RUN_OPT[$k]}") ;;
+    --realtime) PASS+=("$k") ;;
+    *) PASS+=("$k" "${RUN_OPT[$k]}") ;;
   esac
-  shift
 done
+
+# Writes OUTPUT/launch.args for a later --resume: paths made absolute (it may be typed in
+# another folder), one argument per line.
+record_launch() {
+  local lines=() k v
+  lines+=("$(realpath -s -- "$SCENARIO")")
+  for k in "${RUN_KEYS[@]}"; do
+    v=${RUN_OPT[$k]}
+    case "$k" in --config-dir|--dds-profiles|--security-dir) v=$(realpath -ms -- "$v") ;; esac
+    lines+=("$k")
+    [ "$k" = --realtime ] || lines+=("$v")
+  done
+  for v in "${lines[@]}"; do
+    case "$v" in *$'\n'*) die "cannot record an argument with a line break for --resume: $v" ;; esac
+  done
+  mkdir -p "$OUTPUT" || die "cannot create $OUTPUT"
+  printf '%s\n' "${lines[@]}" > "$OUTPUT/$LAUNCH_ARGS.tmp" && mv -f "$OUTPUT/$LAUNCH_ARGS.tmp" "$OUTPUT/$LAUNCH_ARGS" ||
+    die "cannot write $OUTPUT/$LAUNCH_ARGS"
+}
 
 stem=$(basename "$SCENARIO" .yaml)
 stem=${stem//[^A-Za-z0-9_.-]/_}
@@ -90,6 +148,7 @@ if [ "$SINGLE" = 1 ]; then
     echo
     exit 0
   fi
+  [ -n "$RESUME" ] || record_launch
   "$BIN/syndds_sim" "$SCENARIO" --output "$OUTPUT" --run-id "$RUN_ID" "${PASS[@]}"
   rc=$?
   [ $rc -eq 0 ] && echo "output: $OUTPUT"
@@ -123,6 +182,7 @@ if [ "$max_user" != unlimited ]; then
     die "$nproc_run processes would exceed this user's limit of $max_user processes ($running_user running; ulimit -u)"
 fi
 
+[ -n "$RESUME" ] || record_launch
 mkdir -p "$OUTPUT/logs" || die "cannot create $OUTPUT/logs"
 : > "$OUTPUT/logs/pids"
 names=(); pids=(); codes=(); cmds=(); restarts=()

@@ -1,6 +1,6 @@
 #include "core/state_io.hpp"
 
-#include <cstdio>
+#include <charconv>
 
 #include "core/hash.hpp"
 
@@ -115,10 +115,16 @@ std::string unframe_state(std::string_view framed, const std::string& source) {
   if (nl == std::string_view::npos) throw StateError(source + ": the header line is cut off");
   const std::string header(framed.substr(0, nl));
   framed.remove_prefix(nl + 1);
-  unsigned long long size = 0;
-  char hex[17] = {};
-  if (std::sscanf(header.c_str(), "%llu %16s", &size, hex) != 2) {
-    throw StateError(source + ": malformed header '" + header + "'");
+  // "<byte count> <16 lowercase hexadecimal digits>", exactly as frame_state writes it.
+  std::uint64_t size = 0;
+  const auto space = header.find(' ');
+  const std::string_view count = std::string_view(header).substr(0, space);
+  const auto [end, error] = std::from_chars(count.data(), count.data() + count.size(), size);
+  const std::string hex = space == std::string::npos ? "" : header.substr(space + 1);
+  if (count.empty() || error != std::errc() || end != count.data() + count.size() ||
+      hex.size() != 16 || hex.find_first_not_of("0123456789abcdef") != std::string::npos) {
+    throw StateError(source + ": malformed header '" + header +
+                     "' (expected the byte count and a 16-digit hexadecimal checksum)");
   }
   if (framed.size() != size) {
     throw StateError(source + ": " + std::to_string(framed.size()) + " bytes of state, the header says " +

@@ -3,6 +3,9 @@
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
+#include <type_traits>
+
+#include "protocol/sample_state.hpp"
 
 namespace syndds::learn {
 namespace {
@@ -15,6 +18,21 @@ void take_newest(const std::vector<Msg>& list, const std::string& vehicle,
     if (m.vehicle_id != vehicle) continue;
     if (!held || m.stamp.time_s >= held->stamp.time_s) held = m;
   }
+}
+
+// A reading held or not, and then every field of it.
+template <typename Archive, typename Msg>
+void held_io(Archive& a, std::optional<Msg>& held) {
+  bool has = held.has_value();
+  a.io(has);
+  if constexpr (std::is_same_v<Archive, core::StateReader>) {
+    if (has) {
+      held.emplace();
+    } else {
+      held.reset();
+    }
+  }
+  if (has) proto::message_io(a, *held);
 }
 
 }  // namespace
@@ -102,5 +120,22 @@ Observation ConvoyObservationBuilder::observation() const {
   }
   return o;
 }
+
+template <typename Archive>
+void ConvoyObservationBuilder::state_io(Archive& a) {
+  a.begin("convoy_observation", 1);
+  held_io(a, fix_);
+  held_io(a, compass_);
+  held_io(a, wheels_);
+  held_io(a, v2v_);
+  held_io(a, image_);
+  a.end();
+}
+
+void ConvoyObservationBuilder::save_state(core::StateWriter& w) const {
+  const_cast<ConvoyObservationBuilder*>(this)->state_io(w);  // the writer only reads
+}
+
+void ConvoyObservationBuilder::load_state(core::StateReader& r) { state_io(r); }
 
 }  // namespace syndds::learn

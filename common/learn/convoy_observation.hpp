@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/state_io.hpp"
 #include "learn/env.hpp"
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
@@ -48,7 +49,14 @@ class ConvoyObservationBuilder {
   /// The observation from the newest readings. Throws std::logic_error before ready().
   Observation observation() const;
 
+  /// Checkpoints (docs/checkpoints.md): the newest reading of each kind held, every field.
+  void save_state(core::StateWriter& w) const;
+  void load_state(core::StateReader& r);
+
  private:
+  template <typename Archive>
+  void state_io(Archive& a);
+
   ConvoyObservationConfig config_;
   sensors::GeodeticConverter converter_;
   std::optional<proto::GpsFixMsg> fix_;

@@ -93,6 +93,26 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
   ++since_action_;
 }
 
+void PolicyControllerAgent::save_state(core::StateWriter& w) {
+  w.begin("policy_controller", 1);
+  builder_.save_state(w);
+  w.io(since_action_);
+  w.io(actions_);
+  w.io(steering_);
+  w.io(throttle_brake_);
+  w.end();
+}
+
+void PolicyControllerAgent::load_state(core::StateReader& r) {
+  r.begin("policy_controller", 1);
+  builder_.load_state(r);
+  r.io(since_action_);
+  r.io(actions_);
+  r.io(steering_);
+  r.io(throttle_brake_);
+  r.end();
+}
+
 void register_policy_controller() {
   agents::register_controller_type(
       "policy", [](const scenario::Scenario& s, const scenario::VehicleConfig& v) {

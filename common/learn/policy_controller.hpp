@@ -33,6 +33,12 @@ class PolicyControllerAgent final : public proto::Agent {
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
 
+  /// Checkpoints: the readings the observation is built from, the action held and when the
+  /// next one is due (the policy itself is the file's, and acts deterministically).
+  bool can_checkpoint() const override { return true; }
+  void save_state(core::StateWriter& w) override;
+  void load_state(core::StateReader& r) override;
+
   /// Actions taken so far (one per control period once the observation was complete).
   std::uint64_t actions_taken() const { return actions_; }
 

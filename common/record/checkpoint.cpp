@@ -2,13 +2,17 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 
+#include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/state_io.hpp"
+#include "core/yaml.hpp"
 #include "protocol/sample_state.hpp"
 #include "record/run_files.hpp"
 
@@ -24,6 +28,25 @@ std::string read_all(const fs::path& path) {
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// The checkpoint directories of `run_dir` (frame_<digits>), oldest first.
+std::vector<std::pair<std::int64_t, fs::path>> checkpoint_dirs(const fs::path& run_dir) {
+  std::vector<std::pair<std::int64_t, fs::path>> out;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(run_dir / "checkpoints", ec)) {
+    const std::string name = entry.path().filename().string();
+    constexpr std::string_view kPrefix = "frame_";
+    if (!name.starts_with(kPrefix) || name.size() == kPrefix.size()) continue;
+    std::int64_t frame = -1;
+    const char* first = name.data() + kPrefix.size();
+    const char* last = name.data() + name.size();
+    const auto [end, error] = std::from_chars(first, last, frame);
+    if (error != std::errc() || end != last || frame < 0 || !entry.is_directory(ec)) continue;
+    out.emplace_back(frame, entry.path());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace
@@ -54,9 +77,7 @@ std::uint64_t write_member_checkpoint(const fs::path& run_dir, std::int64_t fram
   proto::save_samples(w, next_inputs);
   w.end();
   const fs::path dir = checkpoint_dir(run_dir, frame);
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) throw WriteError(dir.string() + ": cannot create: " + ec.message());
+  create_directories_durably(dir);
   const std::string framed = core::frame_state(w.bytes());
   write_file_atomically(dir / member_state_file(agent.member_id()), framed);
   return framed.size();
@@ -95,6 +116,7 @@ void mark_checkpoint_complete(const fs::path& run_dir, const CheckpointInfo& inf
   out << YAML::Key << "frame" << YAML::Value << info.frame;
   out << YAML::Key << "sim_time_s" << YAML::Value << info.sim_time_s;
   out << YAML::Key << "fingerprint" << YAML::Value << "0x" + hex64(info.fingerprint);
+  out << YAML::Key << "member_count" << YAML::Value << info.members.size();
   out << YAML::Key << "members" << YAML::Value << YAML::BeginSeq;
   for (const auto& m : info.members) {
     out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << m.member_id
@@ -106,41 +128,112 @@ void mark_checkpoint_complete(const fs::path& run_dir, const CheckpointInfo& inf
 }
 
 CheckpointInfo read_checkpoint_info(const fs::path& run_dir, std::int64_t frame) {
-  const fs::path file = checkpoint_dir(run_dir, frame) / kComplete;
+  const fs::path dir = checkpoint_dir(run_dir, frame);
+  const fs::path file = dir / kComplete;
   if (!fs::exists(file)) {
-    throw core::StateError(checkpoint_dir(run_dir, frame).string() +
-                           ": not a complete checkpoint (no " + kComplete +
+    if (!fs::exists(dir)) {
+      std::string kept;
+      for (const auto f : complete_checkpoints(run_dir)) {
+        kept += (kept.empty() ? "" : ", ") + std::to_string(f);
+      }
+      throw core::StateError(dir.string() + ": no such checkpoint (complete checkpoints: " +
+                             (kept.empty() ? std::string("none") : kept) +
+                             "; checkpoint.keep_last says how many a run keeps)");
+    }
+    throw core::StateError(dir.string() + ": not a complete checkpoint (no " + kComplete +
                            "; some member never wrote its state)");
   }
+  // Every error names the file, the line and the key (YamlNode); a damaged file may still be
+  // valid YAML, so every key is required and the member list is checked against its count.
   try {
-    const YAML::Node root = YAML::LoadFile(file.string());
+    const YamlNode root = YamlNode::load_file(file.string());
+    MapReader m(root);
     CheckpointInfo info;
-    info.frame = root["frame"].as<std::int64_t>();
-    info.sim_time_s = root["sim_time_s"].as<double>();
-    info.fingerprint = std::stoull(root["fingerprint"].as<std::string>(), nullptr, 16);
-    for (const auto& m : root["members"]) {
-      info.members.push_back({m["id"].as<std::string>(), m["bytes"].as<std::uint64_t>()});
-    }
+    const YamlNode frame_node = m.required("frame");
+    info.frame = frame_node.as_int();
     if (info.frame != frame) {
-      throw core::StateError(file.string() + ": says frame " + std::to_string(info.frame));
+      frame_node.fail("says frame " + std::to_string(info.frame) + ", but the checkpoint is of " +
+                      "frame " + std::to_string(frame));
     }
+    info.sim_time_s = m.get<double>("sim_time_s");
+    const YamlNode fingerprint = m.required("fingerprint");
+    const std::string text = fingerprint.as_string();
+    std::uint64_t value = 0;
+    const char* first = text.data() + std::min<std::size_t>(2, text.size());
+    const char* last = text.data() + text.size();
+    const auto [end, error] = std::from_chars(first, last, value, 16);
+    if (!text.starts_with("0x") || first == last || error != std::errc() || end != last ||
+        text.size() > 18) {
+      fingerprint.fail("expected 0x and up to 16 hexadecimal digits, got '" + text + "'");
+    }
+    info.fingerprint = value;
+    const std::optional<YamlNode> count = m.optional("member_count");
+    const YamlNode members = m.required("members");
+    for (const auto& node : members.elements()) {
+      MapReader member(node);
+      CheckpointMember entry;
+      entry.member_id = member.get<std::string>("id");
+      if (entry.member_id.empty()) member.required("id").fail("empty member id");
+      const YamlNode bytes = member.required("bytes");
+      const std::int64_t n = bytes.as_int();
+      if (n <= 0) bytes.fail("expected a positive number of bytes, got " + std::to_string(n));
+      entry.bytes = static_cast<std::uint64_t>(n);
+      member.finish();
+      info.members.push_back(std::move(entry));
+    }
+    if (info.members.empty()) members.fail("no members (expected at least one)");
+    if (count && count->as_int() != static_cast<std::int64_t>(info.members.size())) {
+      members.fail(std::to_string(info.members.size()) + " members listed, member_count says " +
+                   std::to_string(count->as_int()) + " (the file is cut short?)");
+    }
+    m.finish();
     return info;
-  } catch (const YAML::Exception& e) {
-    throw core::StateError(file.string() + ": " + e.what());
+  } catch (const ConfigError& e) {
+    throw core::StateError(std::string("malformed checkpoint declaration: ") + e.what());
   }
 }
 
 std::optional<std::int64_t> latest_complete_checkpoint(const fs::path& run_dir) {
-  std::optional<std::int64_t> latest;
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(run_dir / "checkpoints", ec)) {
-    const std::string name = entry.path().filename().string();
-    long long frame = 0;
-    if (std::sscanf(name.c_str(), "frame_%lld", &frame) != 1) continue;
-    if (!fs::exists(entry.path() / kComplete)) continue;
-    if (!latest || frame > *latest) latest = frame;
+  const auto frames = complete_checkpoints(run_dir);
+  if (frames.empty()) return std::nullopt;
+  return frames.back();
+}
+
+std::vector<std::int64_t> complete_checkpoints(const fs::path& run_dir) {
+  std::vector<std::int64_t> out;
+  for (const auto& [frame, dir] : checkpoint_dirs(run_dir)) {
+    if (fs::exists(dir / kComplete)) out.push_back(frame);
   }
-  return latest;
+  return out;
+}
+
+std::vector<std::int64_t> prune_checkpoints(const fs::path& run_dir, std::int64_t completed,
+                                            std::int64_t keep_last) {
+  if (keep_last < 1) throw std::invalid_argument("prune_checkpoints: keep_last must be >= 1");
+  std::vector<std::pair<std::int64_t, fs::path>> doomed;
+  std::int64_t kept = 1;  // `completed`
+  const auto dirs = checkpoint_dirs(run_dir);
+  for (auto it = dirs.rbegin(); it != dirs.rend(); ++it) {
+    const auto& [frame, dir] = *it;
+    if (frame >= completed) continue;
+    if (fs::exists(dir / kComplete) && kept < keep_last) {
+      ++kept;
+      continue;
+    }
+    doomed.emplace_back(frame, dir);
+  }
+  std::vector<std::int64_t> deleted;
+  for (auto it = doomed.rbegin(); it != doomed.rend(); ++it) {
+    const auto& [frame, dir] = *it;
+    // complete.yaml first: a prune cut short leaves an incomplete checkpoint (deleted by the
+    // next prune), never a complete one with files missing.
+    std::error_code ec;
+    fs::remove(dir / kComplete, ec);
+    if (!ec) fs::remove_all(dir, ec);
+    if (ec) throw WriteError(dir.string() + ": cannot delete: " + ec.message());
+    deleted.push_back(frame);
+  }
+  return deleted;
 }
 
 CheckpointInfo write_local_checkpoint(const fs::path& run_dir, proto::FrameStepper& stepper,

@@ -8,7 +8,9 @@
 // stamped K it will step frame K+1 with; a run resumed from it starts with frame K+1. Only a
 // checkpoint with complete.yaml is ever resumed from. Each state file is framed with its length
 // and checksum (core::frame_state) and written atomically, so a member killed while writing
-// leaves the previous file or none, never a partial one.
+// leaves the previous file or none, never a partial one; every file and directory is synced
+// (directories too, after the rename that publishes a file), so a checkpoint declared complete
+// survives a power loss.
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -53,6 +55,18 @@ void mark_checkpoint_complete(const std::filesystem::path& run_dir, const Checkp
 CheckpointInfo read_checkpoint_info(const std::filesystem::path& run_dir, std::int64_t frame);
 /// The frame of the latest complete checkpoint in `run_dir`, if any.
 std::optional<std::int64_t> latest_complete_checkpoint(const std::filesystem::path& run_dir);
+/// The frames of every complete checkpoint in `run_dir`, oldest first.
+std::vector<std::int64_t> complete_checkpoints(const std::filesystem::path& run_dir);
+
+/// Deletes what a run no longer needs once the checkpoint of `completed` is complete: of the
+/// checkpoints before it, the complete ones beyond the `keep_last` newest (`completed` counts as
+/// one) and every incomplete one. Checkpoints after `completed` are never touched: a member may
+/// be writing one, and after a resume or a rollback they are rewritten when the run reaches
+/// them. `completed` itself, the checkpoint a rollback or a resume starts from, is always kept.
+/// Returns the frames deleted, oldest first; throws WriteError naming a directory that cannot
+/// be deleted (the ones before it are gone).
+std::vector<std::int64_t> prune_checkpoints(const std::filesystem::path& run_dir,
+                                            std::int64_t completed, std::int64_t keep_last);
 
 using proto::checkpoint_due;
 

@@ -188,6 +188,34 @@ void write_file_atomically(const fs::path& path, std::string_view bytes) {
     fs::remove(tmp, ec);
     throw WriteError(path.string() + ": cannot replace: " + ec.message());
   }
+  sync_directory(path.has_parent_path() ? path.parent_path() : fs::path("."));
+}
+
+void sync_directory(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) {
+    throw WriteError(dir.string() + ": cannot open the directory to sync it: " + reason(errno));
+  }
+  const int error = ::fsync(fd) == 0 ? 0 : errno;
+  ::close(fd);
+  if (error != 0 && error != EINVAL) {
+    throw WriteError(dir.string() + ": cannot sync the directory: " + reason(error));
+  }
+}
+
+void create_directories_durably(const fs::path& dir) {
+  std::error_code ec;
+  if (fs::is_directory(dir, ec)) return;
+  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+  if (parent != dir) create_directories_durably(parent);
+  // Another process may create it at the same moment: either way it exists, and the process
+  // that created it syncs its parent before it writes into it (so once every member reported
+  // its file of a checkpoint, every directory on the way is on the disk).
+  if (fs::create_directory(dir, ec)) {
+    sync_directory(parent);
+  } else if (ec) {
+    throw WriteError(dir.string() + ": cannot create: " + ec.message());
+  }
 }
 
 }  // namespace syndds::record

@@ -10,9 +10,10 @@
 //  - Rows are gathered and written per frame: commit_rows() writes one frame's rows of several
 //    files, and when any write fails every file is cut back to the end of the previous frame, so
 //    the files never hold part of a frame.
-//  - Summaries are replaced atomically (temporary file in the same directory, fsync, rename):
-//    a reader, or a run killed at any moment, sees the old or the new file, never a partial one;
-//    a SpaceReserve keeps room for the last one on a disk that fills up.
+//  - Summaries are replaced atomically (temporary file in the same directory, fsync, rename,
+//    fsync of the directory): a reader, or a run killed at any moment, sees the old or the new
+//    file, never a partial one; a SpaceReserve keeps room for the last one on a disk that fills
+//    up.
 //
 // No DDS and nothing heavy here: every layer above (agents, scm, services) may use it.
 #include <fmt/format.h>
@@ -177,7 +178,19 @@ class SpaceReserve {
 };
 
 /// Replaces `path` by a file holding `bytes`: written to a temporary file in the same
-/// directory, synced, renamed over `path`. Throws WriteError (and leaves `path` as it was).
+/// directory, synced, renamed over `path`, and the directory synced, so that once this returns
+/// the new file survives a power loss (a rename is an entry of the directory: without the
+/// directory's sync the old file, or none, may come back). Throws WriteError (and leaves `path`
+/// as it was, or already replaced if only the directory's sync failed).
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
+
+/// Forces the entries of directory `dir` (files created, renamed or deleted in it) to the disk.
+/// A file system that cannot sync a directory (EINVAL) is accepted as it is. Throws WriteError.
+void sync_directory(const std::filesystem::path& dir);
+
+/// Creates `dir` and its missing parents, each synced into its parent, so that a file later
+/// published in `dir` with write_file_atomically survives a power loss with its directories.
+/// Throws WriteError.
+void create_directories_durably(const std::filesystem::path& dir);
 
 }  // namespace syndds::record

@@ -715,6 +715,15 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
       every.fail(msg.str());
     }
     s.checkpoint.every_frames = static_cast<std::int64_t>(std::llround(frames));
+    if (auto keep = r.optional("keep_last")) {
+      s.checkpoint.keep_last = keep->as_int();
+      if (s.checkpoint.keep_last < 1) {
+        keep->fail(
+            "must be at least 1 (the newest complete checkpoint is what a resume or a "
+            "recovery starts from), got " +
+            std::to_string(s.checkpoint.keep_last));
+      }
+    }
     r.finish();
   }
   if (s.coordinator.on_member_loss == proto::LossPolicy::recover) {

@@ -134,10 +134,13 @@ struct VehicleConfig {
 };
 
 /// `checkpoint:` (docs/checkpoints.md): every member writes its state every `every_s` of
-/// simulated time; 0 = never.
+/// simulated time; 0 = never. Once a checkpoint is complete, the run directory keeps the
+/// `keep_last` newest complete checkpoints up to it and deletes the older ones (complete or not).
 struct CheckpointConfig {
+  static constexpr std::int64_t kDefaultKeepLast = 3;
   double every_s = 0.0;
   std::int64_t every_frames = 0;  // every_s / heartbeat_s
+  std::int64_t keep_last = kDefaultKeepLast;  // >= 1
   bool enabled() const { return every_frames > 0; }
 };
 

@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
     o.debug_exit_notice_delay_s = exit_notice_delay_ms / 1000.0;
     o.run_dir = common.run_dir;
     o.barrier.checkpoint_every = s.checkpoint.every_frames;
+    o.checkpoint_keep_last = s.checkpoint.keep_last;
     if (s.checkpoint.enabled() && common.run_dir.empty()) {
       throw syndds::ConfigError(s.file + ": checkpoint: every_s is set; give the run directory "
                                 "the checkpoints go to with --run-dir");

@@ -304,6 +304,20 @@ void CoordinatorService::declare_checkpoint(const proto::CheckpointReport& repor
   } catch (const std::exception& e) {
     // The run goes on; the previous complete checkpoint stays the one to resume from.
     spdlog::error("coordinator: checkpoint of frame {}: {}", info.frame, e.what());
+    return;
+  }
+  // Every member's file of this checkpoint and of the older ones was written before its
+  // FrameDone was counted, and none is writing a newer one yet (frame info.frame + 2 is granted
+  // after this): the older checkpoints can go.
+  try {
+    const auto deleted =
+        record::prune_checkpoints(options_.run_dir, info.frame, options_.checkpoint_keep_last);
+    if (!deleted.empty()) {
+      spdlog::debug("coordinator: deleted the checkpoints of frames {} to {} (keep_last {})",
+                    deleted.front(), deleted.back(), options_.checkpoint_keep_last);
+    }
+  } catch (const std::exception& e) {
+    spdlog::warn("coordinator: old checkpoints: {}", e.what());
   }
 }
 

@@ -26,6 +26,8 @@ struct CoordinatorOptions {
   double finish_timeout_s = 10.0;  // after stop/abort: waiting for members to confirm
   std::string scenario_name;
   std::string run_dir;  // where checkpoints are declared complete (docs/checkpoints.md)
+  /// Complete checkpoints kept in run_dir (checkpoint.keep_last); older ones are deleted.
+  std::int64_t checkpoint_keep_last = 3;
   /// Called once the run's verdict is sent, with the exit code run() will return (unless a
   /// member fails after the end): from then on nothing can change the run's outcome, and the
   /// main program may treat a Fast DDS abort while the members leave as teardown

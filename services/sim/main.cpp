@@ -59,6 +59,11 @@ int main(int argc, char** argv) {
         }
         spdlog::info("checkpoint of frame {} (t = {:g} s): {} members, {} bytes, {:.1f} ms",
                      frame, info.sim_time_s, info.members.size(), bytes, 1e3 * seconds);
+        try {
+          record::prune_checkpoints(run_dir, frame, s.checkpoint.keep_last);
+        } catch (const std::exception& e) {
+          spdlog::warn("old checkpoints: {}", e.what());
+        }
       });
     }
     if (resume) {

@@ -32,7 +32,9 @@ members=($("$BIN/syndds_coordinator" "$SCENARIO" --print-members))
 vehicles=$(( $(wc -l < "$WORK/reference/vehicles.csv") ))
 frames=$(tail -n1 "$WORK/reference/vehicles.csv" | cut -d, -f1)
 per_frame=$(( (vehicles - 1) / (frames + 1) ))
-first=$(ls "$WORK/reference/checkpoints" | head -n1 | sed 's/frame_0*//')
+# The first checkpoint (the reference keeps only the newest ones: checkpoint.keep_last).
+first=$(sed -n 's/.*checkpoint of frame \([0-9]*\) .*/\1/p' "$WORK/reference.log" | head -n1)
+[ -n "$first" ] || { echo "bench_recover: $SCENARIO writes no checkpoints" >&2; exit 1; }
 same_files() {  # every result file of $1 equal in $2
   (cd "$1" && find . -type f ! -path './logs*' ! -path './checkpoints/*' ! -name 'summary.*' \
       ! -name recoveries.csv ! -name '.*' | sort) > "$WORK/want"

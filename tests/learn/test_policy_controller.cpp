@@ -20,6 +20,8 @@
 #include "learn/policy_controller.hpp"
 #include "learn/ppo/trainer.hpp"
 #include "protocol/local_runner.hpp"
+#include "protocol/sample_state.hpp"
+#include "record/checkpoint.hpp"
 #include "scenario/scenario.hpp"
 #include "learn_test_util.hpp"
 
@@ -53,20 +55,28 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
   return path;
 }
 
+// The scenario of the environment's episode `seed` whose follower is driven by the policy
+// controller (`extra`: more top-level keys).
+scenario::Scenario policy_scenario(const ConvoyEnvOptions& options, std::uint64_t seed,
+                                   const std::string& policy, const std::string& extra = "") {
+  std::string yaml = convoy_scenario_yaml(make_convoy_episode(seed, options.episode),
+                                          convoy_scenario_options(options, seed));
+  const std::string external = "    controller: {type: external}\n";
+  yaml.replace(yaml.find(external), external.size(),
+               "    controller: {type: policy, follow: leader, model: " + policy + "}\n");
+  yaml += extra;
+  const std::string file = scenario::default_config_dir() + "/scenarios/convoy_env.yaml";
+  return scenario::parse_scenario(YamlNode::load_string(yaml, file), yaml, {},
+                                  scenario::default_config_dir());
+}
+
 // The follower's positions, frame by frame, in the scenario of the environment's episode
 // `seed` whose follower is driven by the policy controller.
 std::vector<proto::VehicleStateMsg> run_with_controller(const ConvoyEnvOptions& options,
                                                          std::uint64_t seed,
                                                          const std::string& policy,
                                                          std::int64_t frames) {
-  std::string yaml = convoy_scenario_yaml(make_convoy_episode(seed, options.episode),
-                                          convoy_scenario_options(options, seed));
-  const std::string external = "    controller: {type: external}\n";
-  yaml.replace(yaml.find(external), external.size(),
-               "    controller: {type: policy, follow: leader, model: " + policy + "}\n");
-  const std::string file = scenario::default_config_dir() + "/scenarios/convoy_env.yaml";
-  const auto s = scenario::parse_scenario(YamlNode::load_string(yaml, file), yaml, {},
-                                          scenario::default_config_dir());
+  const auto s = policy_scenario(options, seed, policy);
   proto::FrameStepper stepper(agents::make_all_agents(s, {}), s.time.heartbeat_s);
   std::vector<proto::VehicleStateMsg> track;
   for (std::int64_t f = 0; f < frames; ++f) {
@@ -168,4 +178,72 @@ TEST(ShippedPolicy, BeatsTheBaselinesOnHeldOutEpisodes) {
   EXPECT_GT(learned.mean_return, 2.5 * std::max(zero.mean_return, random.mean_return));
   EXPECT_GT(learned.mean_return, 0.8 * heuristic.mean_return);
   EXPECT_LE(learned.terminated, 3);  // at most 3 of 10 end in a collision or a lost leader
+}
+
+// A run with a policy controller writes checkpoints, and a run resumed from one steps the same
+// numbers as the run that wrote it: the policy's readings (the first frame after a checkpoint
+// acts on them alone), its action and when the next one is due are in its state. Resumed from
+// just before an action and from between two actions.
+TEST(PolicyController, AResumedRunIsByteIdentical) {
+  register_policy_controller();
+  at::set_num_threads(1);
+  const fs::path dir = syndds::test::learn_test_dir();
+  ConvoyEnvOptions options;
+  const std::string policy_file = write_policy(dir, options);
+  const auto s = policy_scenario(options, 21, policy_file, "checkpoint: {every_s: 1.5}\n");
+  constexpr std::int64_t kEnd = 260;
+  const auto controller = [](const proto::FrameStepper& st) -> const PolicyControllerAgent& {
+    for (const auto& a : st.agents()) {
+      if (const auto* p = dynamic_cast<const PolicyControllerAgent*>(a.get())) return *p;
+    }
+    throw std::logic_error("no policy controller");
+  };
+  // The frames after 150 in which the policy acts.
+  std::vector<std::int64_t> acting;
+  {
+    proto::FrameStepper probe(agents::make_all_agents(s, {}), s.time.heartbeat_s);
+    while (probe.next_frame() <= kEnd) {
+      const auto before = controller(probe).actions_taken();
+      probe.step();
+      if (controller(probe).actions_taken() > before && probe.next_frame() - 1 > 150) {
+        acting.push_back(probe.next_frame() - 1);
+      }
+    }
+  }
+  ASSERT_GE(acting.size(), 2u);
+  const std::int64_t before_action = acting.front() - 1;  // the next frame acts
+  const std::int64_t between = acting.front() + 4;        // 5 of the 10 frames to the next
+  // Every frame's samples; checkpoints of `before_action` and `between` written into `run_dir`.
+  const auto frames_of = [&](proto::FrameStepper& stepper, const fs::path& run_dir) {
+    std::vector<std::string> frames;
+    while (stepper.next_frame() <= kEnd) {
+      stepper.step();
+      core::StateWriter w;
+      proto::save_samples(w, stepper.last_outputs());
+      frames.push_back(w.take());
+      const std::int64_t frame = stepper.next_frame() - 1;
+      if (frame == before_action || frame == between) {
+        record::write_local_checkpoint(run_dir, stepper, s.fingerprint, s.time.heartbeat_s);
+      }
+    }
+    return frames;
+  };
+  auto agents = agents::make_all_agents(s, {});
+  for (const auto& a : agents) EXPECT_NO_THROW(agents::require_checkpoints(s, *a));
+  proto::FrameStepper straight(std::move(agents), s.time.heartbeat_s);
+  const auto want = frames_of(straight, dir / "straight");
+  ASSERT_EQ(want.size(), static_cast<std::size_t>(kEnd + 1));
+
+  for (const std::int64_t from : {before_action, between}) {
+    SCOPED_TRACE("resumed from the checkpoint of frame " + std::to_string(from));
+    proto::FrameStepper resumed(agents::make_all_agents(s, {}), s.time.heartbeat_s);
+    record::resume_local(dir / "straight", from, s.fingerprint, resumed);
+    const auto got = frames_of(resumed, dir / ("resumed_" + std::to_string(from)));
+    ASSERT_EQ(got.size(), static_cast<std::size_t>(kEnd - from));
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      const std::size_t frame = static_cast<std::size_t>(from) + 1 + i;
+      ASSERT_TRUE(got[i] == want[frame]) << "frame " << frame << " differs";
+    }
+    EXPECT_EQ(controller(resumed).actions_taken(), controller(straight).actions_taken());
+  }
 }

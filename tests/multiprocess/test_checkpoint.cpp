@@ -23,7 +23,8 @@ std::vector<fs::path> result_files(const fs::path& dir) {
     const std::string first = rel.begin()->string();
     if (first == "logs" || first.starts_with("logs.") || first == "checkpoints" ||
         first == "summary.json" || first == "summary.txt" || first == "recoveries.csv" ||
-        first == "launcher.log" || rel.filename().string().starts_with(".")) {
+        first == "launcher.log" || first == "launch.args" ||
+        rel.filename().string().starts_with(".")) {
       continue;
     }
     out.push_back(rel);
@@ -67,6 +68,38 @@ bool complete(const fs::path& out, int frame) {
   return fs::exists(out / "checkpoints" / name / "complete.yaml");
 }
 
+// Some checkpoint of `out` is complete (the older ones are deleted as the run goes on).
+bool any_complete(const fs::path& out) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(out / "checkpoints", ec)) {
+    if (fs::exists(e.path() / "complete.yaml", ec)) return true;
+  }
+  return false;
+}
+
+// The names of the checkpoint folders of `out`, sorted.
+std::vector<std::string> checkpoint_folders(const fs::path& out) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(out / "checkpoints")) {
+    names.push_back(e.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+// Kills the launcher and everything it started once the checkpoint of `frame` is complete.
+void kill_everything_after(Process& launcher, const fs::path& out, int frame) {
+  ASSERT_TRUE(wait_until([&] { return complete(out, frame) || launcher.poll(); }, 120))
+      << launcher.log();
+  ASSERT_FALSE(launcher.poll()) << "the run ended before it could be killed\n" << launcher.log();
+  launcher.signal(SIGKILL);
+  for (const auto& [member, pid] : launched_pids(out)) ::kill(pid, SIGKILL);
+  launcher.wait(10);
+  ASSERT_FALSE(fs::exists(out / "summary.json") &&
+               read_file(out / "summary.json").find("\"completed\"") != std::string::npos)
+      << "the run completed before it was killed";
+}
+
 }  // namespace
 
 // Everything killed (the launcher too) once the checkpoint of frame 300 is complete; the
@@ -76,16 +109,10 @@ TEST(Checkpoint, ARunResumedAfterEveryProcessWasKilledIsByteIdentical) {
   const fs::path want = reference(run);
   const fs::path out = run.dir / "out";
   auto launcher = start_launcher(run, kScenario);
-  ASSERT_TRUE(wait_until([&] { return complete(out, 300) || launcher->poll(); }, 120))
-      << launcher->log();
-  ASSERT_FALSE(launcher->poll()) << "the run ended before it could be killed\n" << launcher->log();
-  launcher->signal(SIGKILL);
-  for (const auto& [member, pid] : launched_pids(out)) ::kill(pid, SIGKILL);
-  launcher->wait(10);
-  ASSERT_FALSE(fs::exists(out / "summary.json") &&
-               read_file(out / "summary.json").find("\"completed\"") != std::string::npos)
-      << "the run completed before it was killed";
+  kill_everything_after(*launcher, out, 300);
+  if (HasFatalFailure()) return;
 
+  // The old form: the scenario and the options typed again.
   Process resumed("env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
                       "/launch_scripts/run_scenario.sh " + kScenario + " --resume " +
                       out.string() + run.common_args(),
@@ -97,20 +124,66 @@ TEST(Checkpoint, ARunResumedAfterEveryProcessWasKilledIsByteIdentical) {
   expect_same_run(want, out);
 }
 
-// The same checkpoint files resume a single-process run: the layouts share them.
+// `--resume RUN_DIR` alone: the launcher starts the run again with the scenario and the options
+// it recorded when the run started (here --duration, which is in the fingerprint, --processes,
+// and the test's --domain and --run-id).
+TEST(Checkpoint, AResumeWithoutTheScenarioUsesTheRecordedOne) {
+  TestRun run;
+  const fs::path out = run.dir / "out";
+  const fs::path want = run.dir / "reference";
+  Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --duration 4.5 --output " +
+                  want.string() + run.common_args(),
+              run.dir / "reference.log");
+  ASSERT_EQ(sim.wait(120), std::optional<int>(0)) << sim.log();
+  auto launcher = start_launcher(run, kScenario, "--duration 4.5 --processes per_vehicle");
+  kill_everything_after(*launcher, out, 200);
+  if (HasFatalFailure()) return;
+  const std::string recorded = read_file(out / "launch.args");
+  EXPECT_EQ(recorded.substr(0, recorded.find('\n')), kScenario);
+  EXPECT_NE(recorded.find("\n--duration\n4.5\n"), std::string::npos) << recorded;
+
+  Process resumed("env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
+                      "/launch_scripts/run_scenario.sh --resume " + out.string(),
+                  run.dir / "resume.log");
+  ASSERT_EQ(resumed.wait(180), std::optional<int>(0)) << resumed.log();
+  const std::string coordinator = read_file(out / "logs" / "coordinator.log");
+  EXPECT_NE(coordinator.find("resuming from the checkpoint of frame"), std::string::npos)
+      << coordinator;
+  EXPECT_NE(coordinator.find("on domain " + std::to_string(run.domain)), std::string::npos)
+      << coordinator;
+  EXPECT_TRUE(fs::exists(out / "logs" / "group_a.log")) << "not started per_vehicle";
+  EXPECT_EQ(read_file(out / "launch.args"), recorded);  // written once, when the run started
+  expect_same_run(want, out);
+}
+
+// The same checkpoint files resume a single-process run: the layouts share them. Only the
+// keep_last (3) newest complete checkpoints stay.
 TEST(Checkpoint, ADistributedCheckpointResumesInOneProcess) {
   TestRun run;
   const fs::path want = reference(run);
   const fs::path out = run.dir / "out";
+  const std::vector<std::string> kept = {"frame_000000300", "frame_000000400", "frame_000000500"};
+  EXPECT_EQ(checkpoint_folders(want), kept);
   auto launcher = start_launcher(run, kScenario);
   ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
   expect_same_run(want, out);  // distributed, with checkpoints, as the single process
-  // Back to the checkpoint of frame 200, in one process.
+  EXPECT_EQ(checkpoint_folders(out), kept);
+  // Back to the checkpoint of frame 300, in one process.
   Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
-                  " --resume-from 200" + run.common_args(),
+                  " --resume-from 300" + run.common_args(),
               run.dir / "sim.log");
   ASSERT_EQ(sim.wait(120), std::optional<int>(0)) << sim.log();
   expect_same_run(want, out);
+  EXPECT_EQ(checkpoint_folders(out), kept);
+  // The deleted ones are named as such.
+  Process gone(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
+                   " --resume-from 200" + run.common_args(),
+               run.dir / "gone.log");
+  ASSERT_EQ(gone.wait(60), std::optional<int>(1)) << gone.log();
+  EXPECT_NE(gone.log().find("frame_000000200: no such checkpoint (complete checkpoints: 300, "
+                            "400, 500"),
+            std::string::npos)
+      << gone.log();
 }
 
 // A damaged state file is refused with its name before anything runs.
@@ -150,8 +223,8 @@ TEST(Checkpoint, EarlyRestartIsTakenAsTheReturn) {
           run.common_args(),
       run.dir / "launcher.log");
   const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
-  ASSERT_TRUE(wait_until([&] { return (complete(out, 100) && rows() > 300u) || launcher->poll(); },
-                         120))
+  ASSERT_TRUE(
+      wait_until([&] { return (any_complete(out) && rows() > 300u) || launcher->poll(); }, 120))
       << launcher->log();
   ASSERT_FALSE(launcher->poll()) << launcher->log();
   const int pid = launched_pid(out, "recorder");
@@ -178,7 +251,7 @@ TEST(Checkpoint, EveryKindOfMemberKilledIsRecoveredByteIdentical) {
     // Killed once the run passed `frame` (the recorder has written it), after a checkpoint.
     const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
     ASSERT_TRUE(wait_until(
-        [&] { return (complete(out, 100) && rows() > 2u * frame) || launcher->poll(); }, 120))
+        [&] { return (any_complete(out) && rows() > 2u * frame) || launcher->poll(); }, 120))
         << launcher->log();
     ASSERT_FALSE(launcher->poll()) << launcher->log();
     const int pid = launched_pid(out, victim);

@@ -255,4 +255,73 @@ TEST(Launcher, DefaultScenarioRunsWithDdsSecurity) {
             single_process_csv(run, scenario, "--duration 15"));
 }
 
+// --resume RUN_DIR alone starts the run with the scenario and options in RUN_DIR/launch.args;
+// options typed with it replace recorded ones, a scenario typed before it the recorded one.
+TEST(Launcher, AResumeTakesTheRecordedScenarioAndOptionsUnlessTyped) {
+  TestRun run;
+  const fs::path dir = run.dir / "old";
+  fs::create_directories(dir / "checkpoints");
+  const std::string scenario = kScenarios + "two_vehicles.yaml";
+  std::ofstream(dir / "launch.args") << scenario << "\n--duration\n4.5\n--realtime\n--domain\n7\n"
+                                     << "--config-dir\n"
+                                     << kConfig << "\n";
+  auto printed = [&](const std::string& args) {
+    auto launcher = launch(run, run.dir, args + " --single-process --print-commands", "print.log");
+    EXPECT_EQ(launcher->wait(30), 0) << launcher->log();
+    return launcher->log();
+  };
+  std::string line = printed("--resume " + dir.string());
+  EXPECT_NE(line.find("syndds_sim " + scenario + " --output " + dir.string()), std::string::npos)
+      << line;
+  EXPECT_NE(line.find(" --duration 4.5 --realtime --domain 7 --config-dir " + kConfig +
+                      " --resume-from latest"),
+            std::string::npos)
+      << line;
+  line = printed("--resume " + dir.string() + " --domain 9 --from-frame 300");
+  for (const std::string want :
+       {" --domain 9 ", " --duration 4.5 ", " --realtime ", " --resume-from 300"}) {
+    EXPECT_NE(line.find(want), std::string::npos) << want << " in " << line;
+  }
+  EXPECT_EQ(line.find("--domain 7"), std::string::npos) << line;
+  const std::string other = kScenarios + "checkpointed.yaml";
+  line = printed(other + " --resume " + dir.string());
+  EXPECT_NE(line.find("syndds_sim " + other + " "), std::string::npos) << line;
+  EXPECT_NE(line.find(" --duration 4.5 "), std::string::npos) << line;
+}
+
+// A run directory without launch.args (a run not started by the launcher) needs the scenario:
+// the launcher says so instead of guessing.
+TEST(Launcher, AResumeWithoutARecordedLaunchAsksForTheScenario) {
+  TestRun run;
+  const fs::path dir = run.dir / "old";
+  fs::create_directories(dir / "checkpoints");
+  auto launcher = launch(run, run.dir, "--resume " + dir.string(), "launcher.log");
+  EXPECT_EQ(launcher->wait(30), 1) << launcher->log();
+  const std::string log = launcher->log();
+  EXPECT_NE(log.find("--resume " + dir.string() + ": no launch.args there"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("run_scenario.sh SCENARIO.yaml --resume " + dir.string()), std::string::npos)
+      << log;
+}
+
+// A run the launcher starts records what --resume needs: the scenario's absolute path (the
+// resume may be typed in another folder) and the options, paths made absolute.
+TEST(Launcher, ARunRecordsItsScenarioAndOptions) {
+  TestRun run;
+  const fs::path cwd = run.dir / "cwd";
+  fs::create_directories(cwd / "scenarios");
+  fs::copy_file(kScenarios + "two_vehicles.yaml", cwd / "scenarios" / "two.yaml");
+  fs::create_directory_symlink(kConfig, cwd / "config");
+  auto launcher = launch(
+      run, cwd,
+      "scenarios/two.yaml --duration 0.3 --config-dir config --output out" + run.common_args(),
+      "launcher.log");
+  ASSERT_EQ(launcher->wait(90), 0) << launcher->log();
+  const fs::path real = fs::canonical(cwd);
+  EXPECT_EQ(read_file(cwd / "out" / "launch.args"),
+            (real / "scenarios" / "two.yaml").string() + "\n--duration\n0.3\n--config-dir\n" +
+                (real / "config").string() + "\n--domain\n" + std::to_string(run.domain) +
+                "\n--run-id\n" + run.run_id + "\n");
+}
+
 }  // namespace syndds::test

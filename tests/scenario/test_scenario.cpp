@@ -362,8 +362,30 @@ TEST(Scenario, CheckpointsComeEveryWholeNumberOfFrames) {
   EXPECT_NE(err.find("unknown key 'each'"), std::string::npos) << err;
 }
 
-// The learned-policy controller and external controllers cannot checkpoint yet: a scenario
-// that asks is refused naming the member, before anything runs.
+// keep_last: how many complete checkpoints the run directory keeps (3 unless said; at least 1,
+// the one a resume or a recovery starts from).
+TEST(Scenario, CheckpointsKeptAreAWholeNumberOfAtLeastOne) {
+  EXPECT_EQ(parse(kMinimal + "checkpoint: {every_s: 0.5}\n").checkpoint.keep_last, 3);
+  EXPECT_EQ(parse(kMinimal + "checkpoint: {every_s: 0.5, keep_last: 1}\n").checkpoint.keep_last, 1);
+  EXPECT_EQ(
+      parse(kMinimal + "checkpoint:\n  every_s: 0.5\n  keep_last: 1000000\n").checkpoint.keep_last,
+      1000000);
+  auto err = error_of(kMinimal + "checkpoint:\n  every_s: 0.5\n  keep_last: 0\n");
+  EXPECT_NE(err.find("test.yaml:11:14: checkpoint.keep_last: must be at least 1"),
+            std::string::npos)
+      << err;
+  err = error_of(kMinimal + "checkpoint: {every_s: 0.5, keep_last: 2.5}\n");
+  EXPECT_NE(err.find("checkpoint.keep_last: expected an integer, got '2.5'"), std::string::npos)
+      << err;
+  err = error_of(kMinimal + "checkpoint: {every_s: 0.5, keep_last: all}\n");
+  EXPECT_NE(err.find("checkpoint.keep_last: expected an integer, got 'all'"), std::string::npos)
+      << err;
+  err = error_of(kMinimal + "checkpoint: {every_s: 0.5, keep: 2}\n");
+  EXPECT_NE(err.find("unknown key 'keep'"), std::string::npos) << err;
+}
+
+// External controllers cannot checkpoint yet: a scenario that asks is refused naming the
+// member, before anything runs.
 TEST(Scenario, AMemberThatCannotCheckpointIsNamed) {
   const auto s = parse(kMinimal + "checkpoint: {every_s: 0.5}\n");
   struct NoState : proto::Agent {
