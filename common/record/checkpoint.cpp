@@ -67,12 +67,14 @@ std::string member_state_file(const std::string& member_id) {
 
 std::uint64_t write_member_checkpoint(const fs::path& run_dir, std::int64_t frame,
                                       std::uint64_t fingerprint, proto::Agent& agent,
-                                      const proto::FrameSamples& next_inputs) {
+                                      const proto::FrameSamples& next_inputs,
+                                      const std::string& build_id) {
   core::StateWriter w;
-  w.begin("member", 1);
+  w.begin("member", 2);
   w.io(agent.member_id());
   w.io(frame);
   w.io(fingerprint);
+  w.io(build_id);
   agent.save_state(w);
   proto::save_samples(w, next_inputs);
   w.end();
@@ -88,7 +90,7 @@ proto::FrameSamples read_member_checkpoint(const fs::path& run_dir, std::int64_t
   const fs::path file = checkpoint_dir(run_dir, frame) / member_state_file(agent.member_id());
   const std::string bytes = core::unframe_state(read_all(file), file.string());
   core::StateReader r(bytes, file.string());
-  r.begin("member", 1);
+  r.begin("member", 2);
   const auto member = r.get<std::string>();
   if (member != agent.member_id()) {
     r.fail("the state of member '" + member + "', not of '" + agent.member_id() + "'");
@@ -102,6 +104,12 @@ proto::FrameSamples read_member_checkpoint(const fs::path& run_dir, std::int64_t
   if (saved_fingerprint != fingerprint) {
     r.fail("written for scenario fingerprint 0x" + hex64(saved_fingerprint) + "; this run's is 0x" +
            hex64(fingerprint) + " (a resumed run needs the same scenario files and overrides)");
+  }
+  const auto saved_build = r.get<std::string>();
+  if (saved_build != build_identity()) {
+    r.fail("written by syndds build " + saved_build + "; this program is build " +
+           build_identity() + " (other physics or protocol sources: resume with the build that "
+           "wrote it)");
   }
   agent.load_state(r);
   proto::FrameSamples inputs = proto::load_samples(r);

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "core/build_identity.hpp"
 #include "protocol/agent.hpp"
 #include "protocol/local_runner.hpp"
 
@@ -28,12 +29,15 @@ std::filesystem::path checkpoint_dir(const std::filesystem::path& run_dir, std::
 std::string member_state_file(const std::string& member_id);
 
 /// Writes `agent`'s state after `frame` and `next_inputs` (the samples stamped `frame` it
-/// subscribes to) to the checkpoint of `frame`. Returns the bytes written. Throws WriteError.
+/// subscribes to) to the checkpoint of `frame`, with the build that wrote it (`build_id`:
+/// core/build_identity.hpp). Returns the bytes written. Throws WriteError.
 std::uint64_t write_member_checkpoint(const std::filesystem::path& run_dir, std::int64_t frame,
                                       std::uint64_t fingerprint, proto::Agent& agent,
-                                      const proto::FrameSamples& next_inputs);
+                                      const proto::FrameSamples& next_inputs,
+                                      const std::string& build_id = build_identity());
 /// Restores `agent` (built from the same scenario, not stepped yet) from the checkpoint of
-/// `frame`; returns the samples it steps frame + 1 with. Throws core::StateError naming the file.
+/// `frame`; returns the samples it steps frame + 1 with. Throws core::StateError naming the file,
+/// also for a checkpoint of another build (other physics or protocol sources), naming both.
 proto::FrameSamples read_member_checkpoint(const std::filesystem::path& run_dir,
                                            std::int64_t frame, std::uint64_t fingerprint,
                                            proto::Agent& agent);

@@ -365,3 +365,27 @@ TEST(CheckpointFiles, AMalformedMemberFileNamesTheFileAndWhatIsWrong) {
         << e.what();
   }
 }
+
+// A checkpoint records the build that wrote it; another build (other physics or protocol
+// sources) refuses to resume from it, naming both builds.
+TEST(CheckpointFiles, ACheckpointOfAnotherBuildIsRefusedNamingBothBuilds) {
+  const fs::path run = fresh_dir();
+  Counter writer("vehicle/a");
+  writer.count = 7;
+  write_member_checkpoint(run, 100, kFingerprint, writer, {}, "0.0.1+00000000deadbeef");
+  Counter reader("vehicle/a");
+  try {
+    read_member_checkpoint(run, 100, kFingerprint, reader);
+    FAIL() << "a checkpoint of another build was resumed";
+  } catch (const core::StateError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("vehicle.a.state"), std::string::npos) << what;
+    EXPECT_NE(what.find("written by syndds build 0.0.1+00000000deadbeef; this program is build " +
+                        std::string(build_identity())),
+              std::string::npos)
+        << what;
+  }
+  write_member_checkpoint(run, 100, kFingerprint, writer, {});  // this build's: fine
+  read_member_checkpoint(run, 100, kFingerprint, reader);
+  EXPECT_EQ(reader.count, 7);
+}
