@@ -252,9 +252,22 @@ void stall_and_expect_unchanged(const std::string& member) {
   const int pid = launched_pid(out, member);
   ASSERT_NE(pid, 0);
   ASSERT_EQ(::kill(pid, SIGSTOP), 0);
-  // The stall itself (the stimulus, not a wait for a condition): longer than the old lease.
-  std::this_thread::sleep_for(std::chrono::seconds(4));
+  // The stall: held until the run is seen standing still for 3 s (no frame recorded), longer
+  // than the old 2 s lease, so the test knows the stall took effect rather than assuming it.
+  std::size_t lines = count_lines(read_file(out / "vehicles.csv"));
+  auto still_since = Clock::now();
+  const bool stalled = wait_until(
+      [&] {
+        const std::size_t now = count_lines(read_file(out / "vehicles.csv"));
+        if (now != lines) {
+          lines = now;
+          still_since = Clock::now();
+        }
+        return Clock::now() - still_since >= std::chrono::seconds(3);
+      },
+      30);
   ASSERT_EQ(::kill(pid, SIGCONT), 0);
+  ASSERT_TRUE(stalled) << "the run went on while " << member << " was stopped";
   const auto code = launcher->wait(60);
   ASSERT_TRUE(code.has_value()) << launcher->log();
   EXPECT_EQ(*code, 0) << launcher->log() << read_file(out / "logs" / "coordinator.log");
