@@ -6,8 +6,8 @@
 #   diff before.txt after.txt      # empty: the refactor changed no result
 #
 # Hashed: every file of the run directory that docs/outputs.md calls byte-identical (CSV files,
-# terrain images and their scale, convoy.json, metrics.json); summary.json/txt hold wall times
-# and are left out. A file's copy of the run directory's path is not part of its hash.
+# terrain images and their scale, convoy.json, metrics.json, videos); summary.json/txt hold
+# wall times and are left out. A file's copy of the run directory's path is not part of its hash.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 [ $# -ge 2 ] || { sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 1; }
@@ -34,7 +34,7 @@ while IFS= read -r scenario; do
     echo "check_identical: $rel failed (log below)" >&2; cat "$dir.log" >&2; exit 2
   fi
   (cd "$dir" && find . -type f \( -name '*.csv' -o -name '*.png' -o -name 'terrain_images.json' -o -name 'scene.json' \
-      -o -name 'convoy.json' -o -name 'metrics.json' \) | LC_ALL=C sort | while IFS= read -r f; do
+      -o -name 'convoy.json' -o -name 'metrics.json' -o -name '*.avi' \) | LC_ALL=C sort | while IFS= read -r f; do
      # terrain_images.json names its images by path: the run directory's own path is not a result
      echo "$rel ${f#./} $(sed "s#$dir/##g" "$f" | sha256sum | cut -c1-16)"; done) >> "$OUT"
   echo "check_identical: $rel done" >&2

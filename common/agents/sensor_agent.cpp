@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <set>
 
 #include "agents/scm_messages.hpp"
 #include "agents/sensor_messages.hpp"
@@ -206,12 +207,8 @@ void SensorAgent::save(const sensors::RenderedBatch& batch) {
     if (config_.video) {
       auto& video = videos_[f.sensor_id];
       if (!video) {
-        double fps = 30.0;
-        for (const auto& c : config_.rig.cameras) {
-          if (c.id == f.sensor_id) fps = c.rate_hz;
-        }
-        video = std::make_unique<sensors::VideoWriter>((dir / (f.sensor_id + ".avi")).string(),
-                                                       fps, f.image.width, f.image.height);
+        video = open_video(f.sensor_id, f.image.width, f.image.height,
+                           sensors::VideoWriter::Open::create);
       }
       video->write(f.image);
     }
@@ -223,6 +220,16 @@ void SensorAgent::save(const sensors::RenderedBatch& batch) {
   index_->commit();
 }
 
+std::unique_ptr<sensors::VideoWriter> SensorAgent::open_video(
+    const std::string& id, int width, int height, sensors::VideoWriter::Open open) const {
+  double fps = 30.0;
+  for (const auto& c : config_.rig.cameras) {
+    if (c.id == id) fps = c.rate_hz;
+  }
+  const fs::path file = fs::path(options_.output_dir) / vehicle_id_ / (id + ".avi");
+  return std::make_unique<sensors::VideoWriter>(file.string(), fps, width, height, open);
+}
+
 void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
   if (soil_ && !final_inputs.empty()) update_world(final_inputs);
   for (auto& [id, video] : videos_) video->close();
@@ -231,8 +238,7 @@ void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& fi
 }
 
 void SensorAgent::save_state(core::StateWriter& w) {
-  if (config_.video) throw ProtocolError(member_id_ + ": a camera video cannot be checkpointed");
-  w.begin("sensor_agent", 1);
+  w.begin("sensor_agent", 2);
   w.io(frames_rendered_);
   w.io(static_cast<std::uint64_t>(poses_.size()));
   for (const auto& [id, pose] : poses_) {
@@ -250,11 +256,57 @@ void SensorAgent::save_state(core::StateWriter& w) {
   if (soil_) soil_->save_state(w);
   w.io(index_ != nullptr);
   if (index_) w.io(index_->size());
+  w.io(static_cast<std::uint64_t>(videos_.size()));
+  for (const auto& [id, video] : videos_) {
+    w.io(id);
+    video->save_state(w);
+  }
   w.end();
 }
 
+void SensorAgent::load_videos(core::StateReader& r, std::uint64_t count) {
+  std::set<std::string> restored;
+  for (std::uint64_t k = 0; k < count; ++k) {
+    const auto id = r.get<std::string>();
+    const sensors::CameraConfig* camera = nullptr;
+    for (const auto& c : config_.rig.cameras) {
+      if (c.id == id) camera = &c;
+    }
+    if (!config_.video || !camera) {
+      r.fail("the checkpoint has a video of camera '" + id + "', this rig writes none");
+    }
+    auto& video = videos_[id];
+    try {
+      if (!video) {
+        video = open_video(id, camera->intrinsics.width, camera->intrinsics.height,
+                           sensors::VideoWriter::Open::resume);
+      }
+    } catch (const std::exception& e) {
+      videos_.erase(id);
+      r.fail(e.what());
+    }
+    video->load_state(r);
+    restored.insert(id);
+  }
+  // A video begun after the checkpoint is no more: an undisturbed run had no file yet.
+  for (const auto& c : config_.rig.cameras) {
+    if (!config_.video || restored.contains(c.id)) continue;
+    try {
+      if (auto v = videos_.find(c.id); v != videos_.end()) {
+        v->second->discard();
+        videos_.erase(v);
+      } else {
+        fs::remove(fs::path(options_.output_dir) / vehicle_id_ / (c.id + ".avi"));
+      }
+    } catch (const std::exception& e) {
+      r.fail(e.what());
+    }
+  }
+}
+
 void SensorAgent::load_state(core::StateReader& r) {
-  r.begin("sensor_agent", 1);
+  // Version 1 (before videos could be checkpointed) holds no videos.
+  const auto version = r.begin("sensor_agent", 2, 1);
   r.io(frames_rendered_);
   std::map<std::string, std::pair<Pose, std::vector<Pose>>> poses;
   const auto n = r.get<std::uint64_t>();
@@ -282,6 +334,7 @@ void SensorAgent::load_state(core::StateReader& r) {
       r.fail(e.what());
     }
   }
+  load_videos(r, version >= 2 ? r.get<std::uint64_t>() : 0);
   r.end();
   // The scene as it was: vehicles removed since the start stay removed, the others where they
   // were, the terrain at the soil copy's heights.

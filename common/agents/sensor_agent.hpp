@@ -37,8 +37,8 @@ class SensorAgent final : public proto::Agent {
             proto::FrameSamples& outputs) override;
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
   /// Checkpoints: the sensors, the soil copy, the scene's vehicles and their poses, the frame
-  /// index. Not with a video (an MJPG file cannot be continued).
-  bool can_checkpoint() const override { return !config_.video; }
+  /// index, the videos (each cut back to its frames of the checkpoint on load).
+  bool can_checkpoint() const override { return true; }
   void save_state(core::StateWriter& w) override;
   void load_state(core::StateReader& r) override;
 
@@ -50,6 +50,11 @@ class SensorAgent final : public proto::Agent {
   void remove_departed(const std::vector<std::string>& departed);
   void render_vertex(std::int32_t i, std::int32_t j, std::vector<sensors::HeightUpdate>& out) const;
   void save(const sensors::RenderedBatch& batch);
+  // The videos of the checkpoint `r` reads (`count` of them), each cut back to it.
+  void load_videos(core::StateReader& r, std::uint64_t count);
+  // The video of camera `id` (`open`: a new file, or the file of a checkpointed run).
+  std::unique_ptr<sensors::VideoWriter> open_video(const std::string& id, int width, int height,
+                                                   sensors::VideoWriter::Open open) const;
 
   std::string vehicle_id_;
   std::string member_id_;
@@ -59,6 +64,7 @@ class SensorAgent final : public proto::Agent {
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain (merged exactly)
   std::unique_ptr<sensors::Scene> scene_;
   std::unique_ptr<sensors::VehicleSensors> sensors_;
+  // Camera id -> its video, from the camera's first frame on.
   std::map<std::string, std::unique_ptr<sensors::VideoWriter>> videos_;
   std::unique_ptr<record::CsvFile> index_;  // frames.csv, when frames are saved
   std::uint64_t frames_rendered_ = 0;

@@ -4,7 +4,6 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 #include <stdexcept>
 
 namespace syndds::sensors {
@@ -44,33 +43,60 @@ RgbImage read_image(const std::string& path) {
   return out;
 }
 
-VideoWriter::VideoWriter(const std::string& path, double fps, int width, int height)
-    : writer_(std::make_unique<cv::VideoWriter>()), path_(path), width_(width), height_(height) {
-  make_parent(path);
-  const std::string ext = std::filesystem::path(path).extension().string();
-  const int fourcc = ext == ".mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
-                                   : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-  if (!writer_->open(path, fourcc, fps, cv::Size(width, height), true)) {
-    path_ = std::filesystem::path(path).replace_extension(".avi").string();
-    if (!writer_->open(path_, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps,
-                       cv::Size(width, height), true)) {
-      throw std::runtime_error("cannot open a video writer for " + path);
-    }
+namespace {
+
+const std::string& checked_video_path(const std::string& path, const VideoWriter::Options& o) {
+  if (std::filesystem::path(path).extension() != ".avi") {
+    throw std::invalid_argument(path + ": a video is written as MJPG in AVI: the name must end "
+                                "in .avi");
   }
+  if (o.jpeg_quality < 1 || o.jpeg_quality > 100) {
+    throw std::invalid_argument(path + ": jpeg_quality " + std::to_string(o.jpeg_quality) +
+                                " is outside 1..100");
+  }
+  return path;
 }
 
-VideoWriter::~VideoWriter() { close(); }
+}  // namespace
+
+VideoWriter::VideoWriter(const std::string& path, double fps, int width, int height, Open open,
+                         Options options)
+    : path_(checked_video_path(path, options)),
+      quality_(options.jpeg_quality),
+      file_(path, AviFile::Format{width, height, fps, options.segment_bytes}, open) {}
+
+VideoWriter::~VideoWriter() = default;
 
 void VideoWriter::write(const RgbImage& image) {
-  if (image.width != width_ || image.height != height_) {
+  if (image.width != file_.format().width || image.height != file_.format().height ||
+      image.pixels.size() != static_cast<std::size_t>(image.width) * image.height * 3) {
     throw std::runtime_error("video frame size differs from " + path_);
   }
-  writer_->write(to_bgr(image));
-  ++frames_;
+  std::vector<std::uint8_t> jpeg;
+  if (!cv::imencode(".jpg", to_bgr(image), jpeg, {cv::IMWRITE_JPEG_QUALITY, quality_})) {
+    throw std::runtime_error(path_ + ": cannot encode a frame as JPEG");
+  }
+  file_.append(jpeg);
 }
 
-void VideoWriter::close() {
-  if (writer_ && writer_->isOpened()) writer_->release();
+void VideoWriter::close() { file_.close(); }
+
+void VideoWriter::save_state(core::StateWriter& w) const {
+  w.begin("video_writer", 1);
+  w.io(quality_);
+  file_.save_state(w);
+  w.end();
+}
+
+void VideoWriter::load_state(core::StateReader& r) {
+  r.begin("video_writer", 1, 1);
+  const auto quality = r.get<int>();
+  if (quality != quality_) {
+    r.fail(path_ + ": the checkpoint's video has JPEG quality " + std::to_string(quality) +
+           ", this one " + std::to_string(quality_));
+  }
+  file_.load_state(r);
+  r.end();
 }
 
 void write_ply(const std::string& path, const LidarScan& scan) {

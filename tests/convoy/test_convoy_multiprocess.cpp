@@ -1,6 +1,7 @@
 // A shipped convoy scenario with the real programs: one process per vehicle, follower and
 // camera, V2V over DDS. Results must equal the single-process run byte for byte, the followers
-// must stay in the convoy, and the chase camera's video must play.
+// must stay in the convoy, and the chase camera's video must play (and equal the single
+// process's, byte for byte).
 #include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -48,6 +49,8 @@ TEST(Convoy, OneLeaderThreeFollowersDistributedEqualsSingleProcess) {
   const auto listed = count_lines(read_file(out / "sensors" / "f3" / "frames.csv")) - 1;
   EXPECT_EQ(static_cast<std::size_t>(frames), listed);
   EXPECT_GE(frames, 15 * 60);  // 15 Hz for 60 s
+  EXPECT_TRUE(read_file(video) ==
+              read_file(run.dir / "single" / "sensors" / "f3" / "chase_camera.avi"));
 }
 
 // A participant that copies the controller's member id into commands of its own is refused:

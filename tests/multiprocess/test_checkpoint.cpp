@@ -3,6 +3,7 @@
 // on_member_loss: recover a run in which one member is killed goes on; both end with exactly
 // the files of an undisturbed run.
 #include <csignal>
+#include <opencv2/videoio.hpp>
 
 #include "harness.hpp"
 
@@ -39,27 +40,74 @@ std::string grid_hash(const fs::path& dir) {
   return at == std::string::npos ? "" : s.substr(at, 32);
 }
 
-// The files of `got` are those of `want`, byte for byte.
-void expect_same_run(const fs::path& want, const fs::path& got) {
+// Every video of a run directory plays with as many frames as its frames.csv lists for it.
+void expect_videos_play(const fs::path& dir) {
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.path().extension() != ".avi") continue;
+    const std::string sensor = e.path().stem().string();
+    const std::string index = read_file(e.path().parent_path() / "frames.csv");
+    std::size_t listed = 0;
+    for (auto at = index.find("\n" + sensor + ","); at != std::string::npos;
+         at = index.find("\n" + sensor + ",", at + 1)) {
+      ++listed;
+    }
+    cv::VideoCapture cap(e.path().string());
+    EXPECT_TRUE(cap.isOpened()) << e.path();
+    std::size_t frames = 0;
+    for (cv::Mat image; cap.read(image);) ++frames;
+    EXPECT_EQ(frames, listed) << e.path();
+    EXPECT_GT(frames, 0u) << e.path();
+  }
+}
+
+// The files of `got` are those of `want`, byte for byte (`soil`: the runs' terrain grid hash
+// too); the videos among them play.
+void expect_same_run(const fs::path& want, const fs::path& got, bool soil = true,
+                     std::size_t videos = 1) {
   const auto files = result_files(want);
   ASSERT_GT(files.size(), 10u);
   EXPECT_EQ(result_files(got), files);
   for (const auto& f : files) {
     EXPECT_TRUE(read_file(want / f) == read_file(got / f)) << f << " differs";
   }
+  const auto is_video = [](const fs::path& f) { return f.extension() == ".avi"; };
+  EXPECT_EQ(static_cast<std::size_t>(std::count_if(files.begin(), files.end(), is_video)), videos);
+  expect_videos_play(got);
   EXPECT_EQ(grid_hash(got), grid_hash(want));
-  EXPECT_FALSE(grid_hash(want).empty());
+  EXPECT_EQ(grid_hash(want).empty(), !soil);
 }
 
 // The undisturbed run, all members in one process (byte-identical to the distributed run).
-fs::path reference(const TestRun& run) {
+fs::path reference(const TestRun& run, const std::string& scenario = kScenario,
+                   const std::string& extra = "") {
   const fs::path out = run.dir / "reference";
-  Process sim(kBin + "/syndds_sim " + kScenario + " --quiet --output " + out.string() +
-                  run.common_args(),
+  Process sim(kBin + "/syndds_sim " + scenario + " --quiet --output " + out.string() +
+                  run.common_args() + extra,
               run.dir / "reference.log");
   const auto code = sim.wait(120);
   EXPECT_EQ(code, std::optional<int>(0)) << sim.log();
   return out;
+}
+
+// A copy of a shipped scenario in `dir` that checkpoints every `every_s` and recovers a lost
+// member: its `coordinator: {...}` line gets on_member_loss: recover, the file a checkpoint.
+std::string recoverable_copy(const std::string& scenario, const fs::path& dir, double every_s) {
+  std::istringstream in(read_file(scenario));
+  std::string out, line;
+  bool coordinator = false;
+  while (std::getline(in, line)) {
+    if (line.starts_with("coordinator: {") && line.ends_with("}")) {
+      line.insert(line.size() - 1, ", on_member_loss: recover, rejoin_timeout_s: 60");
+      coordinator = true;
+    }
+    EXPECT_FALSE(line.starts_with("checkpoint:")) << scenario;
+    out += line + "\n";
+  }
+  EXPECT_TRUE(coordinator) << scenario << ": no one-line coordinator: {...}";
+  out += "checkpoint: {every_s: " + std::to_string(every_s) + "}\n";
+  const fs::path copy = dir / fs::path(scenario).filename();
+  std::ofstream(copy) << out;
+  return copy.string();
 }
 
 bool complete(const fs::path& out, int frame) {
@@ -266,4 +314,34 @@ TEST(Checkpoint, EveryKindOfMemberKilledIsRecoveredByteIdentical) {
         << recoveries;
     expect_same_run(want, out);
   }
+}
+
+// A shipped convoy (1L3F on rigid ground, its first 10 s) with checkpoint: and
+// on_member_loss: recover: kill -9 of the chase camera's sensor process mid-run, while it
+// writes the video; the run ends with the undisturbed run's files, the video included.
+// tests/benchmarks/bench_convoy_recover.sh does this for all nine convoys, whole.
+TEST(Checkpoint, ConvoyChaseCameraKilledIsRecoveredByteIdentical) {
+  TestRun run;
+  const std::string scenario =
+      recoverable_copy(kConfig + "/scenarios/convoy/1L3F_rigid.yaml", run.dir, 2.0);
+  const std::string duration = " --duration 10";
+  const fs::path want = reference(run, scenario, duration);
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, scenario, duration);
+  const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
+  ASSERT_TRUE(wait_until(
+      [&] { return (complete(out, 400) && rows() > 4u * 550u) || launcher->poll(); }, 120))
+      << launcher->log();
+  ASSERT_FALSE(launcher->poll()) << launcher->log();
+  const int pid = launched_pid(out, "sensor/f3");
+  ASSERT_GT(pid, 0);
+  ::kill(pid, SIGKILL);
+  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  EXPECT_NE(launcher->log().find("sensor/f3 was killed by signal 9; restarting it"),
+            std::string::npos)
+      << launcher->log();
+  EXPECT_NE(read_file(out / "recoveries.csv").find(",sensor/f3,\"its process exited\""),
+            std::string::npos);
+  expect_same_run(want, out, false);
+  EXPECT_TRUE(fs::exists(out / "sensors" / "f3" / "chase_camera.avi"));
 }
