@@ -28,6 +28,7 @@ PACKAGES=(
   python3 python3-matplotlib python3-numpy
   iproute2 util-linux procps nftables openssl bc
   libcivetweb-dev chromium libassimp-dev
+  slurm-wlm munge
 )
 
 if [ "$INSTALL" = 1 ]; then

@@ -812,12 +812,14 @@ TEST(ViewerServer, IdleConnectionsDoNotStarveANewRequest) {
   EXPECT_GE(closed, idle.size() - static_cast<std::size_t>(defaults.threads) + 1);
 }
 
-TEST(ViewerServer, ListensOnIpv6) {
+// --bind takes an IPv6 address where civetweb was built with IPv6 (it listens there), and is
+// refused naming the option and the reason where it was not (Debian 12's libcivetweb): either
+// way the user learns what happened, never a bare "cannot listen".
+TEST(ViewerServer, BindsIpv6OrRefusesItByName) {
   WebFixture web;
   auto o = web.options(true);
   o.bind = "::1";
   if (!viewer::civetweb_has_ipv6()) {
-    // The error names the option and the reason instead of "cannot listen".
     try {
       viewer::ViewerServer server(o, "{}", nullptr, nullptr);
       ADD_FAILURE() << "--bind ::1 accepted by a civetweb without IPv6";
@@ -825,8 +827,7 @@ TEST(ViewerServer, ListensOnIpv6) {
       EXPECT_NE(std::string(e.what()).find("--bind ::1"), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("IPv6"), std::string::npos) << e.what();
     }
-    GTEST_SKIP() << "the system's civetweb library is built without IPv6 (mg_check_feature(8) "
-                    "is 0): --bind ::1 is refused with a clear error instead";
+    return;
   }
   for (const char* bind : {"::1", "[::1]"}) {
     o.bind = bind;
