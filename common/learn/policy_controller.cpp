@@ -3,6 +3,7 @@
 #include <ATen/Parallel.h>
 
 #include <cmath>
+#include <type_traits>
 
 #include "agents/agent_factory.hpp"
 #include "agents/controller_agent.hpp"
@@ -93,25 +94,24 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
   ++since_action_;
 }
 
-void PolicyControllerAgent::save_state(core::StateWriter& w) {
-  w.begin("policy_controller", 1);
-  builder_.save_state(w);
-  w.io(since_action_);
-  w.io(actions_);
-  w.io(steering_);
-  w.io(throttle_brake_);
-  w.end();
+template <typename Archive>
+void PolicyControllerAgent::state_io(Archive& a) {
+  a.begin("policy_controller", 1);
+  if constexpr (std::is_same_v<Archive, core::StateWriter>) {
+    builder_.save_state(a);
+  } else {
+    builder_.load_state(a);
+  }
+  a.io(since_action_);
+  a.io(actions_);
+  a.io(steering_);
+  a.io(throttle_brake_);
+  a.end();
 }
 
-void PolicyControllerAgent::load_state(core::StateReader& r) {
-  r.begin("policy_controller", 1);
-  builder_.load_state(r);
-  r.io(since_action_);
-  r.io(actions_);
-  r.io(steering_);
-  r.io(throttle_brake_);
-  r.end();
-}
+void PolicyControllerAgent::save_state(core::StateWriter& w) { state_io(w); }
+
+void PolicyControllerAgent::load_state(core::StateReader& r) { state_io(r); }
 
 void register_policy_controller() {
   agents::register_controller_type(

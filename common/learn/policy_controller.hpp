@@ -43,6 +43,10 @@ class PolicyControllerAgent final : public proto::Agent {
   std::uint64_t actions_taken() const { return actions_; }
 
  private:
+  /// The one description of the checkpointed state, for writing and for reading.
+  template <typename Archive>
+  void state_io(Archive& a);
+
   std::string vehicle_id_;
   std::string leader_id_;
   std::string member_id_;

@@ -55,17 +55,10 @@ void CoordinatorService::setup() {
   announce_writer_ = participant_->make_writer<msg::MemberAnnounce>(topics::kMemberAnnounce,
                                                                     profiles::kProtocolWriter);
   // The announcement's fixed part, before a reader's callback may announce it again.
+  announcement_ = announcement_of(*participant_, "coordinator", proto::MemberKind::coordinator,
+                                  options_.config_fingerprint, options_.config_files,
+                                  build_identity());
   proto::MemberAnnounceMsg& a = announcement_;
-  a.member_id = "coordinator";
-  a.kind = proto::MemberKind::coordinator;
-  a.run_id = options_.dds.run_id;
-  a.participant_guid = participant_->guid_prefix();
-  a.host = host_name();
-  a.pid = process_id();
-  a.process_key = own_process_key();
-  a.config_fingerprint = options_.config_fingerprint;
-  a.config_files = options_.config_files;
-  a.build_id = build_identity();
   a.expected_members = options_.barrier.members;
   a.expected_members.insert(a.expected_members.end(), options_.barrier.late_members.begin(),
                             options_.barrier.late_members.end());

@@ -326,18 +326,29 @@ void MemberRuntime::admit_locked(typename proto::TopicTraits<T>::Msg sample,
   if (session_->add(std::move(sample))) cv_.notify_all();
 }
 
-void MemberRuntime::announce() {
+proto::MemberAnnounceMsg announcement_of(const Participant& participant, std::string member_id,
+                                         proto::MemberKind kind, std::uint64_t fingerprint,
+                                         std::vector<std::string> config_files,
+                                         std::string build_id) {
   proto::MemberAnnounceMsg a;
-  a.member_id = agent_.member_id();
-  a.kind = agent_.kind();
-  a.run_id = options_.dds.run_id;
-  a.participant_guid = participant_->guid_prefix();
+  a.member_id = std::move(member_id);
+  a.kind = kind;
+  a.run_id = participant.options().run_id;
+  a.participant_guid = participant.guid_prefix();
   a.host = host_name();
   a.pid = process_id();
   a.process_key = own_process_key();
-  a.config_fingerprint = options_.config_fingerprint;
-  a.config_files = options_.config_files;
-  a.build_id = options_.debug_build_id.empty() ? build_identity() : options_.debug_build_id;
+  a.config_fingerprint = fingerprint;
+  a.config_files = std::move(config_files);
+  a.build_id = std::move(build_id);
+  return a;
+}
+
+void MemberRuntime::announce() {
+  const auto a = announcement_of(
+      *participant_, agent_.member_id(), agent_.kind(), options_.config_fingerprint,
+      options_.config_files,
+      options_.debug_build_id.empty() ? build_identity() : options_.debug_build_id);
   announce_writer_->write(to_dds(a));
 }
 

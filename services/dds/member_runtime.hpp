@@ -52,6 +52,13 @@ struct MemberRuntimeOptions {
   std::string debug_build_id;            // announced instead of build_identity() (another build)
 };
 
+/// A process's announcement of `member_id` on `participant`: who and where it is (host, pid,
+/// process key), the run, the scenario's fingerprint and files, and its build.
+proto::MemberAnnounceMsg announcement_of(const Participant& participant, std::string member_id,
+                                         proto::MemberKind kind, std::uint64_t fingerprint,
+                                         std::vector<std::string> config_files,
+                                         std::string build_id);
+
 /// Process exit codes shared by every service (documented in docs/protocol.md).
 enum ExitCode : int {
   kExitCompleted = 0,
