@@ -386,8 +386,20 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
     pending_frame_ = std::max(pending_frame_, c.frame);
   }
   for (const auto& e : samples.collision_events) {
+    if (!e.other_vehicle_id.empty()) {
+      // Each of the two vehicles reports its own (docs/vehicle-contact.md).
+      events_->row(e.frame, e.sim_time_s, "collision", e.vehicle_id,
+                   fmt::format("vehicle={} impulse_ns={:.6g} relative_speed_mps={:.4g} "
+                               "at={:.3f}/{:.3f}/{:.3f}",
+                               e.other_vehicle_id, e.impulse_ns, e.relative_speed_mps,
+                               e.position.x(), e.position.y(), e.position.z()));
+      ++totals_[e.vehicle_id].events[kVehicleContact];
+      continue;
+    }
     events_->row(e.frame, e.sim_time_s, "collision", e.vehicle_id,
-                 fmt::format("obstacle={} impulse_ns={:.6g}", e.obstacle_id, e.impulse_ns));
+                 fmt::format("obstacle={} impulse_ns={:.6g} at={:.3f}/{:.3f}/{:.3f}",
+                             e.obstacle_id, e.impulse_ns, e.position.x(), e.position.y(),
+                             e.position.z()));
     ++totals_[e.vehicle_id].collisions;
   }
   for (const auto& e : samples.vehicle_events) {
@@ -586,6 +598,7 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                         {"mean_speed_mps", t.mean_speed_mps()},
                         {"max_speed_mps", t.max_speed_mps},
                         {"collisions", t.collisions},
+                        {"vehicle_contacts", t.vehicle_contacts()},
                         {"events", t.events},
                         {"final_position", {t.last_position.x(), t.last_position.y(),
                                             t.last_position.z()}}});
@@ -625,12 +638,13 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
       text += fmt::format("  intrusion (frame {}): participant {} as {}: {}\n", i.frame,
                           i.participant, i.member, i.what);
     }
-    text += fmt::format("  {:<12} {:>12} {:>15} {:>14} {:>11}\n", "vehicle", "distance_m",
-                        "mean_speed_mps", "max_speed_mps", "collisions");
+    text += fmt::format("  {:<12} {:>12} {:>15} {:>14} {:>11} {:>16}\n", "vehicle", "distance_m",
+                        "mean_speed_mps", "max_speed_mps", "collisions", "vehicle_contacts");
     for (const auto& id : vehicle_ids_) {
       const VehicleTotals& t = totals_.at(id);
-      text += fmt::format("  {:<12} {:>12.1f} {:>15.2f} {:>14.2f} {:>11}\n", id, t.distance_m,
-                          t.mean_speed_mps(), t.max_speed_mps, t.collisions);
+      text += fmt::format("  {:<12} {:>12.1f} {:>15.2f} {:>14.2f} {:>11} {:>16}\n", id,
+                          t.distance_m, t.mean_speed_mps(), t.max_speed_mps, t.collisions,
+                          t.vehicle_contacts());
     }
     // Vehicle events by kind (command_rejected, leader_lost, ...): details in events.csv.
     for (const auto& id : vehicle_ids_) {

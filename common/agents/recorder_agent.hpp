@@ -39,11 +39,19 @@ struct VehicleTotals {
   double speed_sum_mps = 0.0;
   double max_speed_mps = 0.0;
   std::uint64_t samples = 0;
-  std::uint64_t collisions = 0;
-  std::map<std::string, std::uint64_t> events;  // vehicle events by kind (leader_lost, ...)
+  std::uint64_t collisions = 0;                 // with obstacles
+  std::map<std::string, std::uint64_t> events;  // vehicle events by kind (leader_lost, ...,
+                                                // kVehicleContact)
   Vec3 last_position = Vec3::Zero();
   double mean_speed_mps() const { return samples ? speed_sum_mps / samples : 0.0; }
+  std::uint64_t vehicle_contacts() const;
 };
+/// The kind under which VehicleTotals::events counts contacts with other vehicles.
+inline constexpr const char* kVehicleContact = "vehicle_contact";
+inline std::uint64_t VehicleTotals::vehicle_contacts() const {
+  const auto it = events.find(kVehicleContact);
+  return it == events.end() ? 0 : it->second;
+}
 
 /// The paper's deviation metrics of one follower (metrics.json), computed when the run ends.
 struct FollowerMetrics {

@@ -8,6 +8,7 @@
 
 #include "agents/sensor_messages.hpp"
 #include "core/error.hpp"
+#include "protocol/contact_bodies.hpp"
 #include "vehicle/bicycle_model.hpp"
 #include "vehicle/ode_vehicle.hpp"
 
@@ -38,6 +39,7 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
                            const scenario::VehicleConfig& vehicle)
     : vehicle_id_(vehicle.id),
       member_id_(scenario::vehicle_member(vehicle.id)),
+      heartbeat_s_(scenario.time.heartbeat_s),
       step_s_(scenario.time.step_s),
       steps_per_frame_(scenario.time.steps_per_frame()) {
   if (scenario.terrain.deformable()) {
@@ -48,6 +50,10 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
     snapshot_provider_ = vehicle.id == scenario.vehicles.front().id;
   }
   model_ = make_vehicle_model(scenario, vehicle, soil_);
+  footprint_ = vehicle::footprint_of(vehicle.params);
+  for (const auto& v : scenario.vehicles) {
+    vehicle_params_[v.id] = std::make_shared<const vehicle::VehicleParams>(v.params);
+  }
   if (vehicle.controller.is_builtin()) controller_ = scenario::controller_member(vehicle.id);
   if (vehicle.controller.type == "external") controller_ = scenario::external_member(vehicle.id);
   if (vehicle.has_interoceptive_sensors()) {
@@ -167,6 +173,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     model_->set_inputs({cmd.steering, cmd.throttle, cmd.braking});
   }
   note_departed(ctx, outputs);
+  if (ctx.frame > 0) set_peers(inputs.contact_bodies);
   if (ctx.frame > 0) {
     for (std::int64_t i = 0; i < steps_per_frame_; ++i) {
       model_->advance(step_s_);
@@ -183,6 +190,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     }
   }
   outputs.vehicle_states.push_back(state_message(ctx.frame, ctx.sim_time_s));
+  outputs.contact_bodies.push_back(body_message());
   if (soil_) {
     // Every frame opens a new merge window; only non-empty lists travel.
     const auto changes = soil_->take_local_changes();
@@ -221,8 +229,50 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     e.obstacle_id = c.obstacle_id;
     e.impulse_ns = c.impulse_ns;
     e.position = c.position;
+    e.other_vehicle_id = c.other_vehicle;
+    e.relative_speed_mps = c.relative_speed_mps;
     outputs.collision_events.push_back(std::move(e));
   }
+}
+
+proto::VehicleBodyMsg VehicleAgent::body_message() const {
+  const vehicle::VehicleSnapshot s = model_->snapshot();
+  proto::VehicleBodyMsg b;
+  b.vehicle_id = vehicle_id_;
+  b.pose = s.pose;
+  b.linear_velocity = s.linear_velocity;
+  b.angular_velocity = s.angular_velocity;
+  for (const auto& w : s.wheels) b.wheels.push_back(w.pose);
+  b.footprint_offset_m = footprint_.offset_m;
+  b.footprint_half_length_m = footprint_.half_length_m;
+  b.footprint_half_width_m = footprint_.half_width_m;
+  return b;
+}
+
+void VehicleAgent::set_peers(const std::vector<proto::VehicleBodyMsg>& bodies) {
+  // The bodies hold ours only when another vehicle is near; ours as of frame k-1 is our state
+  // now, bit for bit.
+  std::vector<vehicle::PeerVehicle> peers;
+  if (!bodies.empty()) {
+    const proto::VehicleBodyMsg own = body_message();
+    for (const auto& b : bodies) {
+      if (b.vehicle_id == vehicle_id_ || !proto::within_reach(own, b, heartbeat_s_)) continue;
+      const auto it = vehicle_params_.find(b.vehicle_id);
+      if (it == vehicle_params_.end()) {
+        throw ProtocolError(member_id_ + ": a contact body of vehicle '" + b.vehicle_id +
+                            "', which this scenario does not have");
+      }
+      vehicle::PeerVehicle p;
+      p.id = b.vehicle_id;
+      p.params = it->second;
+      p.pose = b.pose;
+      p.linear_velocity = b.linear_velocity;
+      p.angular_velocity = b.angular_velocity;
+      p.wheels = b.wheels;
+      peers.push_back(std::move(p));
+    }
+  }
+  model_->set_peers(std::move(peers));
 }
 
 proto::VehicleStateMsg VehicleAgent::state_message(std::int64_t frame, double sim_time_s) const {

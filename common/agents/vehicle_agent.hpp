@@ -3,6 +3,7 @@
 // steps_per_frame dynamics steps in frame k and publishes its VehicleState stamped k. When its
 // controller is lost (on_member_loss: continue) it brakes to a stop instead of driving on with
 // the last command.
+#include <map>
 #include <memory>
 
 #include "agents/scm_messages.hpp"
@@ -60,10 +61,15 @@ class VehicleAgent final : public proto::Agent {
 
  private:
   proto::VehicleStateMsg state_message(std::int64_t frame, double sim_time_s) const;
+  /// This vehicle's collision state now, for the others' contact step.
+  proto::VehicleBodyMsg body_message() const;
+  /// The other vehicles within reach among the bodies of frame k-1, to the model.
+  void set_peers(const std::vector<proto::VehicleBodyMsg>& bodies);
   void note_departed(const proto::FrameContext& ctx, proto::FrameSamples& outputs);
 
   std::string vehicle_id_;
   std::string member_id_;
+  double heartbeat_s_;
   double step_s_;
   std::int64_t steps_per_frame_;
   std::shared_ptr<scm::ScmTerrain> soil_;
@@ -73,6 +79,9 @@ class VehicleAgent final : public proto::Agent {
   double spacing_m_ = 0.0;
   bool snapshot_provider_ = false;  // writes the terrain snapshot late joiners start from
   std::unique_ptr<vehicle::VehicleModel> model_;
+  vehicle::Footprint footprint_;
+  // Every vehicle of the scenario (this one too): the shapes of the bodies it may meet.
+  std::map<std::string, std::shared_ptr<const vehicle::VehicleParams>> vehicle_params_;
   std::uint64_t rejected_ = 0;
   std::size_t max_deferred_ = 0;  // most soil vertices held aside by interest management
   std::vector<proto::RejectedSample> intrusions_;  // refused by the transport, not yet reported

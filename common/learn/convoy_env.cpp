@@ -128,7 +128,10 @@ void ConvoyEnv::run_frame() {
     if (s.vehicle_id == kConvoyLeaderId) leader_state_ = s;
   }
   for (const auto& c : out.collision_events) {
-    collided_ = collided_ || c.vehicle_id == kConvoyFollowerId;
+    if (c.vehicle_id != kConvoyFollowerId) continue;
+    // Running into the leader is a collision like any other (docs/vehicle-contact.md).
+    collided_ = true;
+    leader_contact_ = leader_contact_ || c.other_vehicle_id == kConvoyLeaderId;
   }
   // The reduced model passes through obstacles without contacts: test its chassis footprint.
   const auto& chassis = scenario_->find_vehicle(kConvoyFollowerId)->params.chassis;
@@ -166,6 +169,7 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
   }
   stepper_ = std::make_unique<proto::FrameStepper>(std::move(agents), s.time.heartbeat_s);
   collided_ = false;
+  leader_contact_ = false;
   steps_ = 0;
   follower_state_ = {};
   leader_state_ = {};
@@ -224,6 +228,7 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
             {"speed_mps", speed},
             {"leader_speed_mps", leader_speed},
             {"collided", collided_ ? 1.0 : 0.0},
+            {"leader_contact", leader_contact_ ? 1.0 : 0.0},
             {"leader_lost", lost ? 1.0 : 0.0},
             {"leader_done", leader_done ? 1.0 : 0.0},
             {"steps", static_cast<double>(steps_)}};

@@ -122,6 +122,7 @@ class ConvoyEnv final : public Env {
   proto::VehicleStateMsg follower_state_;
   proto::VehicleStateMsg leader_state_;
   bool collided_ = false;
+  bool leader_contact_ = false;  // the collision was with the leader
   int steps_ = 0;
   bool running_ = false;
 };

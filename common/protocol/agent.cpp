@@ -37,6 +37,10 @@ void filter_into(const std::vector<T>& in, std::vector<T>& out, Topic topic,
 
 void FrameSamples::sort() {
   for_each_topic([&](auto t) { sort_by_key_source(list<decltype(t)::value>()); });
+  std::stable_sort(contact_bodies.begin(), contact_bodies.end(),
+                   [](const VehicleBodyMsg& a, const VehicleBodyMsg& b) {
+                     return a.vehicle_id < b.vehicle_id;
+                   });
 }
 
 Manifest FrameSamples::manifest(const std::string& writer) const {
@@ -53,6 +57,7 @@ Manifest FrameSamples::manifest(const std::string& writer) const {
 FrameSamples FrameSamples::filtered(const std::vector<Subscription>& subs) const {
   FrameSamples out;
   for_each_topic([&](auto t) { filter_into(list<decltype(t)::value>(), out.list<decltype(t)::value>(), t.value, subs); });
+  out.contact_bodies = contact_bodies;
   return out;
 }
 
@@ -62,6 +67,8 @@ void FrameSamples::append(const FrameSamples& other) {
     const auto& from = other.list<decltype(t)::value>();
     to.insert(to.end(), from.begin(), from.end());
   });
+  contact_bodies.insert(contact_bodies.end(), other.contact_bodies.begin(),
+                        other.contact_bodies.end());
 }
 
 }  // namespace syndds::proto

@@ -28,6 +28,11 @@ struct FrameSamples {
 #define SYNDDS_FRAME_SAMPLES_LIST_(TOPIC, MSG, IDL, LIST, PER_FRAME) std::vector<MSG> LIST;
   SYNDDS_DATA_TOPICS(SYNDDS_FRAME_SAMPLES_LIST_)
 #undef SYNDDS_FRAME_SAMPLES_LIST_
+  /// Not a topic: vehicles' collision states (docs/vehicle-contact.md). An agent's outputs hold
+  /// its own (at most one, a vehicle's state after the frame; it travels in its FrameDone); its
+  /// inputs hold those of frame k-1 the barrier passed on (FrameGrant::bodies: the vehicles
+  /// within reach of another, select_contact_bodies), sorted by vehicle_id, for every agent.
+  std::vector<VehicleBodyMsg> contact_bodies;
 
   /// The list of one topic, for code that handles every topic alike.
   template <Topic T>
@@ -44,7 +49,7 @@ struct FrameSamples {
   }
 
   bool empty() const {
-    bool all_empty = true;
+    bool all_empty = contact_bodies.empty();
     for_each_topic([&](auto t) { all_empty = all_empty && list<decltype(t)::value>().empty(); });
     return all_empty;
   }
@@ -53,7 +58,7 @@ struct FrameSamples {
   void sort();
   /// Manifest entries describing these samples as written by `writer`.
   Manifest manifest(const std::string& writer) const;
-  /// Keeps only samples that match one of the subscriptions.
+  /// Keeps only samples that match one of the subscriptions (and every contact body).
   FrameSamples filtered(const std::vector<Subscription>& subscriptions) const;
   void append(const FrameSamples& other);
 };

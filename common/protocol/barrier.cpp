@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <sstream>
 
+#include "protocol/contact_bodies.hpp"
+
 namespace syndds::proto {
 namespace {
 
@@ -104,6 +106,7 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
   if (m.done) return "";
   m.done = true;
   m.published = done.published;
+  m.body = done.body;
   m.checkpoint_bytes = done.checkpoint_bytes;
   const double response = now_s - grant_s_;
   m.response_sum_s += response;
@@ -192,6 +195,16 @@ std::vector<std::string> Barrier::admit_joiners(std::int64_t frame, double now_s
     }
   }
   return out;
+}
+
+std::vector<VehicleBodyMsg> Barrier::collect_bodies() const {
+  // Like the manifest: a member that left is not passed on (its vehicle is no longer felt).
+  std::vector<VehicleBodyMsg> all;
+  for (const auto& [name, m] : members_) {
+    if (!active(m) || m.left) continue;
+    all.insert(all.end(), m.body.begin(), m.body.end());
+  }
+  return select_contact_bodies(std::move(all), config_.heartbeat_s);
 }
 
 Manifest Barrier::collect_manifest() const {
@@ -302,6 +315,7 @@ Barrier::Action Barrier::poll(double now_s) {
   }
   last_completed_ = frame_;
   const Manifest manifest = collect_manifest();
+  std::vector<VehicleBodyMsg> bodies = collect_bodies();
   last_manifest_ = manifest;
   if (rolling_back_) {
     rolling_back_ = false;  // every member restored the checkpoint of frame_: nothing was due
@@ -333,6 +347,7 @@ Barrier::Action Barrier::poll(double now_s) {
   for (auto& [name, m] : members_) {
     m.done = false;
     m.published.clear();
+    m.body.clear();
     m.checkpoint_bytes = 0;
   }
   Action a;
@@ -341,6 +356,7 @@ Barrier::Action Barrier::poll(double now_s) {
   a.grant.sim_time_s = static_cast<double>(frame_) * config_.heartbeat_s;
   a.grant.epoch = epoch_;
   a.grant.manifest = manifest;
+  a.grant.bodies = std::move(bodies);
   a.grant.departed = std::move(departed_);
   departed_.clear();
   if (frame_ < config_.final_frame) a.grant.joiners = admit_joiners(frame_, now_s);
@@ -412,6 +428,7 @@ Barrier::Action Barrier::poll_recovering(double now_s) {
   for (auto& [name, m] : members_) {
     m.done = false;
     m.published.clear();
+    m.body.clear();
     m.checkpoint_bytes = 0;
   }
   a.grant.frame = frame_;

@@ -112,6 +112,7 @@ class Barrier {
     bool finished = false;   // replied to stop
     bool rejoining = false;  // lost under recover: waited for to announce itself again
     Manifest published;      // in the current frame
+    std::vector<VehicleBodyMsg> body;    // its collision state after the current frame
     std::uint64_t checkpoint_bytes = 0;  // in the current frame
     double response_sum_s = 0.0;
     double response_max_s = 0.0;
@@ -122,6 +123,8 @@ class Barrier {
 
   Action abort_with(const std::string& reason, double now_s);
   Manifest collect_manifest() const;
+  /// The bodies of frame_ to pass on with the next grant (select_contact_bodies).
+  std::vector<VehicleBodyMsg> collect_bodies() const;
   bool everyone_done() const;
   bool active(const Member& m) const { return m.active_from >= 0 && m.active_from <= frame_; }
   /// Late joiners ready to be admitted with the grant of `frame` (they start at frame + 1).

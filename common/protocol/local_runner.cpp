@@ -4,6 +4,7 @@
 #include <thread>
 
 #include "core/error.hpp"
+#include "protocol/contact_bodies.hpp"
 
 namespace syndds::proto {
 namespace {
@@ -46,6 +47,16 @@ void check_outputs(const FrameSamples& out, std::int64_t frame, const std::strin
     check_list(out.list<T>(), TopicTraits<T>::name, frame, source, vehicle_key,
                TopicTraits<T>::max_per_frame);
   });
+  if (out.contact_bodies.size() > 1) {
+    throw ProtocolError(source + " reported " + std::to_string(out.contact_bodies.size()) +
+                        " contact bodies in frame " + std::to_string(frame) + "; at most one");
+  }
+  for (const auto& b : out.contact_bodies) {
+    if (b.vehicle_id != vehicle_key) {
+      throw ProtocolError(source + " reported the contact body of vehicle '" + b.vehicle_id +
+                          "'; it can only report '" + vehicle_key + "'");
+    }
+  }
 }
 
 FrameStepper::FrameStepper(std::vector<AgentPtr> agents, double heartbeat_s)
@@ -104,6 +115,8 @@ void FrameStepper::step() {
     current.append(outputs);
     member_stats_[i].mean_compute_s += seconds_since(step_t0);
   }
+  // What the barrier does between frames: the bodies of vehicles within reach of another.
+  current.contact_bodies = select_contact_bodies(std::move(current.contact_bodies), heartbeat_s_);
   current.sort();
   previous_ = std::move(current);
   resumed_inputs_.clear();

@@ -361,6 +361,7 @@ MemberSession::Action MemberSession::poll(double now_s) {
     a.context = FrameContext{front.frame, front.sim_time_s, config_.heartbeat_s, front.joiners,
                              front.departed, front.intrusions};
     a.inputs = inbox_.take(input_frame, front.manifest);
+    a.inputs.contact_bodies = std::move(front.bodies);
     grants_.pop_front();
     waiting_frame_ = -1;
     stepping_ = true;

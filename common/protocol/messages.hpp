@@ -28,7 +28,7 @@
 
 namespace syndds::proto {
 
-inline constexpr std::int32_t kProtocolVersion = 4;
+inline constexpr std::int32_t kProtocolVersion = 5;
 /// The files of two fingerprints ("ROLE HASH" lines) that differ: "ROLE (HASH here, HASH
 /// there)", or "ROLE (only here)" / "(only there)", joined by "; ". Empty when either list is
 /// empty (a peer that sends none) or they agree.
@@ -155,6 +155,8 @@ struct TerrainSnapshotMsg {
 };
 SYNDDS_FIELDS(TerrainSnapshotMsg, vehicle_id, source, frame, spacing_m, vertices)
 
+/// The start of a collision episode of `vehicle_id`: with a static obstacle (obstacle_id) or
+/// with another vehicle (other_vehicle_id; each of the two vehicles reports its own event).
 struct CollisionEventMsg {
   std::string vehicle_id;
   std::string source;
@@ -163,9 +165,27 @@ struct CollisionEventMsg {
   std::string obstacle_id;
   double impulse_ns = 0.0;
   Vec3 position = Vec3::Zero();
+  std::string other_vehicle_id;
+  double relative_speed_mps = 0.0;  // vehicle contacts: contact point speed relative to the other's
 };
 SYNDDS_FIELDS(CollisionEventMsg, vehicle_id, source, frame, sim_time_s, obstacle_id, impulse_ns,
-              position)
+              position, other_vehicle_id, relative_speed_mps)
+
+/// A vehicle's collision state at the end of a frame, for the other vehicles' contact step
+/// (docs/vehicle-contact.md). Not a data topic: it travels with the barrier, in the member's
+/// FrameDone and, for vehicles near another one, in the next FrameGrant.
+struct VehicleBodyMsg {
+  std::string vehicle_id;
+  Pose pose;                            // chassis reference frame in the world
+  Vec3 linear_velocity = Vec3::Zero();  // of the reference point, world frame
+  Vec3 angular_velocity = Vec3::Zero();
+  std::vector<Pose> wheels;             // wheel centres, FL FR RL RR
+  double footprint_offset_m = 0.0;      // the footprint rectangle (vehicle::Footprint)
+  double footprint_half_length_m = 0.0;
+  double footprint_half_width_m = 0.0;
+};
+SYNDDS_FIELDS(VehicleBodyMsg, vehicle_id, pose, linear_velocity, angular_velocity, wheels,
+              footprint_offset_m, footprint_half_length_m, footprint_half_width_m)
 
 /// Stamp of a synthetic sensor sample: which sensor, its sample number, when it was measured
 /// and when it became available (measurement time + modelled lag).
@@ -363,9 +383,11 @@ struct FrameGrantMsg {
                                       // restarted since (its new participant)
   std::vector<std::string> intrusions;  // "MEMBER PARTICIPANT_GUID what": samples and claims the
                                         // coordinator refused since the previous grant
+  std::vector<VehicleBodyMsg> bodies;   // of frame - 1, of the vehicles within reach of another
+                                        // (select_contact_bodies), sorted by vehicle_id
 };
 SYNDDS_FIELDS(FrameGrantMsg, frame, sim_time_s, manifest, joiners, departed, epoch, rollback,
-              rejoined, intrusions)
+              rejoined, intrusions, bodies)
 
 struct FrameDoneMsg {
   std::string member_id;
@@ -377,9 +399,11 @@ struct FrameDoneMsg {
   std::uint64_t checkpoint_bytes = 0;  // > 0: before this frame the member wrote its state of
                                        // frame - 1 (docs/checkpoints.md), this many bytes
   std::uint32_t epoch = 0;  // of the grant this answers: dones of an epoch rolled back are void
+  std::vector<VehicleBodyMsg> body;  // a vehicle member's collision state after this frame
+                                     // (at most one); empty for other members
 };
 SYNDDS_FIELDS(FrameDoneMsg, member_id, frame, published, compute_s, finished, error,
-              checkpoint_bytes, epoch)
+              checkpoint_bytes, epoch, body)
 
 /// Checkpoints are written of every frame K that is a positive multiple of `every` frames
 /// (every <= 0: never), by each member before it steps frame K + 1.

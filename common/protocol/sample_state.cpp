@@ -3,19 +3,20 @@
 namespace syndds::proto {
 
 void save_samples(core::StateWriter& w, const FrameSamples& samples) {
-  w.begin("frame_samples", 1);
+  w.begin("frame_samples", 2);
   auto& s = const_cast<FrameSamples&>(samples);  // message_io reads it only, for a writer
   for_each_topic([&](auto t) {
     constexpr Topic T = decltype(t)::value;
     w.io(std::string(TopicTraits<T>::name));
     message_io(w, s.list<T>());
   });
+  message_io(w, s.contact_bodies);  // since version 2
   w.end();
 }
 
 FrameSamples load_samples(core::StateReader& r) {
   FrameSamples samples;
-  r.begin("frame_samples", 1);
+  const std::uint32_t version = r.begin("frame_samples", 2, 1);
   for_each_topic([&](auto t) {
     constexpr Topic T = decltype(t)::value;
     const auto name = r.get<std::string>();
@@ -25,6 +26,7 @@ FrameSamples load_samples(core::StateReader& r) {
     }
     message_io(r, samples.list<T>());
   });
+  if (version >= 2) message_io(r, samples.contact_bodies);
   r.end();
   return samples;
 }

@@ -37,7 +37,7 @@ DriverInputs clamp_inputs(const DriverInputs& in) {
 
 BicycleModel::BicycleModel(const VehicleParams& params, const Pose& initial_pose,
                            std::shared_ptr<const terrain::TerrainSurface> terrain)
-    : params_(params), terrain_(std::move(terrain)) {
+    : params_(params), terrain_(std::move(terrain)), footprint_(footprint_of(params)) {
   x_ = initial_pose.position.x();
   y_ = initial_pose.position.y();
   yaw_ = yaw_of(initial_pose.orientation);
@@ -92,11 +92,107 @@ void BicycleModel::advance(double dt) {
   wheel_spin_angle_ = std::fmod(wheel_spin_angle_ + speed_ / params_.wheels.radius_m * dt,
                                 2.0 * std::numbers::pi);
   time_s_ += dt;
+  if (!peers_.empty() || !peer_episodes_.empty()) {
+    resolve_contacts(dt);
+    const Vec3 contact_velocity(speed_ * std::cos(yaw_ + beta), speed_ * std::sin(yaw_ + beta),
+                                0.0);
+    acceleration_ = (contact_velocity - old_velocity) / dt;
+  }
+}
+
+namespace {
+constexpr double kEpisodeGapS = 0.5;  // as the full model's
+constexpr double kPushShare = 0.5;    // of this vehicle's share of an overlap, removed per step
+}  // namespace
+
+Rect2 BicycleModel::own_rect() const {
+  Rect2 r;
+  r.yaw = yaw_;
+  r.centre = Vec2(x_, y_) + footprint_.offset_m * Vec2(std::cos(yaw_), std::sin(yaw_));
+  r.half_length = footprint_.half_length_m;
+  r.half_width = footprint_.half_width_m;
+  return r;
+}
+
+void BicycleModel::resolve_contacts(double dt) {
+  const double mass = params_.total_mass_kg();
+  const double lr = -params_.rear.x_m;
+  const double beta = std::atan(lr * std::tan(steer_angle_) / params_.wheelbase_m());
+  const Vec2 dir(std::cos(yaw_ + beta), std::sin(yaw_ + beta));
+  for (Peer& q : peers_) {
+    q.rect.centre += dt * q.velocity;
+    q.rect.yaw += dt * q.yaw_rate;
+    const Rect2 own = own_rect();
+    const RectOverlap ov = rect_overlap(own, q.rect);
+    PeerEpisode& e = peer_episodes_[q.id];
+    if (ov.depth <= 0.0) continue;
+    const Vec2 n = ov.normal;  // from this vehicle to the peer
+    const Vec2 u = speed_ * dir;
+    const double closing = (u - q.velocity).dot(n);
+    const double share = q.mass_kg / (mass + q.mass_kg);
+    double impulse = 0.0;
+    if (closing > 0.0) {
+      impulse = closing * mass * q.mass_kg / (mass + q.mass_kg);
+      const Vec2 u_after = u - impulse / mass * n;
+      q.velocity += impulse / q.mass_kg * n;
+      speed_ = std::clamp(u_after.dot(dir), 0.0, params_.reduced.max_speed_mps);
+    }
+    // This vehicle's share of the overlap, part of it per step (the other side removes its own).
+    const Vec2 push = -kPushShare * share * ov.depth * n;
+    x_ += push.x();
+    y_ += push.y();
+    if (!e.open) {
+      CollisionContact c;
+      c.other_vehicle = q.id;
+      c.impulse_ns = impulse;
+      const Vec2 at = own.centre + own.radius_along(n) * n;
+      c.position = Vec3(at.x(), at.y(), terrain_->height(at.x(), at.y()));
+      c.relative_speed_mps = (u - q.velocity + impulse / q.mass_kg * n).norm();
+      collisions_.push_back(std::move(c));
+    }
+    e.open = true;
+    e.last_contact_s = time_s_;
+  }
+  for (auto& [id, e] : peer_episodes_) {
+    if (e.open && time_s_ - e.last_contact_s > kEpisodeGapS) e.open = false;
+  }
+}
+
+void BicycleModel::set_peers(std::vector<PeerVehicle> peers) {
+  peers_.clear();
+  for (const PeerVehicle& p : peers) {
+    if (!p.params) throw std::invalid_argument("peer vehicle '" + p.id + "' has no params");
+    const Footprint f = footprint_of(*p.params);
+    const double yaw = yaw_of(p.pose.orientation);
+    Peer q;
+    q.id = p.id;
+    q.rect.yaw = yaw;
+    const Vec3 offset = f.offset_m * Vec3(std::cos(yaw), std::sin(yaw), 0.0);
+    q.rect.centre = Vec2(p.pose.position.x() + offset.x(), p.pose.position.y() + offset.y());
+    q.rect.half_length = f.half_length_m;
+    q.rect.half_width = f.half_width_m;
+    const Vec3 v = p.linear_velocity + p.angular_velocity.cross(offset);
+    q.velocity = Vec2(v.x(), v.y());
+    q.yaw_rate = p.angular_velocity.z();
+    q.mass_kg = p.params->total_mass_kg();
+    peers_.push_back(std::move(q));
+  }
+}
+
+void BicycleModel::set_speed(double speed_mps) {
+  if (!std::isfinite(speed_mps)) throw std::invalid_argument("speed must be finite");
+  speed_ = std::clamp(speed_mps, 0.0, params_.reduced.max_speed_mps);
+}
+
+std::vector<CollisionContact> BicycleModel::take_collisions() {
+  std::vector<CollisionContact> out;
+  out.swap(collisions_);
+  return out;
 }
 
 // Not saved: params_ and terrain_ (the constructor's; the fingerprint checks the params).
 void BicycleModel::save_state(core::StateWriter& w) {
-  w.begin("bicycle_model", 1);
+  w.begin("bicycle_model", 2);
   w.io(params_.name);
   w.io(params_fingerprint(params_));
   w.io(inputs_.steering);
@@ -112,11 +208,25 @@ void BicycleModel::save_state(core::StateWriter& w) {
   w.io(wheel_spin_angle_);
   w.io(acceleration_);
   w.io(angular_acceleration_);
+  // Since version 2: contact episodes with other vehicles, collisions not taken yet.
+  w.io(static_cast<std::uint64_t>(peer_episodes_.size()));
+  for (const auto& [id, e] : peer_episodes_) {
+    w.io(id);
+    w.io(e.last_contact_s);
+    w.io(e.open);
+  }
+  w.io(static_cast<std::uint64_t>(collisions_.size()));
+  for (const auto& c : collisions_) {
+    w.io(c.other_vehicle);
+    w.io(c.impulse_ns);
+    w.io(c.position);
+    w.io(c.relative_speed_mps);
+  }
   w.end();
 }
 
 void BicycleModel::load_state(core::StateReader& r) {
-  r.begin("bicycle_model", 1, 1);
+  const std::uint32_t version = r.begin("bicycle_model", 2, 1);
   const auto name = r.get<std::string>();
   const auto fingerprint = r.get<std::uint64_t>();
   if (fingerprint != params_fingerprint(params_)) {
@@ -140,6 +250,27 @@ void BicycleModel::load_state(core::StateReader& r) {
   r.io(m.wheel_spin_angle_);
   r.io(m.acceleration_);
   r.io(m.angular_acceleration_);
+  m.peer_episodes_.clear();
+  m.collisions_.clear();
+  if (version >= 2) {
+    const auto episodes = r.get<std::uint64_t>();
+    for (std::uint64_t k = 0; k < episodes; ++k) {
+      const auto id = r.get<std::string>();
+      PeerEpisode e;
+      r.io(e.last_contact_s);
+      r.io(e.open);
+      m.peer_episodes_[id] = e;
+    }
+    const auto pending = r.get<std::uint64_t>();
+    for (std::uint64_t k = 0; k < pending; ++k) {
+      CollisionContact c;
+      r.io(c.other_vehicle);
+      r.io(c.impulse_ns);
+      r.io(c.position);
+      r.io(c.relative_speed_mps);
+      m.collisions_.push_back(std::move(c));
+    }
+  }
   r.end();
   *this = std::move(m);
 }

@@ -7,7 +7,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <mutex>
+#include <numbers>
 #include <stdexcept>
 
 #include "core/error.hpp"
@@ -34,6 +36,9 @@ constexpr double kObstacleSoftErp = 0.2;
 // rolling over one rock, or pushing against a wall, make one episode).
 constexpr double kEpisodeGapS = 0.5;
 constexpr int kMaxContactsPerPair = 4;
+// Vehicle against vehicle (body panels, bumpers, tires): friction and the same soft contact
+// as obstacles.
+constexpr double kVehicleFriction = 0.5;
 constexpr double kRollingResistanceSpeedMps = 0.1;  // smooth sign of the resistance moment
 constexpr double kBumpStopFactor = 20.0;     // bump stop rate = factor x spring rate (default)
 
@@ -169,8 +174,24 @@ struct OdeVehicleModel::Impl {
   };
   struct PendingContact {
     dContact contact;
-    std::size_t obstacle = 0;
+    std::size_t obstacle = 0;          // obstacles.size() + k: proxies[k]
     dBodyID body = nullptr;
+    dBodyID other = nullptr;           // a proxy's body, or none (static obstacle)
+    double relative_speed = 0.0;       // proxies: contact point speeds apart before the step
+  };
+  /// Another vehicle as a rigid body of its whole mass in this world, rebuilt at every
+  /// set_peers from the state the frame contract gives (no gravity, no ground, no engine: it
+  /// moves on with its velocities and the reactions of this vehicle's contact forces).
+  struct Proxy {
+    std::string id;
+    dBodyID body = nullptr;
+    dGeomID chassis = nullptr;
+    std::array<dGeomID, 4> wheels{};
+    double radius = 0.0;               // bounding sphere about the body origin
+  };
+  struct PeerEpisode {
+    double last_contact_s = -std::numeric_limits<double>::infinity();
+    bool open = false;
   };
 
   VehicleParams p;
@@ -191,6 +212,8 @@ struct OdeVehicleModel::Impl {
   dGeomID chassis_geom = nullptr;
   std::array<dGeomID, 4> wheel_geoms{};
   std::vector<ObstacleGeom> obstacles;
+  std::vector<Proxy> proxies;                      // sorted by id
+  std::map<std::string, PeerEpisode> peer_episodes;
   std::vector<PendingContact> contacts;
   std::vector<dJointFeedback> feedback;
   double vehicle_radius = 0.0;         // bounding sphere about the chassis COM
@@ -211,7 +234,10 @@ struct OdeVehicleModel::Impl {
   double last_dt = -1.0;
   Vec3 accel = Vec3::Zero();
   Vec3 angular_accel = Vec3::Zero();
+  Vec3 step_v0 = Vec3::Zero();           // begin_step -> end_step only
+  Vec3 step_w0 = Vec3::Zero();
   std::vector<CollisionContact> collisions;
+  bool owns_world = true;                // false: a second vehicle in another's world (pair)
 
   // Checked by load_state: the bodies' poses as placed at the start (they fix the hinge-2
   // frames, which ODE keeps relative to the bodies: a vehicle placed elsewhere or on other
@@ -231,32 +257,55 @@ struct OdeVehicleModel::Impl {
   Impl& operator=(const Impl&) = delete;
 
   ~Impl() {
+    clear_proxies();
     for (auto& o : obstacles) dGeomDestroy(o.geom);
     for (auto g : wheel_geoms) {
       if (g) dGeomDestroy(g);
     }
     if (chassis_geom) dGeomDestroy(chassis_geom);
     if (contact_group) dJointGroupDestroy(contact_group);
-    if (world) {
+    if (world && owns_world) {
       dWorldSetStepThreadingImplementation(world, nullptr, nullptr);
       dWorldDestroy(world);  // bodies and joints with it
+    } else if (world) {
+      for (dJointID j : joints) {
+        if (j) dJointDestroy(j);
+      }
+      for (dBodyID b : bodies()) {
+        if (b) dBodyDestroy(b);
+      }
     }
     if (threading) dThreadingFreeImplementation(threading);
   }
 
+  void clear_proxies() {
+    for (Proxy& x : proxies) {
+      for (dGeomID g : x.wheels) dGeomDestroy(g);
+      dGeomDestroy(x.chassis);
+      dBodyDestroy(x.body);
+    }
+    proxies.clear();
+  }
+
   // --- construction ------------------------------------------------------------------------
 
-  void build(const Pose& start, const world::Obstacles& obstacle_list) {
-    world = dWorldCreate();
-    threading = dThreadingAllocateSelfThreadedImplementation();
-    dWorldSetStepThreadingImplementation(world, dThreadingImplementationGetFunctions(threading),
-                                         threading);
-    dWorldSetGravity(world, 0, 0, -kGravity);
-    dWorldSetERP(world, 0.2);
-    dWorldSetCFM(world, 1e-10);
-    dWorldSetAutoDisableFlag(world, 0);
-    dWorldSetContactMaxCorrectingVel(world, 1.0);
-    dWorldSetContactSurfaceLayer(world, 0.001);
+  void build(const Pose& start, const world::Obstacles& obstacle_list,
+             dWorldID shared_world = nullptr) {
+    if (shared_world) {
+      world = shared_world;
+      owns_world = false;
+    } else {
+      world = dWorldCreate();
+      threading = dThreadingAllocateSelfThreadedImplementation();
+      dWorldSetStepThreadingImplementation(world, dThreadingImplementationGetFunctions(threading),
+                                           threading);
+      dWorldSetGravity(world, 0, 0, -kGravity);
+      dWorldSetERP(world, 0.2);
+      dWorldSetCFM(world, 1e-10);
+      dWorldSetAutoDisableFlag(world, 0);
+      dWorldSetContactMaxCorrectingVel(world, 1.0);
+      dWorldSetContactSurfaceLayer(world, 0.001);
+    }
     contact_group = dJointGroupCreate(0);
 
     const AxleParams* axles[4] = {&p.front, &p.front, &p.rear, &p.rear};
@@ -466,6 +515,7 @@ struct OdeVehicleModel::Impl {
     accel.setZero();
     angular_accel.setZero();
     collisions.clear();
+    peer_episodes.clear();
     for (auto& o : obstacles) {
       o.last_contact_s = -std::numeric_limits<double>::infinity();
       o.episode_open = false;
@@ -716,26 +766,167 @@ struct OdeVehicleModel::Impl {
         }
       }
     }
+  }
+
+  /// One contact joint per pending contact (obstacles' and proxies'), with force feedback.
+  void create_contact_joints() {
     feedback.assign(contacts.size(), dJointFeedback{});
     for (std::size_t k = 0; k < contacts.size(); ++k) {
       dJointID j = dJointCreateContact(world, contact_group, &contacts[k].contact);
-      dJointAttach(j, contacts[k].body, nullptr);
+      dJointAttach(j, contacts[k].body, contacts[k].other);
       dJointSetFeedback(j, &feedback[k]);
     }
   }
 
+  std::array<dGeomID, 5> own_geoms() const {
+    return {chassis_geom, wheel_geoms[0], wheel_geoms[1], wheel_geoms[2], wheel_geoms[3]};
+  }
+
+  /// Contacts between this vehicle's geoms and `other_geoms` (bodies `other`, or static),
+  /// tagged `tag`, appended to `out`.
+  void collide_with(const std::array<dGeomID, 5>& other_geoms, std::size_t tag,
+                    std::vector<PendingContact>& out) const {
+    bool first = true;
+    for (dGeomID g : own_geoms()) {
+      for (dGeomID h : other_geoms) {
+        dContactGeom cg[kMaxContactsPerPair];
+        const int n = dCollide(g, h, kMaxContactsPerPair, cg, sizeof(dContactGeom));
+        for (int k = 0; k < n; ++k) {
+          PendingContact pc;
+          pc.contact = dContact{};
+          pc.contact.geom = cg[k];
+          pc.contact.surface.mode = dContactApprox1 | dContactSoftERP | dContactSoftCFM;
+          pc.contact.surface.mu = kVehicleFriction;
+          pc.contact.surface.soft_erp = kObstacleSoftErp;
+          pc.contact.surface.soft_cfm = kObstacleSoftCfm;
+          pc.obstacle = tag;
+          pc.body = dGeomGetBody(g);
+          pc.other = dGeomGetBody(h);
+          if (first) {
+            dVector3 va, vb;
+            dBodyGetPointVel(pc.body, cg[k].pos[0], cg[k].pos[1], cg[k].pos[2], va);
+            dBodyGetPointVel(pc.other, cg[k].pos[0], cg[k].pos[1], cg[k].pos[2], vb);
+            pc.relative_speed = (vec(va) - vec(vb)).norm();
+            first = false;
+          }
+          out.push_back(pc);
+        }
+      }
+    }
+  }
+
+  void find_proxy_contacts() {
+    if (proxies.empty()) return;
+    const Vec3 centre = vec(dBodyGetPosition(chassis));
+    for (std::size_t k = 0; k < proxies.size(); ++k) {
+      const Proxy& x = proxies[k];
+      if ((vec(dBodyGetPosition(x.body)) - centre).norm() > x.radius + vehicle_radius) continue;
+      collide_with({x.chassis, x.wheels[0], x.wheels[1], x.wheels[2], x.wheels[3]},
+                   obstacles.size() + k, contacts);
+    }
+  }
+
+  /// Rebuilds the proxies, in id order (so the world holds the same bodies in the same order
+  /// whatever came before: a model restored from a checkpoint steps the same numbers).
+  void set_peers(const std::vector<PeerVehicle>& peers) {
+    clear_proxies();
+    const Quat z_to_y(Eigen::AngleAxisd(std::numbers::pi / 2, Vec3::UnitX()));
+    for (const PeerVehicle& peer : peers) {
+      if (!peer.params) throw std::invalid_argument("peer vehicle '" + peer.id + "' has no params");
+      const VehicleParams& q = *peer.params;
+      // Rigid body of the whole vehicle: chassis plus wheels at their design positions.
+      std::array<Vec3, 4> wheel_design;
+      const AxleParams* axles[4] = {&q.front, &q.front, &q.rear, &q.rear};
+      const double sides[4] = {1.0, -1.0, 1.0, -1.0};
+      const double total = q.total_mass_kg();
+      Vec3 com = q.chassis.mass_kg * q.chassis.com_m;
+      for (int i = 0; i < 4; ++i) {
+        wheel_design[i] = Vec3(axles[i]->x_m, sides[i] * axles[i]->half_track_m, 0.0);
+        com += q.wheels.mass_kg * wheel_design[i];
+      }
+      com /= total;
+      Eigen::Matrix3d inertia = q.chassis.inertia_kgm2.asDiagonal();
+      auto parallel_axis = [&](double m, const Vec3& d) {
+        inertia += m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
+      };
+      parallel_axis(q.chassis.mass_kg, q.chassis.com_m - com);
+      for (const Vec3& w : wheel_design) parallel_axis(q.wheels.mass_kg, w - com);
+
+      Proxy x;
+      x.id = peer.id;
+      x.body = dBodyCreate(world);
+      dMass m;
+      dMassSetParameters(&m, total, 0, 0, 0, inertia(0, 0), inertia(1, 1), inertia(2, 2),
+                         inertia(0, 1), inertia(0, 2), inertia(1, 2));
+      dBodySetMass(x.body, &m);
+      dBodySetGravityMode(x.body, 0);
+      const Quat qc = peer.pose.orientation.normalized();
+      const Vec3 origin = peer.pose.position + qc * com;
+      set_body_pose(x.body, origin, qc);
+      const Vec3 v = peer.linear_velocity + peer.angular_velocity.cross(qc * com);
+      dBodySetLinearVel(x.body, v.x(), v.y(), v.z());
+      dBodySetAngularVel(x.body, peer.angular_velocity.x(), peer.angular_velocity.y(),
+                         peer.angular_velocity.z());
+
+      const Vec3 he = q.chassis.half_extents_m;
+      x.chassis = dCreateBox(nullptr, 2 * he.x(), 2 * he.y(), 2 * he.z());
+      dGeomSetBody(x.chassis, x.body);
+      const Vec3 box_off = q.chassis.box_centre_m - com;
+      dGeomSetOffsetPosition(x.chassis, box_off.x(), box_off.y(), box_off.z());
+      x.radius = box_off.norm() + he.norm();
+      const double wheel_reach = std::hypot(q.wheels.radius_m, 0.5 * q.wheels.width_m);
+      for (int i = 0; i < 4; ++i) {
+        Vec3 local = wheel_design[i] - com;
+        Quat turn = Quat::Identity();
+        if (peer.wheels.size() == 4) {
+          const Pose& w = peer.wheels[static_cast<std::size_t>(i)];
+          local = qc.conjugate() * (w.position - origin);
+          turn = qc.conjugate() * w.orientation.normalized();
+        }
+        x.wheels[i] = dCreateCylinder(nullptr, q.wheels.radius_m, q.wheels.width_m);
+        dGeomSetBody(x.wheels[i], x.body);
+        dGeomSetOffsetPosition(x.wheels[i], local.x(), local.y(), local.z());
+        const Quat off = (turn * z_to_y).normalized();
+        const dQuaternion dq = {off.w(), off.x(), off.y(), off.z()};
+        dGeomSetOffsetQuaternion(x.wheels[i], dq);
+        x.radius = std::max(x.radius, local.norm() + wheel_reach);
+      }
+      proxies.push_back(x);
+    }
+  }
+
   void record_collisions(double dt, bool record) {
+    // Episodes with vehicles no longer near end like those with obstacles out of reach.
+    for (auto& [id, e] : peer_episodes) {
+      if (e.open && time - e.last_contact_s > kEpisodeGapS) e.open = false;
+    }
     if (contacts.empty()) return;
-    // Sum the contact forces on the vehicle per obstacle (contacts are grouped by obstacle).
+    // Sum the contact forces on the vehicle per obstacle or vehicle (contacts are grouped).
     std::size_t k = 0;
     while (k < contacts.size()) {
       const std::size_t o = contacts[k].obstacle;
       Vec3 force = Vec3::Zero();
       const Vec3 position = vec(contacts[k].contact.geom.pos);
+      const double relative_speed = contacts[k].relative_speed;
       for (; k < contacts.size() && contacts[k].obstacle == o; ++k) force += vec(feedback[k].f1);
+      if (o >= obstacles.size()) {
+        const std::string& id = proxies[o - obstacles.size()].id;
+        PeerEpisode& e = peer_episodes[id];
+        if (record && !e.open) {
+          CollisionContact c;
+          c.impulse_ns = force.norm() * dt;
+          c.position = position;
+          c.other_vehicle = id;
+          c.relative_speed_mps = relative_speed;
+          collisions.push_back(std::move(c));
+        }
+        e.open = record;
+        e.last_contact_s = time;
+        continue;
+      }
       ObstacleGeom& ob = obstacles[o];
       if (record && !ob.episode_open) {
-        collisions.push_back(CollisionContact{ob.id, force.norm() * dt, position});
+        collisions.push_back(CollisionContact{ob.id, force.norm() * dt, position, {}, 0.0});
       }
       ob.episode_open = record;
       ob.last_contact_s = time;
@@ -745,11 +936,20 @@ struct OdeVehicleModel::Impl {
   }
 
   void step(double dt, bool record) {
+    begin_step(dt);
+    // The exact (LCP) solver. Unlike dWorldQuickStep it draws no random numbers from ODE's
+    // process-global seed, so interleaved instances cannot disturb each other.
+    dWorldStep(world, dt);
+    end_step(dt, record);
+  }
+
+  /// Everything before the world step: inputs, forces, contact joints.
+  void begin_step(double dt) {
     if (!(dt > 0.0) || !std::isfinite(dt)) throw std::invalid_argument("step must be positive");
     ensure_ode_ready();
     set_step_size(dt);
-    const Vec3 v0 = point_velocity(chassis, reference_point());
-    const Vec3 w0 = vec(dBodyGetAngularVel(chassis));
+    step_v0 = point_velocity(chassis, reference_point());
+    step_w0 = vec(dBodyGetAngularVel(chassis));
 
     apply_steering_and_brakes(dt);
     apply_drive_torque(dt);
@@ -761,11 +961,12 @@ struct OdeVehicleModel::Impl {
     apply_suspension_forces();
     apply_aero_drag();
     find_obstacle_contacts();
+    find_proxy_contacts();
+    create_contact_joints();
+  }
 
-    // The exact (LCP) solver. Unlike dWorldQuickStep it draws no random numbers from ODE's
-    // process-global seed, so interleaved instances cannot disturb each other.
-    dWorldStep(world, dt);
-
+  /// Everything after it: time, collision episodes, accelerations.
+  void end_step(double dt, bool record) {
     time += dt;
     record_collisions(dt, record);
 
@@ -774,8 +975,8 @@ struct OdeVehicleModel::Impl {
     if (!finite(v1) || !finite(w1) || !finite(vec(dBodyGetPosition(chassis)))) {
       throw std::runtime_error("vehicle dynamics diverged at t = " + std::to_string(time) + " s");
     }
-    accel = (v1 - v0) / dt;
-    angular_accel = (w1 - w0) / dt;
+    accel = (v1 - step_v0) / dt;
+    angular_accel = (w1 - step_w0) / dt;
   }
 
   // --- checkpoints -------------------------------------------------------------------------
@@ -854,7 +1055,7 @@ struct OdeVehicleModel::Impl {
     for (const WheelDiagnostics& d : diag) diagnostics_fields(w, d);
     w.end();
 
-    w.begin("collisions", 1);
+    w.begin("collisions", 2);
     w.io(static_cast<std::uint64_t>(obstacles.size()));
     for (const ObstacleGeom& o : obstacles) {
       w.io(o.id);
@@ -866,6 +1067,16 @@ struct OdeVehicleModel::Impl {
       w.io(c.obstacle_id);
       w.io(c.impulse_ns);
       w.io(c.position);
+      w.io(c.other_vehicle);       // since version 2
+      w.io(c.relative_speed_mps);
+    }
+    // Since version 2: episodes with other vehicles (the proxies themselves are rebuilt from
+    // the next frame's inputs, which the member's checkpoint holds).
+    w.io(static_cast<std::uint64_t>(peer_episodes.size()));
+    for (const auto& [id, e] : peer_episodes) {
+      w.io(id);
+      w.io(e.last_contact_s);
+      w.io(e.open);
     }
     w.end();
 
@@ -940,7 +1151,7 @@ struct OdeVehicleModel::Impl {
     for (WheelDiagnostics& d : new_diag) diagnostics_fields(r, d);
     r.end();
 
-    r.begin("collisions", 1, 1);
+    const std::uint32_t collisions_version = r.begin("collisions", 2, 1);
     const auto obstacle_count = r.get<std::uint64_t>();
     std::vector<std::string> ids;
     std::vector<std::pair<double, bool>> episodes;
@@ -973,7 +1184,22 @@ struct OdeVehicleModel::Impl {
       r.io(c.obstacle_id);
       r.io(c.impulse_ns);
       r.io(c.position);
+      if (collisions_version >= 2) {
+        r.io(c.other_vehicle);
+        r.io(c.relative_speed_mps);
+      }
       new_collisions.push_back(std::move(c));
+    }
+    std::map<std::string, PeerEpisode> new_peer_episodes;
+    if (collisions_version >= 2) {
+      const auto peer_count = r.get<std::uint64_t>();
+      for (std::uint64_t k = 0; k < peer_count; ++k) {
+        const auto id = r.get<std::string>();
+        PeerEpisode e;
+        r.io(e.last_contact_s);
+        r.io(e.open);
+        new_peer_episodes[id] = e;
+      }
     }
     r.end();
 
@@ -994,6 +1220,7 @@ struct OdeVehicleModel::Impl {
       obstacles[k].episode_open = episodes[k].second;
     }
     collisions = std::move(new_collisions);
+    peer_episodes = std::move(new_peer_episodes);
   }
 };
 
@@ -1009,6 +1236,40 @@ OdeVehicleModel::OdeVehicleModel(const VehicleParams& params, const Pose& start,
 }
 
 OdeVehicleModel::~OdeVehicleModel() = default;
+
+std::unique_ptr<OdeVehicleModel> OdeVehicleModel::in_world_of(
+    OdeVehicleModel& host, const VehicleParams& params, const Pose& start,
+    std::shared_ptr<const terrain::TerrainSurface> terrain) {
+  if (!terrain) throw std::invalid_argument("OdeVehicleModel needs a terrain surface");
+  std::unique_ptr<OdeVehicleModel> m(new OdeVehicleModel());
+  m->impl_ = std::make_unique<Impl>(params, std::move(terrain), nullptr);
+  m->impl_->build(start, {}, host.impl_->world);
+  // Settling steps the world: the host is held still meanwhile (disabled bodies are not moved).
+  for (dBodyID b : host.impl_->bodies()) dBodyDisable(b);
+  m->impl_->settle();
+  for (dBodyID b : host.impl_->bodies()) dBodyEnable(b);
+  return m;
+}
+
+void OdeVehicleModel::step_pair(OdeVehicleModel& a, OdeVehicleModel& b, double dt) {
+  Impl& x = *a.impl_;
+  Impl& y = *b.impl_;
+  if (x.world != y.world) throw std::invalid_argument("step_pair: the vehicles share no world");
+  x.begin_step(dt);
+  y.begin_step(dt);
+  std::vector<Impl::PendingContact> pair;
+  x.collide_with(y.own_geoms(), 0, pair);
+  for (auto& c : pair) {
+    dJointID j = dJointCreateContact(x.world, x.contact_group, &c.contact);
+    dJointAttach(j, c.body, c.other);
+  }
+  dWorldStep(x.world, dt);
+  x.end_step(dt, true);
+  y.end_step(dt, true);
+  dJointGroupEmpty(x.contact_group);  // the pair's joints
+}
+
+void OdeVehicleModel::set_peers(std::vector<PeerVehicle> peers) { impl_->set_peers(peers); }
 
 void OdeVehicleModel::set_inputs(const DriverInputs& inputs) {
   if (!std::isfinite(inputs.steering) || !std::isfinite(inputs.throttle) ||

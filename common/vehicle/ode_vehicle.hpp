@@ -42,6 +42,12 @@ class OdeVehicleModel final : public VehicleModel {
   /// constraints, so this is most of the hit), position = first contact point. An episode
   /// lasts until the vehicle has been free of the obstacle for 0.5 s and is out of its reach.
   std::vector<CollisionContact> take_collisions() override;
+  /// Each peer becomes a rigid body of its whole mass and inertia (chassis plus wheels at their
+  /// design places) carrying its chassis box and its wheel cylinders at the given wheel poses,
+  /// without gravity, moving on with its velocities and the reactions of this vehicle's contact
+  /// forces until the next call (docs/vehicle-contact.md). A vehicle-vehicle collision episode
+  /// is reported like an obstacle's, with the other vehicle's id and the relative speed.
+  void set_peers(std::vector<PeerVehicle> peers) override;
   /// Section "ode_vehicle" v1 (docs/vehicle-dynamics.md, "Checkpoint state"): the bodies as
   /// ODE holds them, powertrain, tires, inputs, collision episodes, after fingerprints of the
   /// params, the placement and the obstacles that load_state checks. save_state passes the
@@ -72,9 +78,21 @@ class OdeVehicleModel final : public VehicleModel {
   static constexpr double kSettleTimeS = 4.0;
   static constexpr double kSettleRampS = 3.0;
 
+  // ---- the test oracle of vehicle-vehicle contact -----------------------------------------
+  /// A second vehicle built in `host`'s ODE world (settled while the host is held still), to be
+  /// stepped with it by step_pair. Destroy it before the host.
+  static std::unique_ptr<OdeVehicleModel> in_world_of(
+      OdeVehicleModel& host, const VehicleParams& params, const Pose& start,
+      std::shared_ptr<const terrain::TerrainSurface> terrain);
+  /// One step of two vehicles sharing one world: both vehicles' own forces, their contact with
+  /// each other solved exactly in the same LCP (no frame lag, no proxy), one world step. Their
+  /// contact with each other is not reported as a collision.
+  static void step_pair(OdeVehicleModel& a, OdeVehicleModel& b, double dt);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  OdeVehicleModel() = default;
 };
 
 }  // namespace syndds::vehicle

@@ -41,11 +41,38 @@ struct VehicleSnapshot {
   double speed_mps() const { return linear_velocity.norm(); }
 };
 
-/// A contact between the vehicle and a static obstacle during the last step.
+/// The start of a collision episode: with a static obstacle (`obstacle_id`) or with another
+/// vehicle (`other_vehicle`; exactly one of the two is set).
 struct CollisionContact {
   std::string obstacle_id;
-  double impulse_ns = 0.0;
-  Vec3 position = Vec3::Zero();
+  double impulse_ns = 0.0;       // normal contact impulse of the step the episode began in
+  Vec3 position = Vec3::Zero();  // first contact point
+  std::string other_vehicle;
+  double relative_speed_mps = 0.0;  // other vehicle only: speed of the contact point on this
+                                    // vehicle relative to the one on the other, before the step
+};
+
+/// The ground-plane rectangle that holds a vehicle's collision shapes (chassis box and wheels
+/// at full steer) about its reference point, in the vehicle's heading frame: the centre lies
+/// `offset_m` ahead of the reference point. Broad phase of vehicle-vehicle contact.
+struct Footprint {
+  double offset_m = 0.0;
+  double half_length_m = 0.0;
+  double half_width_m = 0.0;
+};
+Footprint footprint_of(const VehicleParams& params);
+
+/// Another vehicle as this one's contact step sees it (docs/vehicle-contact.md): its collision
+/// shapes (from its params) at the state the frame contract gives, i.e. stamped k-1, the start
+/// of the frame being stepped. Within the frame a model may move it on with these velocities
+/// and the reactions of its own contact forces, never with its own engine, brakes or tires.
+struct PeerVehicle {
+  std::string id;
+  std::shared_ptr<const VehicleParams> params;
+  Pose pose;                              // chassis reference frame
+  Vec3 linear_velocity = Vec3::Zero();    // of the reference point, world frame
+  Vec3 angular_velocity = Vec3::Zero();   // world frame
+  std::vector<Pose> wheels;               // FL, FR, RL, RR centres (empty: design positions)
 };
 
 class VehicleModel {
@@ -59,6 +86,11 @@ class VehicleModel {
   virtual VehicleSnapshot snapshot() const = 0;
   /// Collisions that started since the last call (each contact episode reported once).
   virtual std::vector<CollisionContact> take_collisions() { return {}; }
+  /// The other vehicles this one can touch in the steps until the next call (sorted by id, none
+  /// of them this vehicle). Forces act on this model's own bodies only; the other vehicle's
+  /// process computes the same contact from its side (action and reaction up to what one
+  /// frame's proxy leaves out). A model without vehicle contact ignores them.
+  virtual void set_peers(std::vector<PeerVehicle> peers) { (void)peers; }
 
   // ---- checkpoints (docs/checkpoints.md, docs/vehicle-dynamics.md "Checkpoint state") ----
   /// Writes everything that decides the following steps (called between steps): the model's

@@ -30,6 +30,12 @@ void LiveState::on_vehicle_state(const proto::VehicleStateMsg& s) {
   v.change = ++vehicle_changes_;
 }
 
+void LiveState::on_collision(const proto::CollisionEventMsg& e) {
+  std::lock_guard lock(mutex_);
+  contacts_.push_back({++contact_changes_, e});
+  if (contacts_.size() > kMaxContactMarks) contacts_.pop_front();
+}
+
 void LiveState::on_terrain(const std::vector<proto::TerrainVertexMsg>& vertices) {
   std::lock_guard lock(mutex_);
   for (const auto& x : vertices) {
@@ -89,7 +95,7 @@ bool LiveState::has_news(const Cursor& cursor) const {
   std::lock_guard lock(mutex_);
   return cursor.frame != frame_ || cursor.vehicles < vehicle_changes_ ||
          cursor.terrain < soil_changes_ || cursor.members < member_changes_ ||
-         cursor.status < status_changes_;
+         cursor.status < status_changes_ || cursor.contacts < contact_changes_;
 }
 
 std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* more) {
@@ -125,6 +131,18 @@ std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* mo
   }
   cursor.vehicles = vehicle_changes_;
   u["vehicles"] = vehicles;
+  nlohmann::json contacts = nlohmann::json::array();
+  for (const auto& c : contacts_) {
+    if (c.number <= cursor.contacts) continue;
+    const auto& e = c.event;
+    contacts.push_back({{"frame", e.frame},
+                        {"vehicle", e.vehicle_id},
+                        {"with", e.other_vehicle_id.empty() ? e.obstacle_id : e.other_vehicle_id},
+                        {"vehicle_contact", !e.other_vehicle_id.empty()},
+                        {"at", {e.position.x(), e.position.y(), e.position.z()}}});
+  }
+  cursor.contacts = contact_changes_;
+  u["contacts"] = contacts;
   // Soil: the log is in change order; start after the cursor.
   auto it = std::upper_bound(soil_log_.begin(), soil_log_.end(),
                              std::make_pair(cursor.terrain, ~std::uint64_t{0}));

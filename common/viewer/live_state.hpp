@@ -23,6 +23,7 @@ struct Cursor {
   std::uint64_t vehicles = 0;  // vehicle states up to this number were sent
   std::uint64_t members = 0;
   std::uint64_t status = 0;   // status changes up to this number were sent
+  std::uint64_t contacts = 0;  // contact marks up to this number were sent
   std::int64_t frame = -2;    // the frame last sent (-2: nothing sent yet)
 };
 
@@ -34,13 +35,17 @@ class LiveState {
   void on_terrain(const std::vector<proto::TerrainVertexMsg>& vertices);
   /// A frame granted by the coordinator at wall time `wall_s` (any monotonic seconds).
   void on_frame(std::int64_t frame, double sim_time_s, double wall_s);
+  /// A collision began (with an obstacle or another vehicle): a mark at its point. The newest
+  /// kMaxContactMarks are kept for connections that come later.
+  void on_collision(const proto::CollisionEventMsg& e);
+  static constexpr std::size_t kMaxContactMarks = 256;
   /// A member announced itself.
   void on_member(const proto::MemberAnnounceMsg& m, double wall_s);
   /// The run ended (completed or aborted).
   void on_run_end(const proto::RunControlMsg& c);
 
   /// One update for a connection at `cursor` as a JSON text: the run's progress and real-time
-  /// factor, every vehicle whose state changed, at most `max_vertices` soil vertices changed
+  /// factor, every vehicle whose state changed, the contact marks not sent yet, at most `max_vertices` soil vertices changed
   /// since the cursor ([i, j, height] triples, oldest change first), the member list when it
   /// changed; the cursor moves past what was put in. `more` is set when soil changes remain.
   std::string update(Cursor& cursor, std::size_t max_vertices, bool* more = nullptr);
@@ -71,6 +76,12 @@ class LiveState {
     std::int32_t pid = 0;
   };
   void compact_soil();
+  struct ContactMark {
+    std::uint64_t number = 0;  // 1, 2, ... in arrival order
+    proto::CollisionEventMsg event;
+  };
+  std::deque<ContactMark> contacts_;
+  std::uint64_t contact_changes_ = 0;
 
   mutable std::mutex mutex_;
   std::map<std::string, Vehicle> vehicles_;

@@ -209,6 +209,38 @@ void check(const proto::V2VMessageMsg& m) {
   in("heading_rad", m.heading_rad, -7.0, 7.0);
 }
 
+// Another vehicle's process feels these bodies: a NaN or a negative footprint is malformed.
+void check_body(const proto::VehicleBodyMsg& b, const std::string& what) {
+  auto finite = [&](const char* field, const auto& v) {
+    bool ok = true;
+    if constexpr (std::is_same_v<std::remove_cvref_t<decltype(v)>, Pose>) {
+      ok = v.position.allFinite() && v.orientation.coeffs().allFinite() &&
+           v.orientation.norm() > 0.0;
+    } else if constexpr (std::is_floating_point_v<std::remove_cvref_t<decltype(v)>>) {
+      ok = std::isfinite(v) && v >= 0.0;
+    } else {
+      ok = v.allFinite();
+    }
+    if (!ok) {
+      throw ProtocolError(what + ": body of vehicle '" + b.vehicle_id + "': " + field +
+                          " is not finite (or a zero quaternion, or negative)");
+    }
+  };
+  finite("pose", b.pose);
+  finite("linear_velocity", b.linear_velocity);
+  finite("angular_velocity", b.angular_velocity);
+  for (const auto& w : b.wheels) finite("wheels", w);
+  if (!std::isfinite(b.footprint_offset_m)) finite("footprint_offset_m", -1.0);
+  finite("footprint_half_length_m", b.footprint_half_length_m);
+  finite("footprint_half_width_m", b.footprint_half_width_m);
+}
+void check(const proto::FrameDoneMsg& m) {
+  for (const auto& b : m.body) check_body(b, "frame_done from " + m.member_id);
+}
+void check(const proto::FrameGrantMsg& m) {
+  for (const auto& b : m.bodies) check_body(b, "frame_grant " + std::to_string(m.frame));
+}
+
 }  // namespace
 
 #define SYNDDS_DDS_CONVERT_(MSG, IDL)         \

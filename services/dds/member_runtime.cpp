@@ -370,7 +370,8 @@ void MemberRuntime::publish(const proto::FrameSamples& out) {
 }
 
 void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& published,
-                              double compute_s, bool finished, const std::string& error) {
+                              double compute_s, bool finished, const std::string& error,
+                              std::vector<proto::VehicleBodyMsg> body) {
   proto::FrameDoneMsg d;
   d.member_id = agent_.member_id();
   d.frame = frame;
@@ -380,6 +381,7 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   d.error = error;
   d.checkpoint_bytes = finished || !error.empty() ? 0 : checkpoint_bytes_;
   d.epoch = session_->epoch();
+  d.body = std::move(body);
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
@@ -437,12 +439,12 @@ void MemberRuntime::run_frame(const proto::FrameContext& ctx,
   const double compute_s = std::chrono::duration<double>(Clock::now() - t0).count();
   const proto::Manifest published = outputs.manifest(agent_.member_id());
   if (options_.debug_publish_delay_ms > 0) {
-    send_done(ctx.frame, published, compute_s, false);
+    send_done(ctx.frame, published, compute_s, false, "", outputs.contact_bodies);
     std::this_thread::sleep_for(std::chrono::milliseconds(options_.debug_publish_delay_ms));
     publish(outputs);
   } else {
     publish(outputs);
-    send_done(ctx.frame, published, compute_s, false);
+    send_done(ctx.frame, published, compute_s, false, "", outputs.contact_bodies);
   }
 }
 

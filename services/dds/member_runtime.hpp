@@ -107,7 +107,8 @@ class MemberRuntime {
   void publish(const proto::FrameSamples& out);
   bool flush_writers(double timeout_s);  // true when every reader acknowledged everything
   void send_done(std::int64_t frame, const proto::Manifest& published, double compute_s,
-                 bool finished, const std::string& error = "");
+                 bool finished, const std::string& error = "",
+                 std::vector<proto::VehicleBodyMsg> body = {});
   /// Before reporting a failure: waits (bounded) until the coordinator's readers are matched
   /// with this member's announcement and done writers and the announcement is acknowledged.
   void reach_coordinator();

@@ -52,6 +52,10 @@ ViewerFeed::ViewerFeed(const dds::DdsOptions& options, const scenario::Scenario&
         live.on_vehicle_state(state);
       },
       Scope::all_vehicles)));
+  readers_.push_back(keep(p.make_reader<msg::CollisionEvent>(
+      dds::topics::data(proto::Topic::collision_event), kViewerReader,
+      [&live](msg::CollisionEvent&& e) { live.on_collision(dds::from_dds(e)); },
+      Scope::all_vehicles)));
   if (scenario.terrain.deformable()) {
     readers_.push_back(keep(p.make_reader<msg::TerrainDeformation>(
         dds::topics::data(proto::Topic::terrain_deformation), kViewerReader,

@@ -161,6 +161,27 @@ TEST(ConvoyEnv, CollisionWithAnObstacleEndsTheEpisode) {
   EXPECT_THROW(env.step(hand_policy(obs)), std::logic_error);
 }
 
+TEST(ConvoyEnv, RunningIntoTheLeaderIsACollision) {
+  // The hand-written follower's steering at full throttle: it catches up with the leader
+  // (which ramps up at 0.47 m/s^2) and runs into it; the contact ends the episode.
+  ConvoyEnvOptions o = test_options();
+  ConvoyEnv env(o);
+  Observation obs = env.reset(3);
+  StepResult r;
+  for (int k = 0; k < 400; ++k) {
+    const std::vector<float> full_throttle = {hand_policy(obs)[0], 1.0f};
+    r = env.step(full_throttle);
+    obs = r.observation;
+    if (r.terminated || r.truncated) break;
+  }
+  EXPECT_TRUE(r.terminated);
+  EXPECT_EQ(r.info.at("collided"), 1.0);
+  EXPECT_EQ(r.info.at("leader_contact"), 1.0);
+  EXPECT_EQ(r.info.at("leader_lost"), 0.0);
+  EXPECT_LT(r.info.at("distance_m"), 6.0);
+  EXPECT_EQ(r.reward, o.reward.collision);
+}
+
 TEST(ConvoyEnv, LeaderLostEndsTheEpisode) {
   ConvoyEnv env(test_options());
   Observation obs = env.reset(11);

@@ -129,6 +129,34 @@ TEST(LiveState, AConnectionGetsOnlyTheNewestStateOfEachVehicle) {
   EXPECT_EQ(u["vehicles"][0]["id"], "b");
 }
 
+TEST(LiveState, ContactMarksReachEveryConnectionOnceAndStayBounded) {
+  viewer::LiveState live;
+  viewer::Cursor early, late;
+  proto::CollisionEventMsg e;
+  e.vehicle_id = "a";
+  e.other_vehicle_id = "b";
+  e.frame = 7;
+  e.position = Vec3(1.0, 2.0, 0.5);
+  live.on_collision(e);
+  EXPECT_TRUE(live.has_news(early));
+  auto u = update(live, early);
+  ASSERT_EQ(u["contacts"].size(), 1u);
+  EXPECT_EQ(u["contacts"][0]["with"], "b");
+  EXPECT_EQ(u["contacts"][0]["vehicle_contact"], true);
+  EXPECT_DOUBLE_EQ(u["contacts"][0]["at"][1].get<double>(), 2.0);
+  EXPECT_TRUE(update(live, early)["contacts"].empty());  // sent once
+  for (std::size_t k = 0; k < 2 * viewer::LiveState::kMaxContactMarks; ++k) {
+    e.other_vehicle_id.clear();
+    e.obstacle_id = "rock" + std::to_string(k);
+    live.on_collision(e);
+  }
+  u = update(live, late);  // a late connection gets the newest marks, bounded
+  ASSERT_EQ(u["contacts"].size(), viewer::LiveState::kMaxContactMarks);
+  EXPECT_EQ(u["contacts"].back()["with"],
+            "rock" + std::to_string(2 * viewer::LiveState::kMaxContactMarks - 1));
+  EXPECT_EQ(u["contacts"].back()["vehicle_contact"], false);
+}
+
 TEST(LiveState, ASlowConnectionGetsEachSoilVertexOnceWithItsNewestHeight) {
   viewer::LiveState live;
   viewer::Cursor fast, slow;

@@ -73,6 +73,30 @@ window.syndds = { ready: false, error: null, state, meshErrors: [] };
 
 function colourOf(c) { return new THREE.Color(c[0], c[1], c[2]); }
 
+// Contact marks: a sphere where a collision began, red between vehicles, orange on obstacles.
+const contactMarks = new THREE.Group();
+scene3.add(contactMarks);
+const contactGeometry = new THREE.SphereGeometry(0.35, 12, 8);
+const contactMaterials = {
+  vehicle: new THREE.MeshBasicMaterial({ color: 0xff2020 }),
+  obstacle: new THREE.MeshBasicMaterial({ color: 0xff9900 }),
+};
+window.syndds.contactMarks = 0;
+function addContactMark(at, vehicleContact) {
+  const m = new THREE.Mesh(contactGeometry, vehicleContact ? contactMaterials.vehicle : contactMaterials.obstacle);
+  m.position.set(at[0], at[1], at[2] + 0.3);
+  contactMarks.add(m);
+  window.syndds.contactMarks = contactMarks.children.length;
+  state.dirty = true;
+  return m;
+}
+// "vehicle=b impulse_ns=... at=x/y/z" (events.csv detail of a collision) -> {at, vehicleContact}.
+function parseCollision(detail) {
+  const at = /at=(-?[0-9.e+-]+)\/(-?[0-9.e+-]+)\/(-?[0-9.e+-]+)/.exec(detail);
+  if (!at) return null;
+  return { at: [+at[1], +at[2], +at[3]], vehicleContact: detail.startsWith('vehicle=') };
+}
+
 function buildTerrain(t, soil) {
   const g = new THREE.BufferGeometry();
   const pos = new Float32Array(t.nx * t.ny * 3);
@@ -584,6 +608,17 @@ async function startReplay(info) {
     v.track.setAll(new Float32Array(xyz));
     tracks.set(id, upTo);
   }
+  // Collisions (events.csv): each mark shown from its frame on.
+  const collisionMarks = [];
+  if (files.has('events.csv')) {
+    const e = parseCsv(await fetchText('/run/events.csv'));
+    const d = e.col;
+    for (const r of e.rows) {
+      if (r[d.kind] !== 'collision') continue;
+      const c = parseCollision(r[d.detail] || '');
+      if (c) { const m = addContactMark(c.at, c.vehicleContact); m.userData.frame = +r[d.frame]; collisionMarks.push(m); }
+    }
+  }
   let applied = -1;  // soil snapshots applied up to this frame
   let snapIndex = 0;
   const slider = $('slider');
@@ -595,6 +630,7 @@ async function startReplay(info) {
     state.frame = fr.frame;
     for (const [id, s] of fr.v) showVehicle(id, s);
     for (const [id, v] of state.vehicles) v.track.show(tracks.get(id)[k]);
+    for (const m of collisionMarks) m.visible = m.userData.frame <= fr.frame;
     if (state.soil) {
       if (fr.frame < applied) { state.soil.reset(); applied = -1; snapIndex = 0; }
       while (snapIndex < snapshots.length && snapshots[snapIndex].frame <= fr.frame) {
@@ -712,6 +748,7 @@ function startLive() {
       if (v) v.track.push(u.pose[0], u.pose[1], u.pose[2] + 0.05);
     }
     if (state.soil) for (const [i, j, h] of m.soil) state.soil.set(i, j, h);
+    for (const c of m.contacts || []) addContactMark(c.at, c.vehicle_contact);
     if (m.members) {
       state.members = m.members;
       $('members').textContent = 'members\n' + m.members.map((x) => `  ${x.id} (${x.host} ${x.pid})`).join('\n');
