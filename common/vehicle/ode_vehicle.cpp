@@ -787,8 +787,22 @@ struct OdeVehicleModel::Impl {
   void collide_with(const std::array<dGeomID, 5>& other_geoms, std::size_t tag,
                     std::vector<PendingContact>& out) const {
     bool first = true;
-    for (dGeomID g : own_geoms()) {
-      for (dGeomID h : other_geoms) {
+    // Geom pairs whose bounding boxes do not meet are skipped (dCollide tests no bounds).
+    std::array<std::array<dReal, 6>, 5> own_box, other_box;
+    const auto own = own_geoms();
+    for (std::size_t k = 0; k < 5; ++k) {
+      dGeomGetAABB(own[k], own_box[k].data());
+      dGeomGetAABB(other_geoms[k], other_box[k].data());
+    }
+    auto apart = [](const std::array<dReal, 6>& a, const std::array<dReal, 6>& b) {
+      return a[1] < b[0] || b[1] < a[0] || a[3] < b[2] || b[3] < a[2] || a[5] < b[4] ||
+             b[5] < a[4];
+    };
+    for (std::size_t gi = 0; gi < 5; ++gi) {
+      const dGeomID g = own[gi];
+      for (std::size_t hi = 0; hi < 5; ++hi) {
+        const dGeomID h = other_geoms[hi];
+        if (apart(own_box[gi], other_box[hi])) continue;
         dContactGeom cg[kMaxContactsPerPair];
         const int n = dCollide(g, h, kMaxContactsPerPair, cg, sizeof(dContactGeom));
         for (int k = 0; k < n; ++k) {
