@@ -27,9 +27,34 @@ Rect2 footprint_rect(const VehicleBodyMsg& body) {
   return r;
 }
 
+namespace {
+
+// What the test needs of a body, computed once per body.
+struct Reach {
+  Rect2 rect;
+  double speed = 0.0;
+  double bound = 0.0;  // radius of the circle about the rectangle's centre that holds it
+};
+
+Reach reach_of(const VehicleBodyMsg& b) {
+  Reach r;
+  r.rect = footprint_rect(b);
+  r.speed = travel_speed(b);
+  r.bound = std::hypot(r.rect.half_length, r.rect.half_width);
+  return r;
+}
+
+bool reach_each_other(const Reach& a, const Reach& b, double frame_s) {
+  const double margin = kBaseMarginM + 2.0 * frame_s * (a.speed + b.speed);
+  // The circles first (a cheap rejection), then the rectangles.
+  if ((a.rect.centre - b.rect.centre).norm() > a.bound + b.bound + margin) return false;
+  return rects_within(a.rect, b.rect, margin);
+}
+
+}  // namespace
+
 bool within_reach(const VehicleBodyMsg& a, const VehicleBodyMsg& b, double frame_s) {
-  const double margin = kBaseMarginM + 2.0 * frame_s * (travel_speed(a) + travel_speed(b));
-  return rects_within(footprint_rect(a), footprint_rect(b), margin);
+  return reach_each_other(reach_of(a), reach_of(b), frame_s);
 }
 
 std::vector<VehicleBodyMsg> select_contact_bodies(std::vector<VehicleBodyMsg> bodies,
@@ -43,10 +68,13 @@ std::vector<VehicleBodyMsg> select_contact_bodies(std::vector<VehicleBodyMsg> bo
                              return a.vehicle_id == b.vehicle_id;
                            }),
                bodies.end());
+  std::vector<Reach> reach;
+  reach.reserve(bodies.size());
+  for (const auto& b : bodies) reach.push_back(reach_of(b));
   std::vector<char> keep(bodies.size(), 0);
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     for (std::size_t j = i + 1; j < bodies.size(); ++j) {
-      if ((keep[i] && keep[j]) || !within_reach(bodies[i], bodies[j], frame_s)) continue;
+      if ((keep[i] && keep[j]) || !reach_each_other(reach[i], reach[j], frame_s)) continue;
       keep[i] = keep[j] = 1;
     }
   }
