@@ -736,6 +736,23 @@ struct OdeVehicleModel::Impl {
     dBodyAddForce(chassis, f.x(), f.y(), f.z());
   }
 
+  /// A soft contact (the obstacles' ERP and CFM) with friction `mu` between `body` and
+  /// `other` (null: the static world), tagged with the obstacle or proxy it belongs to.
+  static PendingContact pending_contact(const dContactGeom& geom, double mu, std::size_t tag,
+                                        dBodyID body, dBodyID other) {
+    PendingContact pc;
+    pc.contact = dContact{};
+    pc.contact.geom = geom;
+    pc.contact.surface.mode = dContactApprox1 | dContactSoftERP | dContactSoftCFM;
+    pc.contact.surface.mu = mu;
+    pc.contact.surface.soft_erp = kObstacleSoftErp;
+    pc.contact.surface.soft_cfm = kObstacleSoftCfm;
+    pc.obstacle = tag;
+    pc.body = body;
+    pc.other = other;
+    return pc;
+  }
+
   void find_obstacle_contacts() {
     contacts.clear();
     if (obstacles.empty()) return;
@@ -753,16 +770,7 @@ struct OdeVehicleModel::Impl {
         dContactGeom cg[kMaxContactsPerPair];
         const int n = dCollide(g, ob.geom, kMaxContactsPerPair, cg, sizeof(dContactGeom));
         for (int k = 0; k < n; ++k) {
-          PendingContact pc;
-          pc.contact = dContact{};
-          pc.contact.geom = cg[k];
-          pc.contact.surface.mode = dContactApprox1 | dContactSoftERP | dContactSoftCFM;
-          pc.contact.surface.mu = kObstacleFriction;
-          pc.contact.surface.soft_erp = kObstacleSoftErp;
-          pc.contact.surface.soft_cfm = kObstacleSoftCfm;
-          pc.obstacle = o;
-          pc.body = dGeomGetBody(g);
-          contacts.push_back(pc);
+          contacts.push_back(pending_contact(cg[k], kObstacleFriction, o, dGeomGetBody(g), nullptr));
         }
       }
     }
@@ -806,16 +814,8 @@ struct OdeVehicleModel::Impl {
         dContactGeom cg[kMaxContactsPerPair];
         const int n = dCollide(g, h, kMaxContactsPerPair, cg, sizeof(dContactGeom));
         for (int k = 0; k < n; ++k) {
-          PendingContact pc;
-          pc.contact = dContact{};
-          pc.contact.geom = cg[k];
-          pc.contact.surface.mode = dContactApprox1 | dContactSoftERP | dContactSoftCFM;
-          pc.contact.surface.mu = kVehicleFriction;
-          pc.contact.surface.soft_erp = kObstacleSoftErp;
-          pc.contact.surface.soft_cfm = kObstacleSoftCfm;
-          pc.obstacle = tag;
-          pc.body = dGeomGetBody(g);
-          pc.other = dGeomGetBody(h);
+          PendingContact pc =
+              pending_contact(cg[k], kVehicleFriction, tag, dGeomGetBody(g), dGeomGetBody(h));
           if (first) {
             dVector3 va, vb;
             dBodyGetPointVel(pc.body, cg[k].pos[0], cg[k].pos[1], cg[k].pos[2], va);
