@@ -7,7 +7,8 @@ ControllerAgent::ControllerAgent(const scenario::Scenario& scenario,
     : vehicle_id_(vehicle.id),
       member_id_(scenario::controller_member(vehicle.id)),
       follower_(control::Path(vehicle.controller.waypoints, vehicle.controller.closed),
-                vehicle.controller.follower) {}
+                vehicle.controller.follower),
+      stop_at_s_(vehicle.controller.stop_at_s) {}
 
 std::vector<proto::Subscription> ControllerAgent::subscriptions() const {
   return {{proto::Topic::vehicle_state, vehicle_id_}};
@@ -17,8 +18,12 @@ void ControllerAgent::step(const proto::FrameContext& ctx, const proto::FrameSam
                            proto::FrameSamples& outputs) {
   for (const auto& state : inputs.vehicle_states) {
     if (state.vehicle_id != vehicle_id_) continue;
-    const auto cmd =
+    auto cmd =
         follower_.update(state.sim_time_s, state.pose, state.linear_velocity, ctx.heartbeat_s);
+    if (stop_at_s_ && state.sim_time_s >= *stop_at_s_) {
+      cmd.throttle = 0.0;  // emergency stop: full brake from the first state at or after it
+      cmd.braking = 1.0;
+    }
     outputs.driver_commands.push_back(command_message(vehicle_id_, member_id_, ctx.frame, cmd));
   }
 }

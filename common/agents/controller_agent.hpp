@@ -35,6 +35,7 @@ class ControllerAgent final : public proto::Agent {
   std::string vehicle_id_;
   std::string member_id_;
   control::PathFollower follower_;
+  std::optional<double> stop_at_s_;  // full brake from then on (controller.stop_at_s)
 };
 
 }  // namespace syndds::agents

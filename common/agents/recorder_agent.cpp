@@ -67,6 +67,21 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+convoy::BodyBox body_box(const vehicle::VehicleParams& p) {
+  return {p.chassis.box_centre_m, p.chassis.half_extents_m};
+}
+
+// The follower's standstill gap as a bumper-to-bumper distance: its gap law's centre distance
+// less its own box's front and its leader's box's rear (both from the chassis reference point).
+double standstill_bumper(const scenario::VehicleConfig& follower,
+                         const scenario::VehicleConfig& leader) {
+  const auto& f = follower.params.chassis;
+  const auto& l = leader.params.chassis;
+  const double front = f.box_centre_m.x() + f.half_extents_m.x();
+  const double rear = l.half_extents_m.x() - l.box_centre_m.x();
+  return follower.controller.convoy.standstill_m - front - rear;
+}
+
 nlohmann::json stat_json(const convoy::Stat& s) {
   return {{"mean", s.mean}, {"min", s.min}, {"max", s.max}, {"samples", s.samples}};
 }
@@ -79,6 +94,10 @@ nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
                    {"distance_gap_m", stat_json(r.distance_gap_m)},
                    {"time_gap_s", stat_json(r.time_gap_s)},
                    {"cross_track_m", stat_json(r.cross_track_m)},
+                   {"bumper_gap_m", stat_json(r.bumper_gap_m)},
+                   {"min_bumper_gap_time_s", r.min_bumper_gap_time_s},
+                   {"standstill_bumper_m", r.standstill_bumper_m},
+                   {"time_below_standstill_s", r.time_below_standstill_s},
                    {"obstacles_hit", r.obstacles_hit},
                    {"leader_lost_events", r.leader_lost_events}});
   }
@@ -115,6 +134,8 @@ nlohmann::json metrics_json(const std::vector<FollowerMetrics>& all,
                          {"m_rs_avg", value(d.rel_speed, d.rel_speed.avg)},
                          {"m_rs_max", value(d.rel_speed, d.rel_speed.max)},
                          {"obstacles_hit", m.obstacles_hit},
+                         {"min_bumper_gap_m", sig9(m.min_bumper_gap_m)},
+                         {"time_below_standstill_s", sig9(m.time_below_standstill_s)},
                          {"samples", d.samples},
                          {"speed_samples", d.abs_speed_mps.samples},
                          {"relative_speed_samples", d.rel_speed.samples},
@@ -167,16 +188,20 @@ std::string metrics_table(const std::vector<FollowerMetrics>& all) {
 
 std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
   // Gaps in metres and seconds, cross-track in metres (definitions: docs/convoy.md).
-  std::string text = fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>9} {:>11}\n", "follower",
-                                 "follows", "gap m mean/min/max", "gap s mean/min/max",
-                                 "cross m mean/max", "obstacles", "leader_lost");
+  // Bumper: the smallest box-to-box gap, and the time spent below the standstill gap.
+  std::string text = fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>11}\n",
+                                 "follower", "follows", "gap m mean/min/max", "gap s mean/min/max",
+                                 "cross m mean/max", "bumper m min/<s", "obstacles",
+                                 "leader_lost");
   for (const auto& r : reports) {
-    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>9} {:>11}\n", r.follower, r.leader,
+    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>11}\n", r.follower,
+                        r.leader,
                         fmt::format("{:.1f}/{:.1f}/{:.1f}", r.distance_gap_m.mean,
                                     r.distance_gap_m.min, r.distance_gap_m.max),
                         fmt::format("{:.2f}/{:.2f}/{:.2f}", r.time_gap_s.mean, r.time_gap_s.min,
                                     r.time_gap_s.max),
                         fmt::format("{:.2f}/{:.2f}", r.cross_track_m.mean, r.cross_track_m.max),
+                        fmt::format("{:.2f}/{:.2f}", r.bumper_gap_m.min, r.time_below_standstill_s),
                         r.obstacles_hit, r.leader_lost_events);
   }
   return text;
@@ -201,6 +226,13 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
                           scenario::external_member(v.id), scenario::sensor_member(v.id)}) {
       vehicle_of_member_[m] = v.id;
     }
+  }
+  for (const auto& [follower, leader] : followers_) {
+    const auto* f = scenario.find_vehicle(follower);
+    const auto* l = scenario.find_vehicle(leader);
+    if (!f || !l) continue;  // the scenario's own checks refuse this; chains_ below names it
+    gap_geometry_[follower] = {body_box(f->params), body_box(l->params),
+                               standstill_bumper(*f, *l)};
   }
   // Each follower is measured against the head of its chain: a chain must have one, which
   // the scenario's own checks (each follower follows another vehicle) do not ensure.
@@ -376,7 +408,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
                    wq.z(), Sig{s.wheels[w].spin_rad_s, 6});
     }
     if (!followers_.empty()) {
-      tracks_[s.vehicle_id].push_back({s.sim_time_s, Vec2(p.x(), p.y()), speed});
+      tracks_[s.vehicle_id].push_back({s.sim_time_s, Vec2(p.x(), p.y()), speed, p.z(), q});
     }
   }
   for (const auto& c : samples.driver_commands) {
@@ -479,9 +511,9 @@ void RecorderAgent::write_convoy_report() {
   for (const auto& [follower, leader] : followers_) {
     const VehicleTotals& t = totals_.at(follower);
     const auto lost = t.events.find("leader_lost");
-    convoy_.push_back(convoy::follower_report(follower, leader, tracks_[follower], tracks_[leader],
-                                              t.collisions,
-                                              lost == t.events.end() ? 0 : lost->second));
+    convoy_.push_back(convoy::follower_report(
+        follower, leader, tracks_[follower], tracks_[leader], t.collisions,
+        lost == t.events.end() ? 0 : lost->second, gap_geometry_[follower], heartbeat_s_));
   }
   write_file_atomically(fs::path(options_.output_dir) / "convoy.json",
                         convoy_json(convoy_).dump(2) + "\n");
@@ -500,6 +532,11 @@ void RecorderAgent::write_metrics() {
     if (!f.empty()) m.follower_start_time_s = f[m.deviations.follower_start_index].time_s;
     if (!l.empty()) m.leader_end_time_s = l[m.deviations.leader_end_index].time_s;
     m.obstacles_hit = totals_.at(follower).collisions;
+    for (const auto& r : convoy_) {
+      if (r.follower != follower) continue;
+      m.min_bumper_gap_m = r.bumper_gap_m.min;
+      m.time_below_standstill_s = r.time_below_standstill_s;
+    }
     metrics_.push_back(std::move(m));
   }
   // The heads of the follow chains: how fast they drove (soft soil may hold them back).
@@ -716,6 +753,8 @@ void point_fields(Archive& a, convoy::TrackPoint& p) {
   a.io(p.time_s);
   a.io(p.position);
   a.io(p.speed_mps);
+  a.io(p.z);  // version 3: the bumper gap needs the whole pose
+  a.io(p.orientation);
 }
 
 template <typename Archive>
@@ -754,7 +793,7 @@ void map_io(Archive& a, std::map<std::string, V>& map, F&& fields) {
 
 void RecorderAgent::save_state(core::StateWriter& w) {
   if (!failure_.empty()) throw WriteError("no checkpoint of a failed recorder: " + failure_);
-  w.begin("recorder", 2);
+  w.begin("recorder", 3);
   for (CsvFile* f : files()) {
     if (f && f->has_pending()) {
       throw std::logic_error(f->path().string() + ": rows not committed at a checkpoint");
@@ -780,7 +819,7 @@ void RecorderAgent::save_state(core::StateWriter& w) {
 }
 
 void RecorderAgent::load_state(core::StateReader& r) {
-  r.begin("recorder", 2);
+  r.begin("recorder", 3);
   for (CsvFile* f : files()) {
     const bool has = r.get<bool>();
     if (has != (f != nullptr)) {

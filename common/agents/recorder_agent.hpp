@@ -61,6 +61,9 @@ struct FollowerMetrics {
   std::uint64_t obstacles_hit = 0;
   double follower_start_time_s = 0.0;  // start clip (on the follower's track)
   double leader_end_time_s = 0.0;      // end clip (on the leader's track)
+  // Against the vehicle it follows (convoy report): smallest bumper gap, time below standstill.
+  double min_bumper_gap_m = 0.0;
+  double time_below_standstill_s = 0.0;
 };
 
 /// A member that left the run under on_member_loss: continue (it took no part from `frame` on).
@@ -156,6 +159,7 @@ class RecorderAgent final : public proto::Agent {
   std::unique_ptr<CsvFile> v2v_;  // only when some vehicle broadcasts V2V messages
   // Convoys: (follower, vehicle followed) pairs and every vehicle's track, for the report.
   std::vector<std::pair<std::string, std::string>> followers_;
+  std::map<std::string, convoy::GapGeometry> gap_geometry_;  // per follower: boxes, standstill
   std::map<std::string, convoy::Track> tracks_;
   std::vector<convoy::FollowerReport> convoy_;
   std::map<std::string, metrics::ChainLink> chains_;  // per follower

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "metrics/box_gap.hpp"
+
 namespace syndds::convoy {
 namespace {
 
@@ -28,6 +30,15 @@ class Accumulator {
 };
 
 }  // namespace
+
+double bumper_gap(const TrackPoint& follower, const BodyBox& follower_box,
+                  const TrackPoint& leader, const BodyBox& leader_box) {
+  const auto box = [](const TrackPoint& p, const BodyBox& b) {
+    const Pose pose{Vec3(p.position.x(), p.position.y(), p.z), p.orientation};
+    return metrics::place_box(pose, b.centre_m, b.half_extents_m);
+  };
+  return metrics::box_distance(box(follower, follower_box), box(leader, leader_box));
+}
 
 double distance_to_track(const std::vector<Vec2>& track, const std::vector<double>& arc,
                          const Vec2& p, double& u, bool& inside) {
@@ -54,8 +65,10 @@ double distance_to_track(const std::vector<Vec2>& track, const std::vector<doubl
 
 FollowerReport follower_report(const std::string& follower, const std::string& leader,
                                const Track& follower_track, const Track& leader_track,
-                               std::size_t obstacles_hit, std::size_t leader_lost_events) {
+                               std::size_t obstacles_hit, std::size_t leader_lost_events,
+                               const GapGeometry& geometry, double heartbeat_s) {
   FollowerReport r;
+  r.standstill_bumper_m = geometry.standstill_bumper_m;
   r.follower = follower;
   r.leader = leader;
   r.obstacles_hit = obstacles_hit;
@@ -72,11 +85,20 @@ FollowerReport follower_report(const std::string& follower, const std::string& l
     passed_s.push_back(p.time_s);
   }
 
-  Accumulator distance, time_gap, cross;
+  Accumulator distance, time_gap, cross, bumper;
+  std::size_t below = 0;
+  double min_gap = std::numeric_limits<double>::infinity();
   const std::size_t n = std::min(follower_track.size(), leader_track.size());
   for (std::size_t k = 0; k < n; ++k) {
     const auto& f = follower_track[k];
     distance.add((f.position - leader_track[k].position).norm());
+    const double gap = bumper_gap(f, geometry.follower, leader_track[k], geometry.leader);
+    if (gap < min_gap) {
+      min_gap = gap;
+      r.min_bumper_gap_time_s = f.time_s;
+    }
+    bumper.add(gap);
+    if (gap < geometry.standstill_bumper_m) ++below;
     if (track.size() < 2) continue;
     double u = 0.0;
     bool inside = false;
@@ -95,6 +117,8 @@ FollowerReport follower_report(const std::string& follower, const std::string& l
   r.distance_gap_m = distance.stat();
   r.time_gap_s = time_gap.stat();
   r.cross_track_m = cross.stat();
+  r.bumper_gap_m = bumper.stat();
+  r.time_below_standstill_s = static_cast<double>(below) * heartbeat_s;
   return r;
 }
 

@@ -314,6 +314,7 @@ ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world
     c.follower.lookahead_m = m.number("lookahead_m", 5.0, 0.1, 100);
     if (auto n = m.optional("steering_pid")) c.follower.steering = parse_pid(*n, c.follower.steering);
     if (auto n = m.optional("speed_pid")) c.follower.speed = parse_pid(*n, c.follower.speed);
+    if (m.has("stop_at_s")) c.stop_at_s = m.number("stop_at_s", std::nullopt, 0.0, kMaxEndTimeS);
   }
   m.finish();
   return c;

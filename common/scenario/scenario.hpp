@@ -101,6 +101,9 @@ struct ControllerConfig {
   std::vector<Vec2> waypoints;         // path_follower
   bool closed = false;
   control::PathFollowerConfig follower;
+  /// path_follower: from this simulated time on, full brake and no throttle (an emergency
+  /// stop; the path still steers). Unset: never.
+  std::optional<double> stop_at_s;
   convoy::FollowerConfig convoy;       // follower and policy: the vehicle followed (convoy.leader)
   std::string policy_file;             // policy: the learned policy (syndds_train's policy.pt)
   double policy_period_s = 0.1;        // policy: a new action every period (as in training)

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 #include "convoy/convoy_report.hpp"
 
@@ -52,4 +53,34 @@ TEST(ConvoyReport, PointsBeyondTheTrackEndsAreNotCrossTrack) {
   EXPECT_NEAR(distance_to_track(track, arc, Vec2(4, -2), u, inside), 2.0, 1e-12);
   EXPECT_TRUE(inside);
   EXPECT_NEAR(u, 4.0, 1e-12);
+}
+
+TEST(ConvoyReport, BumperGapIsBoxToBoxAndCountsTheTimeBelowStandstill) {
+  // HMMWV boxes (4.7 m long, centred on the reference point lengthwise). The leader stands at
+  // x = 20; the follower rolls from x = 0.005 towards it at 1 m/s for 13 s, ending 6.995 m
+  // centre to centre behind it: bumper gap 20 - x - 4.7, smallest 2.295 m at t = 13 s. Below
+  // the 5 m standstill gap once x > 10.3: from t = 10.30 s on, 271 frames of 0.01 s.
+  const BodyBox hmmwv{Vec3(0.0, 0.0, 0.45), Vec3(2.35, 1.08, 0.55)};
+  Track leader, follower;
+  for (int k = 0; k <= 1300; ++k) {
+    const double t = k * 0.01;
+    leader.push_back({t, Vec2(20.0, 0.0), 0.0});
+    follower.push_back({t, Vec2(k * 0.01 + 0.005, 0.0), 1.0});
+  }
+  const auto r = follower_report("f1", "l1", follower, leader, 0, 0, {hmmwv, hmmwv, 5.0}, 0.01);
+  EXPECT_NEAR(r.bumper_gap_m.min, 2.295, 1e-9);
+  EXPECT_NEAR(r.bumper_gap_m.max, 15.295, 1e-9);
+  EXPECT_EQ(r.bumper_gap_m.samples, 1301u);
+  EXPECT_NEAR(r.min_bumper_gap_time_s, 13.0, 1e-9);
+  EXPECT_EQ(r.standstill_bumper_m, 5.0);
+  EXPECT_NEAR(r.time_below_standstill_s, 2.71, 1e-9);
+  // The centre distance is still the distance gap.
+  EXPECT_NEAR(r.distance_gap_m.min, 6.995, 1e-9);
+
+  // The leader turned 90 degrees (crossing): its side, 1.08 m from its centre, faces the
+  // follower's front.
+  for (auto& p : leader) p.orientation = quat_from_yaw(std::numbers::pi / 2.0);
+  const auto turned =
+      follower_report("f1", "l1", follower, leader, 0, 0, {hmmwv, hmmwv, 5.0}, 0.01);
+  EXPECT_NEAR(turned.bumper_gap_m.min, 6.995 - 2.35 - 1.08, 1e-9);
 }

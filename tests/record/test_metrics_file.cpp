@@ -116,6 +116,10 @@ TEST(MetricsFile, ARunWithFollowersWritesTheDeviationMetrics) {
   EXPECT_EQ(f1["m_rs_avg"], 0.0);
   EXPECT_EQ(f1["m_rs_max"], 0.0);
   EXPECT_EQ(f1["obstacles_hit"], 0);
+  // 12 m behind its leader, 0.5 m aside: 12 - 4.7 m between the HMMWVs' boxes, never below
+  // the standstill gap.
+  EXPECT_EQ(f1["min_bumper_gap_m"], 7.3);
+  EXPECT_EQ(f1["time_below_standstill_s"], 0.0);
   EXPECT_EQ(f1["samples"], 77);
   EXPECT_EQ(f1["speed_samples"], 57);
   EXPECT_EQ(f1["relative_speed_samples"], 57);

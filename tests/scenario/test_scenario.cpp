@@ -50,6 +50,35 @@ TEST(Scenario, DefaultScenarioLoads) {
   EXPECT_EQ(members.back(), "recorder");
 }
 
+// controller.stop_at_s (path_follower): the emergency stop of docs/convoy.md; a bad value is
+// an error naming the file, the line and the key.
+TEST(Scenario, PathFollowerStopAtIsATimeAndOnlyForPathFollowers) {
+  EXPECT_FALSE(parse(kMinimal).vehicles[0].controller.stop_at_s.has_value());
+  const auto with = [](const std::string& value) {
+    std::string text = kMinimal;
+    text += "      stop_at_s: " + value + "\n";
+    return text;
+  };
+  const auto s = parse(with("12.5"));
+  ASSERT_TRUE(s.vehicles[0].controller.stop_at_s.has_value());
+  EXPECT_EQ(*s.vehicles[0].controller.stop_at_s, 12.5);
+  for (const std::string bad : {"-1", "2e6", ".nan", ".inf"}) {
+    SCOPED_TRACE(bad);
+    const std::string e = error_of(with(bad));
+    EXPECT_NE(e.find("test.yaml:9:18: vehicles[0].controller.stop_at_s: "), std::string::npos) << e;
+    const bool finite = bad[0] != '.';
+    EXPECT_NE(e.find(finite ? "must be in [0, 1e+06]" : "expected a finite number"),
+              std::string::npos)
+        << e;
+  }
+  EXPECT_NE(error_of(with("soon")).find("stop_at_s"), std::string::npos) << error_of(with("soon"));
+  // Not a key of the other controllers.
+  const std::string none = "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}\n"
+                           "vehicles:\n  - id: a\n    model: hmmwv\n"
+                           "    controller: {type: none, stop_at_s: 3}\n";
+  EXPECT_NE(error_of(none).find("unknown key 'stop_at_s'"), std::string::npos) << error_of(none);
+}
+
 TEST(Scenario, MinimalScenarioDefaultsAndMembers) {
   const auto s = parse(kMinimal);
   ASSERT_EQ(s.vehicles.size(), 1u);
