@@ -99,6 +99,7 @@ nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
                    {"standstill_bumper_m", r.standstill_bumper_m},
                    {"time_below_standstill_s", r.time_below_standstill_s},
                    {"obstacles_hit", r.obstacles_hit},
+                   {"vehicle_contacts", r.vehicle_contacts},
                    {"leader_lost_events", r.leader_lost_events}});
   }
   return out;
@@ -134,6 +135,7 @@ nlohmann::json metrics_json(const std::vector<FollowerMetrics>& all,
                          {"m_rs_avg", value(d.rel_speed, d.rel_speed.avg)},
                          {"m_rs_max", value(d.rel_speed, d.rel_speed.max)},
                          {"obstacles_hit", m.obstacles_hit},
+                         {"vehicle_contacts", m.vehicle_contacts},
                          {"min_bumper_gap_m", sig9(m.min_bumper_gap_m)},
                          {"time_below_standstill_s", sig9(m.time_below_standstill_s)},
                          {"samples", d.samples},
@@ -189,12 +191,13 @@ std::string metrics_table(const std::vector<FollowerMetrics>& all) {
 std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
   // Gaps in metres and seconds, cross-track in metres (definitions: docs/convoy.md).
   // Bumper: the smallest box-to-box gap, and the time spent below the standstill gap.
-  std::string text = fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>11}\n",
-                                 "follower", "follows", "gap m mean/min/max", "gap s mean/min/max",
-                                 "cross m mean/max", "bumper m min/<s", "obstacles",
-                                 "leader_lost");
+  std::string text = fmt::format(
+      "  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>8} {:>11}\n", "follower", "follows",
+      "gap m mean/min/max", "gap s mean/min/max", "cross m mean/max", "bumper m min/<s",
+      "obstacles", "contacts", "leader_lost");
   for (const auto& r : reports) {
-    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>11}\n", r.follower,
+    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>8} {:>11}\n",
+                        r.follower,
                         r.leader,
                         fmt::format("{:.1f}/{:.1f}/{:.1f}", r.distance_gap_m.mean,
                                     r.distance_gap_m.min, r.distance_gap_m.max),
@@ -202,7 +205,7 @@ std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
                                     r.time_gap_s.max),
                         fmt::format("{:.2f}/{:.2f}", r.cross_track_m.mean, r.cross_track_m.max),
                         fmt::format("{:.2f}/{:.2f}", r.bumper_gap_m.min, r.time_below_standstill_s),
-                        r.obstacles_hit, r.leader_lost_events);
+                        r.obstacles_hit, r.vehicle_contacts, r.leader_lost_events);
   }
   return text;
 }
@@ -514,6 +517,7 @@ void RecorderAgent::write_convoy_report() {
     convoy_.push_back(convoy::follower_report(
         follower, leader, tracks_[follower], tracks_[leader], t.collisions,
         lost == t.events.end() ? 0 : lost->second, gap_geometry_[follower], heartbeat_s_));
+    convoy_.back().vehicle_contacts = t.vehicle_contacts();
   }
   write_file_atomically(fs::path(options_.output_dir) / "convoy.json",
                         convoy_json(convoy_).dump(2) + "\n");
@@ -532,6 +536,7 @@ void RecorderAgent::write_metrics() {
     if (!f.empty()) m.follower_start_time_s = f[m.deviations.follower_start_index].time_s;
     if (!l.empty()) m.leader_end_time_s = l[m.deviations.leader_end_index].time_s;
     m.obstacles_hit = totals_.at(follower).collisions;
+    m.vehicle_contacts = totals_.at(follower).vehicle_contacts();
     for (const auto& r : convoy_) {
       if (r.follower != follower) continue;
       m.min_bumper_gap_m = r.bumper_gap_m.min;

@@ -59,6 +59,7 @@ struct FollowerMetrics {
   metrics::ChainLink chain;  // the leader it is compared with, the vehicle it follows
   metrics::Deviations deviations;
   std::uint64_t obstacles_hit = 0;
+  std::uint64_t vehicle_contacts = 0;  // collision episodes with other vehicles
   double follower_start_time_s = 0.0;  // start clip (on the follower's track)
   double leader_end_time_s = 0.0;      // end clip (on the leader's track)
   // Against the vehicle it follows (convoy report): smallest bumper gap, time below standstill.

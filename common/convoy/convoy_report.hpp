@@ -60,6 +60,7 @@ struct FollowerReport {
   double standstill_bumper_m = 0.0;    // the follower's standstill gap (bumper to bumper)
   double time_below_standstill_s = 0.0;  // frames with bumper gap < standstill, times their length
   std::size_t obstacles_hit = 0;
+  std::size_t vehicle_contacts = 0;    // collision episodes with other vehicles (set by the caller)
   std::size_t leader_lost_events = 0;
 };
 
