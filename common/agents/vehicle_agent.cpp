@@ -189,8 +189,9 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
       for (auto& m : v2v_->step(ctx.frame, ctx.sim_time_s)) outputs.v2v_messages.push_back(m);
     }
   }
-  outputs.vehicle_states.push_back(state_message(ctx.frame, ctx.sim_time_s));
-  outputs.contact_bodies.push_back(body_message());
+  const vehicle::VehicleSnapshot snapshot = model_->snapshot();
+  outputs.vehicle_states.push_back(state_message(snapshot, ctx.frame, ctx.sim_time_s));
+  outputs.contact_bodies.push_back(body_message(snapshot));
   if (soil_) {
     // Every frame opens a new merge window; only non-empty lists travel.
     const auto changes = soil_->take_local_changes();
@@ -235,8 +236,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
   }
 }
 
-proto::VehicleBodyMsg VehicleAgent::body_message() const {
-  const vehicle::VehicleSnapshot s = model_->snapshot();
+proto::VehicleBodyMsg VehicleAgent::body_message(const vehicle::VehicleSnapshot& s) const {
   proto::VehicleBodyMsg b;
   b.vehicle_id = vehicle_id_;
   b.pose = s.pose;
@@ -254,7 +254,7 @@ void VehicleAgent::set_peers(const std::vector<proto::VehicleBodyMsg>& bodies) {
   // now, bit for bit.
   std::vector<vehicle::PeerVehicle> peers;
   if (!bodies.empty()) {
-    const proto::VehicleBodyMsg own = body_message();
+    const proto::VehicleBodyMsg own = body_message(model_->snapshot());
     for (const auto& b : bodies) {
       if (b.vehicle_id == vehicle_id_ || !proto::within_reach(own, b, heartbeat_s_)) continue;
       const auto it = vehicle_params_.find(b.vehicle_id);
@@ -275,8 +275,8 @@ void VehicleAgent::set_peers(const std::vector<proto::VehicleBodyMsg>& bodies) {
   model_->set_peers(std::move(peers));
 }
 
-proto::VehicleStateMsg VehicleAgent::state_message(std::int64_t frame, double sim_time_s) const {
-  const vehicle::VehicleSnapshot s = model_->snapshot();
+proto::VehicleStateMsg VehicleAgent::state_message(const vehicle::VehicleSnapshot& s,
+                                                   std::int64_t frame, double sim_time_s) const {
   proto::VehicleStateMsg m;
   m.vehicle_id = vehicle_id_;
   m.source = member_id_;

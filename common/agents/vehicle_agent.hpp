@@ -60,9 +60,10 @@ class VehicleAgent final : public proto::Agent {
   bool controller_lost() const { return controller_lost_; }
 
  private:
-  proto::VehicleStateMsg state_message(std::int64_t frame, double sim_time_s) const;
-  /// This vehicle's collision state now, for the others' contact step.
-  proto::VehicleBodyMsg body_message() const;
+  proto::VehicleStateMsg state_message(const vehicle::VehicleSnapshot& s, std::int64_t frame,
+                                       double sim_time_s) const;
+  /// This vehicle's collision state in `s`, for the others' contact step.
+  proto::VehicleBodyMsg body_message(const vehicle::VehicleSnapshot& s) const;
   /// The other vehicles within reach among the bodies of frame k-1, to the model.
   void set_peers(const std::vector<proto::VehicleBodyMsg>& bodies);
   void note_departed(const proto::FrameContext& ctx, proto::FrameSamples& outputs);

@@ -59,15 +59,6 @@ bool within_reach(const VehicleBodyMsg& a, const VehicleBodyMsg& b, double frame
 
 std::vector<VehicleBodyMsg> select_contact_bodies(std::vector<VehicleBodyMsg> bodies,
                                                   double frame_s) {
-  std::stable_sort(bodies.begin(), bodies.end(),
-                   [](const VehicleBodyMsg& a, const VehicleBodyMsg& b) {
-                     return a.vehicle_id < b.vehicle_id;
-                   });
-  bodies.erase(std::unique(bodies.begin(), bodies.end(),
-                           [](const VehicleBodyMsg& a, const VehicleBodyMsg& b) {
-                             return a.vehicle_id == b.vehicle_id;
-                           }),
-               bodies.end());
   std::vector<Reach> reach;
   reach.reserve(bodies.size());
   for (const auto& b : bodies) reach.push_back(reach_of(b));
@@ -82,6 +73,15 @@ std::vector<VehicleBodyMsg> select_contact_bodies(std::vector<VehicleBodyMsg> bo
   for (std::size_t i = 0; i < bodies.size(); ++i) {
     if (keep[i]) out.push_back(std::move(bodies[i]));
   }
+  // Only the few selected are sorted (most frames: none).
+  std::stable_sort(out.begin(), out.end(), [](const VehicleBodyMsg& a, const VehicleBodyMsg& b) {
+    return a.vehicle_id < b.vehicle_id;
+  });
+  out.erase(std::unique(out.begin(), out.end(),
+                        [](const VehicleBodyMsg& a, const VehicleBodyMsg& b) {
+                          return a.vehicle_id == b.vehicle_id;
+                        }),
+            out.end());
   return out;
 }
 

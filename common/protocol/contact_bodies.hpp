@@ -18,7 +18,7 @@ Rect2 footprint_rect(const VehicleBodyMsg& body);
 bool within_reach(const VehicleBodyMsg& a, const VehicleBodyMsg& b, double frame_s);
 
 /// The bodies of vehicles within reach of at least one other, sorted by vehicle_id (a vehicle
-/// reported twice keeps its first body in that order).
+/// reported twice keeps the body that came first).
 std::vector<VehicleBodyMsg> select_contact_bodies(std::vector<VehicleBodyMsg> bodies,
                                                   double frame_s);
 
