@@ -2,6 +2,7 @@
 // per invocation, run by tests/viewer/browser_tests.sh, which starts the programs.
 //   node browser_tests.mjs replay URL SHOT.png        default scenario, recorded
 //   node browser_tests.mjs ruts URL SHOT.png          scm_crossing, recorded
+//   node browser_tests.mjs contact URL SHOT.png       a recorded head-on: its contact marks
 //   node browser_tests.mjs live URL                   a live scm_crossing run
 //   node browser_tests.mjs watch URL [sensors]        a live run: states arrive (with
 //                                                     `sensors`: lead's camera and lidar too);
@@ -208,6 +209,28 @@ async function origin() {
   }
 }
 
-const cases = { replay, ruts, live, watch, origin };
+// Two HMMWVs driven head-on (tests/multiprocess/scenarios/vehicle_contact_head_on.yaml): each
+// vehicle's collision with the other is a red mark at the contact point, shown from its frame on.
+async function contact() {
+  const { browser, page } = await openViewer(url);
+  try {
+    const frames = await page.evaluate(() => window.syndds.frames);
+    const marks = await page.evaluate(() => window.syndds.contactMarks);
+    log(`${marks} contact marks`);
+    assert.equal(marks, 2, 'a mark for each vehicle of the head-on');
+    await moveSlider(page, 0);
+    assert.equal(await page.evaluate(() => window.syndds.visibleContactMarks()), 0,
+                 'no mark before the contact');
+    await moveSlider(page, frames - 1);
+    assert.equal(await page.evaluate(() => window.syndds.visibleContactMarks()), 2,
+                 'both marks after it');
+    await page.evaluate(() => { window.syndds.select('a'); window.syndds.setView('follow'); });
+    await page.screenshot({ path: shot });
+  } finally {
+    await browser.close();
+  }
+}
+
+const cases = { replay, ruts, live, watch, origin, contact };
 if (!cases[kind]) { console.error(`unknown case ${kind}`); process.exit(1); }
 cases[kind]().then(() => log('passed'), (e) => { console.error(`browser_tests ${kind}: FAILED: ${e.message}`); process.exit(1); });

@@ -2,9 +2,10 @@
 # The viewer as a user meets it, in headless Chromium: one case per call (CTest runs each in its
 # own network namespace through tests/netns_exec.sh). Exit 77 (skipped) without chromium or the
 # npm packages (launch_scripts/setup.sh installs both).
-#   browser_tests.sh replay|ruts|live|kill|origin OUT_DIR
+#   browser_tests.sh replay|ruts|contact|live|kill|origin OUT_DIR
 #     replay  the default scenario recorded: loads, the slider moves the vehicles, screenshot
 #     ruts    scm_crossing recorded: the ruts are replayed and change the picture, screenshot
+#     contact two vehicles head-on recorded: a contact mark per vehicle, from the contact on
 #     live    scm_crossing live with --view: ruts appear while it runs; vehicles.csv is
 #             byte-identical to the single-process run
 #     kill    the default scenario live: the viewer is killed (SIGKILL) while a browser watches;
@@ -49,6 +50,12 @@ case "$CASE" in
     single default 10 "$work/run"
     replay_viewer "$work/run"
     node "$ROOT/tests/viewer/browser_tests.mjs" replay "$(cat "$work/url")" "$OUT/viewer_default.png"
+    ;;
+  contact)
+    "$BIN/syndds_sim" "$ROOT/tests/multiprocess/scenarios/vehicle_contact_head_on.yaml" \
+        --output "$work/run" --quiet --log-level warn
+    replay_viewer "$work/run"
+    node "$ROOT/tests/viewer/browser_tests.mjs" contact "$(cat "$work/url")" "$OUT/viewer_contact.png"
     ;;
   ruts)
     single scm_crossing 8 "$work/run"

@@ -82,6 +82,7 @@ const contactMaterials = {
   obstacle: new THREE.MeshBasicMaterial({ color: 0xff9900 }),
 };
 window.syndds.contactMarks = 0;
+window.syndds.visibleContactMarks = () => contactMarks.children.filter((m) => m.visible).length;
 function addContactMark(at, vehicleContact) {
   const m = new THREE.Mesh(contactGeometry, vehicleContact ? contactMaterials.vehicle : contactMaterials.obstacle);
   m.position.set(at[0], at[1], at[2] + 0.3);
