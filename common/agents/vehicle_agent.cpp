@@ -173,8 +173,8 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
     model_->set_inputs({cmd.steering, cmd.throttle, cmd.braking});
   }
   note_departed(ctx, outputs);
-  if (ctx.frame > 0) set_peers(inputs.contact_bodies);
   if (ctx.frame > 0) {
+    set_peers(inputs.contact_bodies);
     for (std::int64_t i = 0; i < steps_per_frame_; ++i) {
       model_->advance(step_s_);
       // Interoceptive sensors sample the dynamics at every step (their rate and lag are theirs).

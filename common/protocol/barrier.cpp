@@ -106,7 +106,7 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
   if (m.done) return "";
   m.done = true;
   m.published = done.published;
-  m.body = done.body;
+  m.body.clear();
   m.checkpoint_bytes = done.checkpoint_bytes;
   const double response = now_s - grant_s_;
   m.response_sum_s += response;
@@ -114,6 +114,15 @@ std::string Barrier::on_done(const FrameDoneMsg& done, double now_s) {
   m.compute_sum_s += done.compute_s;
   ++m.responses;
   last_done_member_ = done.member_id;
+  // A contact body is a vehicle member's own: vehicle/<id> reporting vehicle <id>, at most one.
+  // Another is dropped (the done still counts): nobody may move someone else's vehicle.
+  if (!done.body.empty()) {
+    if (done.body.size() > 1 || done.member_id != "vehicle/" + done.body.front().vehicle_id) {
+      return "dropping the contact body in done from '" + done.member_id + "' (vehicle '" +
+             done.body.front().vehicle_id + "'): only vehicle/<id> reports <id>'s, once";
+    }
+    m.body = done.body;
+  }
   return "";
 }
 

@@ -124,8 +124,8 @@ void BicycleModel::resolve_contacts(double dt) {
     q.rect.yaw += dt * q.yaw_rate;
     const Rect2 own = own_rect();
     const RectOverlap ov = rect_overlap(own, q.rect);
-    PeerEpisode& e = peer_episodes_[q.id];
     if (ov.depth <= 0.0) continue;
+    PeerEpisode& e = peer_episodes_[q.id];
     const Vec2 n = ov.normal;  // from this vehicle to the peer
     const Vec2 u = speed_ * dir;
     const double closing = (u - q.velocity).dot(n);
