@@ -39,6 +39,7 @@ TERRAINS = {
         "  area: {x_min_m: -45, x_max_m: 210, y_min_m: -10, y_max_m: 35}")},
 }
 MIXES = {"1L3F": 1, "2L2F": 2, "3L1F": 3}
+STANDSTILL_BUMPER_M = 5.0   # followers' standstill gap, bumper to bumper (HMMWV: 4.7 m long)
 SEEDS = {"rigid": 101, "scm_hard": 102, "scm_soft": 103}
 
 
@@ -154,7 +155,8 @@ def scenario(mix, terrain, policy=None):
             else:
                 lines.append("      type: follower")
                 lines.append(f"      follow: {ahead}")
-                lines.append("      gap: {time_s: 1.0, standstill_m: 10}")
+                lines.append("      gap: {time_s: 1.0, "
+                             f"standstill_bumper_m: {STANDSTILL_BUMPER_M:g}}}")
     return "\n".join(lines) + "\n"
 
 
@@ -193,7 +195,7 @@ def learned(terrain, follower):
         lines += ["      type: policy", "      follow: l1", f"      model: {POLICY}"]
     else:
         lines += ["      type: follower", "      follow: l1",
-                  "      gap: {time_s: 1.0, standstill_m: 10}"]
+                  f"      gap: {{time_s: 1.0, standstill_bumper_m: {STANDSTILL_BUMPER_M:g}}}"]
     return "\n".join(lines) + "\n"
 
 
