@@ -7,11 +7,29 @@
 namespace syndds::agents {
 namespace {
 
-convoy::FollowerVehicle follower_vehicle(const vehicle::VehicleParams& p) {
+// The GPS antenna's place along the vehicle (the follower's positions are the antenna's).
+double antenna_x(const scenario::VehicleConfig& v) {
+  if (!v.sensors || v.sensors->rig.gps.empty()) return 0.0;
+  return v.sensors->rig.gps.front().mount.pose.position.x();
+}
+
+// What the follower knows of its own vehicle and, from the scenario, of the one it follows:
+// dimensions, not states.
+convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
+                                         const scenario::VehicleConfig* leader) {
+  const vehicle::VehicleParams& p = own.params;
   convoy::FollowerVehicle v;
   v.wheelbase_m = p.wheelbase_m();
+  v.half_track_m = p.front.half_track_m;
   v.max_steer_rad = p.steering.max_angle_deg * std::numbers::pi / 180.0;
+  v.inner_wheel_input = own.dynamics == "full";
   v.wheel_radius_m = p.wheels.radius_m;
+  v.front_m = p.chassis.box_centre_m.x() + p.chassis.half_extents_m.x() - antenna_x(own);
+  if (leader) {
+    const auto& c = leader->params.chassis;
+    v.leader_rear_m = c.half_extents_m.x() - c.box_centre_m.x() + antenna_x(*leader);
+    v.leader_wheelbase_m = leader->params.wheelbase_m();
+  }
   return v;
 }
 
@@ -23,11 +41,14 @@ sensors::GeodeticConverter converter(const scenario::VehicleConfig& v) {
 
 }  // namespace
 
-FollowerAgent::FollowerAgent(const scenario::Scenario&, const scenario::VehicleConfig& vehicle)
+FollowerAgent::FollowerAgent(const scenario::Scenario& scenario,
+                             const scenario::VehicleConfig& vehicle)
     : vehicle_id_(vehicle.id),
       leader_id_(vehicle.controller.convoy.leader),
       member_id_(scenario::controller_member(vehicle.id)),
-      follower_(vehicle.controller.convoy, follower_vehicle(vehicle.params), converter(vehicle)) {}
+      follower_(vehicle.controller.convoy,
+                follower_vehicle(vehicle, scenario.find_vehicle(vehicle.controller.convoy.leader)),
+                converter(vehicle)) {}
 
 std::vector<proto::Subscription> FollowerAgent::subscriptions() const {
   return {{proto::Topic::gps_fix, vehicle_id_},

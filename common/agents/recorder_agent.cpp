@@ -71,17 +71,6 @@ convoy::BodyBox body_box(const vehicle::VehicleParams& p) {
   return {p.chassis.box_centre_m, p.chassis.half_extents_m};
 }
 
-// The follower's standstill gap as a bumper-to-bumper distance: its gap law's centre distance
-// less its own box's front and its leader's box's rear (both from the chassis reference point).
-double standstill_bumper(const scenario::VehicleConfig& follower,
-                         const scenario::VehicleConfig& leader) {
-  const auto& f = follower.params.chassis;
-  const auto& l = leader.params.chassis;
-  const double front = f.box_centre_m.x() + f.half_extents_m.x();
-  const double rear = l.half_extents_m.x() - l.box_centre_m.x();
-  return follower.controller.convoy.standstill_m - front - rear;
-}
-
 nlohmann::json stat_json(const convoy::Stat& s) {
   return {{"mean", s.mean}, {"min", s.min}, {"max", s.max}, {"samples", s.samples}};
 }
@@ -235,7 +224,7 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
     const auto* l = scenario.find_vehicle(leader);
     if (!f || !l) continue;  // the scenario's own checks refuse this; chains_ below names it
     gap_geometry_[follower] = {body_box(f->params), body_box(l->params),
-                               standstill_bumper(*f, *l)};
+                               f->controller.convoy.standstill_bumper_m};
   }
   // Each follower is measured against the head of its chain: a chain must have one, which
   // the scenario's own checks (each follower follows another vehicle) do not ensure.

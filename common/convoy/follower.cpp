@@ -12,12 +12,56 @@
 namespace syndds::convoy {
 namespace {
 
+// No tyre brakes a vehicle harder than about 0.9 g, nor drives it harder than half that: a
+// wheel speed that falls faster is a locked wheel (it reads 0 while the vehicle still slides),
+// a V2V speed difference beyond these is noise or a lock.
+constexpr double kMaxDecelMps2 = 9.0;
+constexpr double kMaxAccelMps2 = 5.0;
+// A deceleration below this is cruising: the leader is not braking to a stop.
+constexpr double kBrakingMps2 = 0.1;
+// Slower than this (its tachometer's noise is about 0.01 m/s) the leader stands still.
+constexpr double kMovingMps = 0.2;
+// Below this speed, asked for less than this, the follower holds the brake.
+constexpr double kHoldMps = 0.3;
+// Own yaw rate: compass differences smoothed over this time.
+constexpr double kYawRateS = 0.2;
+// Understeer learned from the follower's own driving: memory, the evidence the configured
+// starting value weighs, the speeds and lateral accelerations that count, and its bounds.
+constexpr double kUndersteerMemoryS = 10.0;
+constexpr double kUndersteerPrior = 1.0;
+constexpr double kUndersteerMinMps = 2.0;
+constexpr double kUndersteerMinAccel = 0.3;
+constexpr double kUndersteerMin = -0.02;
+constexpr double kUndersteerMax = 0.1;
+// Share of the GPS gain taken across the heading: dead reckoning holds the lateral position
+// better than along the track (no wheel slip across), so the fixes' noise is filtered harder.
+constexpr double kAcrossShare = 0.33;
+// Steering: the curvature is read this long ahead (the steering's own lag and the frame of
+// latency of the command), averaged over +- this window of trail (the crumbs' compass yaws
+// are noisy, 0.01 rad each); the cross-track gain is softened at low speed by this speed.
+constexpr double kPreviewS = 0.15;
+constexpr double kCurvatureWindowM = 2.0;
+constexpr double kSoftSpeedMps = 1.0;
 Vec2 direction(double yaw) { return Vec2(std::cos(yaw), std::sin(yaw)); }
 
-double wrap_angle(double a) {
-  a = std::fmod(a + std::numbers::pi, 2.0 * std::numbers::pi);
-  if (a < 0.0) a += 2.0 * std::numbers::pi;
-  return a - std::numbers::pi;
+// Pulls an estimate towards a measurement, with one gain along `yaw` and another across it.
+// The first fixes are averaged (gain 1 / n) until the gains fall to their steady values, so
+// that the estimate does not start with the first fix's whole noise and take seconds to
+// forget it (a wiggle the trail would keep).
+void fuse(Vec2& estimate, const Vec2& measured, double yaw, double along, double across) {
+  const Vec2 d = direction(yaw);
+  const Vec2 n(-d.y(), d.x());
+  const Vec2 innovation = measured - estimate;
+  estimate += along * innovation.dot(d) * d + across * innovation.dot(n) * n;
+}
+
+// Kinematic side slip of the mid-wheelbase point: turning about a centre on the rear axle's
+// line, it moves at asin(L/2 * k) to the body's heading (k = r / v, its path's curvature),
+// towards the inside of the turn (0.17 rad on a 10 m radius). Dead reckoning along the body's
+// heading would drift outwards in every bend.
+double mid_slip(double wheelbase, double yaw_rate, double speed) {
+  if (speed < 0.5) return 0.0;
+  return std::asin(std::clamp(0.5 * wheelbase * yaw_rate / speed, -1.0, 1.0));
 }
 
 }  // namespace
@@ -31,16 +75,33 @@ ConvoyFollower::ConvoyFollower(FollowerConfig config, FollowerVehicle vehicle,
     : config_(std::move(config)),
       vehicle_(vehicle),
       converter_(converter),
-      speed_pid_(config_.speed_pid, 5.0) {}
+      speed_pid_(config_.speed_pid, 5.0),
+      understeer_(config_.understeer_rad_per_mps2) {}
 
 void ConvoyFollower::update_own(double time_s, double dt, const OwnReadings& own) {
-  if (!own.compass.empty()) yaw_reading_ = yaw_from_heading(own.compass.back().heading_rad);
-  if (!own.wheel_speeds.empty()) {
-    speed_reading_ = tachometer_speed(own.wheel_speeds.back().wheel_spin_rad_s,
-                                      vehicle_.wheel_radius_m);
+  // Yaw rate: the compass readings' differences, smoothed over about kYawRateS.
+  for (const auto& c : own.compass) {
+    const double yaw = yaw_from_heading(c.heading_rad);
+    const double between = c.stamp.time_s - compass_time_s_;
+    if (yaw_reading_ && compass_time_s_ >= 0.0 && between > 1e-9) {
+      const double rate = std::clamp(wrap_angle(yaw - *yaw_reading_) / between, -2.0, 2.0);
+      own_yaw_rate_ += between / (kYawRateS + between) * (rate - own_yaw_rate_);
+    }
+    yaw_reading_ = yaw;
+    compass_time_s_ = c.stamp.time_s;
   }
+  if (!own.wheel_speeds.empty()) {
+    const double tachometer = tachometer_speed(own.wheel_speeds.back().wheel_spin_rad_s,
+                                               vehicle_.wheel_radius_m);
+    // Locked wheels read 0 while the vehicle slides on: the speed falls no faster than a
+    // vehicle can brake.
+    const double floor = own_ ? own_->speed - kMaxDecelMps2 * dt : -1e9;
+    speed_reading_ = std::max(tachometer, floor);
+  }
+  const double slip = own_ ? mid_slip(vehicle_.wheelbase_m, own_yaw_rate_, own_->speed) : 0.0;
   if (own_) {
-    own_->position += own_->speed * dt * direction(own_->yaw);  // dead reckoning
+    // Dead reckoning along the direction of motion: the heading plus the side slip.
+    own_->position += own_->speed * dt * direction(own_->yaw + slip);
     if (yaw_reading_) own_->yaw = *yaw_reading_;
     own_->speed = speed_reading_;
   }
@@ -48,18 +109,27 @@ void ConvoyFollower::update_own(double time_s, double dt, const OwnReadings& own
     if (!yaw_reading_) continue;  // a fix is only useful with a heading to project it along
     const Vec3 enu = converter_.to_enu({fix.latitude_deg, fix.longitude_deg, fix.altitude_m});
     const double age = std::max(0.0, time_s - fix.stamp.time_s);
-    const Vec2 now = Vec2(enu.x(), enu.y()) + speed_reading_ * age * direction(*yaw_reading_);
+    const Vec2 now =
+        Vec2(enu.x(), enu.y()) + speed_reading_ * age * direction(*yaw_reading_ + slip);
     if (!own_) {
       own_ = Estimate{now, *yaw_reading_, speed_reading_};
     } else {
-      own_->position += config_.fix_gain * (now - own_->position);
+      const double first = 1.0 / static_cast<double>(++own_fixes_ + 1);
+      fuse(own_->position, now, own_->yaw, std::max(config_.fix_gain, first),
+           std::max(kAcrossShare * config_.fix_gain, first));
     }
   }
 }
 
-void ConvoyFollower::update_leader(double time_s, double dt,
+bool ConvoyFollower::update_leader(double time_s, double dt,
                                    const std::vector<proto::V2VMessageMsg>& msgs) {
-  if (leader_) leader_->position += leader_->speed * dt * direction(leader_->yaw);
+  if (leader_) {
+    const double slip = mid_slip(vehicle_.leader_wheelbase_m, leader_yaw_rate_, leader_->speed);
+    const double heading = leader_->yaw + 0.5 * leader_yaw_rate_ * dt + slip;
+    leader_->position += leader_->speed * dt * direction(heading);
+    leader_->yaw = wrap_angle(leader_->yaw + leader_yaw_rate_ * dt);
+  }
+  bool fused = false;
   for (const auto& m : msgs) {
     if (m.vehicle_id != config_.leader) continue;
     // A message older than one already used (reordered, replayed) tells nothing new.
@@ -70,38 +140,65 @@ void ConvoyFollower::update_leader(double time_s, double dt,
     const Vec3 enu = converter_.to_enu({m.latitude_deg, m.longitude_deg, m.altitude_m});
     const double yaw = yaw_from_heading(m.heading_rad);
     const double age = std::max(0.0, time_s - m.sensor_time_s);
-    const Vec2 now = Vec2(enu.x(), enu.y()) + m.speed_mps * age * direction(yaw);
     if (!leader_) {
+      const Vec2 now = Vec2(enu.x(), enu.y()) + m.speed_mps * age * direction(yaw);
       leader_ = Estimate{now, yaw, m.speed_mps};
     } else {
-      leader_->position += config_.leader_fix_gain * (now - leader_->position);
+      // Acceleration and yaw rate: the changes of the tachometer speed and of the compass
+      // heading since the previous message, over the time between their arrivals (a fixed
+      // number of frames after each was built); the yaw rate smoothed over about two messages.
+      const double between = time_s - leader_speed_time_s_;
+      if (leader_speed_time_s_ >= 0.0 && between > 1e-9) {
+        leader_accel_ = std::clamp((m.speed_mps - leader_speed_) / between, -kMaxDecelMps2,
+                                   kMaxAccelMps2);
+        const double rate =
+            std::clamp(wrap_angle(yaw - leader_heading_yaw_) / between, -2.0, 2.0);
+        leader_yaw_rate_ += 0.5 * (rate - leader_yaw_rate_);
+      }
+      const double slip = mid_slip(vehicle_.leader_wheelbase_m, leader_yaw_rate_, m.speed_mps);
+      const Vec2 now = Vec2(enu.x(), enu.y()) + m.speed_mps * age * direction(yaw + slip);
+      const double first = 1.0 / static_cast<double>(++leader_fixes_ + 1);
+      fuse(leader_->position, now, yaw, std::max(config_.leader_fix_gain, first),
+           std::max(kAcrossShare * config_.leader_fix_gain, first));
       leader_->yaw = yaw;
       leader_->speed = m.speed_mps;
     }
+    leader_speed_ = m.speed_mps;
+    leader_heading_yaw_ = yaw;
+    leader_speed_time_s_ = time_s;
+    fused = true;
   }
+  return fused;
 }
 
 void ConvoyFollower::extend_trail() {
-  if (!leader_) return;
   if (trail_.empty()) {
     // The trail starts where the follower stands: the stretch to the leader's first reported
-    // position is the one part it has not seen the leader drive.
+    // position is the one part it has not seen the leader drive (its direction is its yaw).
     trail_.push_back(own_->position);
+    trail_yaw_.push_back(leader_->yaw);
     trail_s_.push_back(0.0);
   }
+  // Only a moving leader lays crumbs: standing, its estimate wanders with the GPS noise, and
+  // crumbs laid back and forth would lengthen the trail (the gap) that is not there.
   const double d = (leader_->position - trail_.back()).norm();
-  if (d >= config_.crumb_spacing_m) {
-    trail_.push_back(leader_->position);
-    trail_s_.push_back(trail_s_.back() + d);
+  if (d < config_.crumb_spacing_m || leader_->speed < kMovingMps) return;
+  if (trail_.size() == 1 && d > 1.0) {
+    const Vec2 to = leader_->position - trail_.back();
+    trail_yaw_[0] = std::atan2(to.y(), to.x());
   }
+  trail_.push_back(leader_->position);
+  trail_yaw_.push_back(leader_->yaw);
+  trail_s_.push_back(trail_s_.back() + d);
 }
 
 double ConvoyFollower::project_on_trail(const Vec2& p) {
-  // Search forward from the last segment (a few metres of slack behind): progress is monotone,
-  // so a trail that loops back near itself is never taken by its later part too early.
+  // Search forward from the last segment: progress is monotone, so a trail that loops back
+  // near itself is never taken by its later part too early.
   double best_d2 = std::numeric_limits<double>::infinity();
   double best_s = trail_s_.empty() ? 0.0 : trail_s_[trail_index_];
   std::size_t best_i = trail_index_;
+  double best_cross = 0.0;
   for (std::size_t i = trail_index_; i + 1 < trail_.size(); ++i) {
     const Vec2 a = trail_[i];
     const Vec2 ab = trail_[i + 1] - a;
@@ -112,10 +209,14 @@ double ConvoyFollower::project_on_trail(const Vec2& p) {
       best_d2 = d2;
       best_i = i;
       best_s = trail_s_[i] + u * std::sqrt(len2);
+      // Signed: > 0 when the follower is left of the trail.
+      const Vec2 ap = p - a;
+      best_cross = len2 > 0.0 ? (ab.x() * ap.y() - ab.y() * ap.x()) / std::sqrt(len2) : 0.0;
     }
     if (trail_s_[i] > best_s + 30.0) break;  // far enough past the best: stop looking
   }
   trail_index_ = best_i;
+  cross_track_m_ = std::isfinite(best_d2) ? best_cross : 0.0;
   return best_s;
 }
 
@@ -129,17 +230,85 @@ Vec2 ConvoyFollower::trail_point(double s) const {
     return last + std::min(1.0, (s - trail_length()) / rest) * to_leader;
   }
   const auto it = std::upper_bound(trail_s_.begin(), trail_s_.end(), s);
-  const std::size_t i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(it - trail_s_.begin() - 1, 0));
+  const std::size_t i =
+      static_cast<std::size_t>(std::max<std::ptrdiff_t>(it - trail_s_.begin() - 1, 0));
   const double len = trail_s_[i + 1] - trail_s_[i];
   const double u = len > 0.0 ? (s - trail_s_[i]) / len : 0.0;
   return trail_[i] + u * (trail_[i + 1] - trail_[i]);
+}
+
+double ConvoyFollower::trail_yaw(double s) const {
+  if (s <= 0.0 || trail_.size() < 2) return trail_yaw_.front();
+  if (s >= trail_length()) return trail_yaw_.back();
+  const auto it = std::upper_bound(trail_s_.begin(), trail_s_.end(), s);
+  const std::size_t i =
+      static_cast<std::size_t>(std::max<std::ptrdiff_t>(it - trail_s_.begin() - 1, 0));
+  const double len = trail_s_[i + 1] - trail_s_[i];
+  const double u = len > 0.0 ? (s - trail_s_[i]) / len : 0.0;
+  return trail_yaw_[i] + u * wrap_angle(trail_yaw_[i + 1] - trail_yaw_[i]);
+}
+
+double ConvoyFollower::trail_curvature(double s, double w) const {
+  const double a = std::clamp(s - w, 0.0, trail_length());
+  const double b = std::clamp(s + w, 0.0, trail_length());
+  if (b - a < 0.5) return 0.0;
+  return wrap_angle(trail_yaw(b) - trail_yaw(a)) / (b - a);
+}
+
+double ConvoyFollower::kinematic_angle(double k) const {
+  // The reference point (mid-wheelbase) on radius R turns about a centre on the rear axle's
+  // line at R_rear = sqrt(R^2 - (L/2)^2) from the rear axle's centre: tan(delta) = L / R_rear.
+  if (std::abs(k) < 1e-9) return 0.0;
+  const double l = vehicle_.wheelbase_m;
+  const double r = 1.0 / std::abs(k);
+  const double r_rear = std::sqrt(std::max(r * r - 0.25 * l * l, 1e-6));
+  return std::copysign(std::atan(l / r_rear), k);
+}
+
+double ConvoyFollower::max_bicycle_angle() const {
+  if (!vehicle_.inner_wheel_input) return vehicle_.max_steer_rad;
+  const double l = vehicle_.wheelbase_m;
+  return std::atan(l / (l / std::tan(vehicle_.max_steer_rad) + vehicle_.half_track_m));
+}
+
+double ConvoyFollower::steering_input(double bicycle_angle) const {
+  if (!vehicle_.inner_wheel_input) {
+    return std::clamp(bicycle_angle / vehicle_.max_steer_rad, -1.0, 1.0);
+  }
+  // The input sets the inner road wheel (docs/vehicle-dynamics.md): for the bicycle's turn
+  // radius R_rear = L / tan(delta) at the rear axle, tan(inner) = L / (R_rear - t/2).
+  const double t = std::tan(std::min(std::abs(bicycle_angle), 1.5));
+  if (t < 1e-12) return 0.0;
+  const double l = vehicle_.wheelbase_m;
+  const double denominator = l / t - vehicle_.half_track_m;
+  const double inner = denominator > 1e-6 ? std::atan(l / denominator) : std::numbers::pi / 2.0;
+  return std::copysign(std::min(inner / vehicle_.max_steer_rad, 1.0), bicycle_angle);
+}
+
+void ConvoyFollower::learn_understeer(double dt, double v) {
+  // Road-wheel angle = kinematic angle of the curvature driven + K * lateral acceleration: K
+  // by least squares over the last kUndersteerMemoryS of the follower's own steering and
+  // compass (about 0.001 rad per m/s2 on rigid ground, 0.017 on hard soil, 0.06 on soft), so
+  // that the feed-forward turns as much as this ground needs. Starts from the configured value,
+  // weighted as kUndersteerPrior (m/s2)^2 s of evidence; the memory counts time in bends.
+  const double ay = v * own_yaw_rate_;
+  if (v > kUndersteerMinMps && std::abs(ay) > kUndersteerMinAccel) {
+    // Old evidence fades only while new comes in: on a straight the estimate keeps its value.
+    const double forget = std::exp(-dt / kUndersteerMemoryS);
+    const double residual = steer_smoothed_ - kinematic_angle(own_yaw_rate_ / v);
+    understeer_num_ = forget * understeer_num_ + residual * ay * dt;
+    understeer_den_ = forget * understeer_den_ + ay * ay * dt;
+  }
+  const double prior = config_.understeer_rad_per_mps2 * kUndersteerPrior;
+  understeer_ = std::clamp((understeer_num_ + prior) / (understeer_den_ + kUndersteerPrior),
+                           kUndersteerMin, kUndersteerMax);
 }
 
 vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const OwnReadings& own,
                                              const std::vector<proto::V2VMessageMsg>& leader,
                                              std::vector<FollowerEvent>& events) {
   update_own(time_s, dt, own);
-  update_leader(time_s, dt, leader);
+  const bool fused = update_leader(time_s, dt, leader);
   vehicle::DriverInputs hold;
   hold.braking = 1.0;
   if (!own_) return hold;  // no fix or heading yet: stay put
@@ -157,36 +326,52 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
     events.push_back({"leader_found", "v2v messages from " + config_.leader + " again"});
   }
   if (!leader_) return hold;
-  extend_trail();
+  if (fused || trail_.empty()) extend_trail();
 
-  // Steering: pure pursuit on the trail.
+  // Steering: the trail's curvature ahead as a feed-forward, the leader's heading there and
+  // the distance to the trail as feedback.
   const double s_here = project_on_trail(own_->position);
-  const double lookahead =
-      std::max(config_.lookahead_min_m, config_.lookahead_time_s * own_->speed);
-  const Vec2 target = trail_point(s_here + lookahead);
-  const Vec2 d = target - own_->position;
-  const Vec2 fwd = direction(own_->yaw);
-  const double x = d.dot(fwd);
-  const double y = fwd.x() * d.y() - fwd.y() * d.x();
-  const double l2 = std::max(d.squaredNorm(), 1e-6);
-  const double curvature = x > 0.0 ? 2.0 * y / l2 : std::copysign(2.0 / std::sqrt(l2), y);
-  const double steer = std::atan(vehicle_.wheelbase_m * curvature);
+  const double v = std::max(own_->speed, 0.0);
+  const double k_ahead = trail_curvature(s_here + v * kPreviewS, kCurvatureWindowM);
+  learn_understeer(dt, v);
+  double angle = kinematic_angle(k_ahead) + understeer_ * v * v * k_ahead;
+  angle += config_.heading_gain * wrap_angle(trail_yaw(s_here) - own_->yaw);
+  angle -= std::atan(config_.cross_track_gain_per_s * cross_track_m_ / (v + kSoftSpeedMps));
+  angle = std::clamp(angle, -max_bicycle_angle(), max_bicycle_angle());
+  // The angle as the yaw rate will show it: through the same smoothing.
+  steer_smoothed_ += dt / (kYawRateS + dt) * (angle - steer_smoothed_);
 
-  // Spacing: along the trail to the leader.
-  gap_m_ = std::max(0.0, trail_length() - s_here) + (leader_->position - trail_.back()).norm();
-  const double desired = config_.standstill_m + config_.time_gap_s * own_->speed;
-  target_speed_ = lost_ ? 0.0
-                        : std::clamp(leader_->speed + config_.gap_gain_per_s * (gap_m_ - desired),
-                                     0.0, config_.max_speed_mps);
+  // Spacing: bumper to bumper along the trail.
+  // The leader's estimate beyond the newest crumb, signed along the leader's heading (it may
+  // lie behind it: the GPS pulled the estimate back after the crumb was laid).
+  const double beyond = (leader_->position - trail_.back()).dot(direction(leader_->yaw));
+  const double centres = std::max(0.0, trail_length() - s_here) + beyond;
+  gap_m_ = centres - vehicle_.front_m - vehicle_.leader_rear_m;
+  const double v_leader = std::max(leader_->speed, 0.0);
+  const double decel = -leader_accel_;
+  // Where the leader would stop at its present deceleration, against where the follower would
+  // at its own: the difference is room the time gap does not give.
+  const double leader_stop = v_leader <= 0.0 ? 0.0
+                             : decel > kBrakingMps2
+                                 ? v_leader * v_leader / (2.0 * decel)
+                                 : std::numeric_limits<double>::infinity();
+  const double own_stop = v * v / (2.0 * config_.own_decel_mps2);
+  desired_gap_m_ = config_.standstill_bumper_m + config_.time_gap_s * v +
+                   std::max(0.0, own_stop - leader_stop);
+  const double predicted = std::max(0.0, v_leader + leader_accel_ * config_.anticipation_s);
+  const double target = predicted + config_.gap_gain_per_s * (gap_m_ - desired_gap_m_);
+  target_speed_ = lost_ ? 0.0 : std::clamp(target, 0.0, config_.max_speed_mps);
   const double signal = speed_pid_.update(target_speed_ - own_->speed, dt);
 
   vehicle::DriverInputs cmd;
-  cmd.steering = std::clamp(steer / vehicle_.max_steer_rad, -1.0, 1.0);
+  cmd.steering = steering_input(angle);
   cmd.throttle = signal > 0.0 ? std::min(signal, 1.0) : 0.0;
   cmd.braking = signal < 0.0 ? std::min(-signal, 1.0) : 0.0;
-  if (target_speed_ == 0.0 && own_->speed < 0.5) {
+  if (target_speed_ < kHoldMps && own_->speed < kHoldMps) {
+    // Stopped, or about to, with no more than a crawl asked for: hold on the brake. A crawl
+    // would only close the last metre on the idling engine's torque, with the GPS's error.
     cmd.throttle = 0.0;
-    cmd.braking = 1.0;  // hold at rest
+    cmd.braking = 1.0;
     speed_pid_.reset();
   }
   return cmd;
@@ -198,7 +383,7 @@ namespace syndds::convoy {
 
 template <typename Archive>
 void ConvoyFollower::state_io(Archive& a) {
-  a.begin("convoy_follower", 1);
+  a.begin("convoy_follower", 2);
   speed_pid_.state_io(a);
   for (auto* e : {&own_, &leader_}) {
     bool has = e->has_value();
@@ -217,14 +402,30 @@ void ConvoyFollower::state_io(Archive& a) {
   a.io(leader_seen_s_);
   a.io(leader_sequence_);
   a.io(has_leader_sequence_);
+  a.io(leader_speed_time_s_);
+  a.io(leader_accel_);
+  a.io(leader_speed_);
+  a.io(leader_heading_yaw_);
+  a.io(leader_yaw_rate_);
+  a.io(own_fixes_);
+  a.io(leader_fixes_);
+  a.io(compass_time_s_);
+  a.io(own_yaw_rate_);
+  a.io(steer_smoothed_);
+  a.io(understeer_num_);
+  a.io(understeer_den_);
+  a.io(understeer_);
   a.io(lost_);
   a.io(trail_);
+  a.io(trail_yaw_);
   a.io(trail_s_);
   std::uint64_t index = trail_index_;
   a.io(index);
   trail_index_ = static_cast<std::size_t>(index);
   a.io(gap_m_);
+  a.io(desired_gap_m_);
   a.io(target_speed_);
+  a.io(cross_track_m_);
   a.end();
 }
 

@@ -1,20 +1,27 @@
 #pragma once
 // The classical convoy follower: the baseline a learned policy has to beat. It knows only what
 // its own sensors (GPS, compass, wheel tachometer) and the V2V messages of the vehicle it
-// follows tell it, never a true state.
+// follows tell it, never a true state. docs/convoy.md explains each step and its reasons.
 //
-// - Own state: heading from the compass, speed from the tachometer, position dead-reckoned
-//   from both at every update and pulled towards each GPS fix (the fix projected to now along
-//   the heading to undo its lag) by a complementary gain.
+// - Own state: heading from the compass, speed from the tachometer (never falling faster than a
+//   vehicle can brake: a locked wheel reads 0 while the vehicle still slides), position
+//   dead-reckoned from both at every update and pulled towards each GPS fix (the fix projected
+//   to now along the heading to undo its lag) by a complementary gain.
 // - Leader: the same filter on its V2V messages (position projected from the message's
 //   measurement time with its reported speed and heading); between messages, and when some are
-//   dropped or late, dead reckoning carries it on.
-// - Breadcrumb trail: the leader's filtered positions every `crumb_spacing_m`. Steering is pure
-//   pursuit on the trail (a look-ahead point on the trail, not the leader's current position,
-//   so corners are driven where the leader drove them, not cut).
-// - Spacing: gap = distance along the trail to the leader; target speed = leader speed +
-//   gap_gain * (gap - (standstill_m + time_gap_s * own speed)), then a speed PID to one
-//   throttle / brake signal.
+//   dropped or late, dead reckoning carries it on. Its acceleration is the difference of the
+//   speeds of consecutive messages over the time between them.
+// - Breadcrumb trail: at each V2V message, the leader's filtered position and its compass yaw.
+//   Steering tracks the trail, not the leader: the trail's curvature (from the crumbs' yaws)
+//   as a feed-forward road-wheel angle (kinematic, plus an understeer term), and feedback on
+//   the heading error (the leader's yaw where it drove there) and the cross-track error
+//   (Stanley: atan(k e / (v + v0))). No look-ahead point, so no corner is cut.
+// - Spacing, bumper to bumper along the trail: desired gap = standstill + time gap * own speed
+//   + the difference of the braking distances (own v^2 / 2 b_own less the leader's v_L^2 / 2 d_L
+//   at its measured deceleration d_L, when positive); target speed = the leader's speed
+//   predicted `anticipation_s` ahead from its acceleration + gap_gain * (gap - desired); in a
+//   bend no faster than the lateral acceleration limit allows; a speed PID to one throttle /
+//   brake signal.
 // - Leader lost: no V2V message measured within `leader_lost_after_s` -> brake to a stop and
 //   report `leader_lost` once; a fresh message reports `leader_found` and following resumes.
 #include <optional>
@@ -32,24 +39,37 @@ namespace syndds::convoy {
 
 struct FollowerConfig {
   std::string leader;                 // vehicle id of the vehicle followed
+  // Spacing.
   double time_gap_s = 1.0;
-  double standstill_m = 10.0;         // centre-to-centre distance when stopped
-  double lookahead_min_m = 6.0;
-  double lookahead_time_s = 0.6;      // look-ahead = max(min, time * speed)
+  double standstill_bumper_m = 5.0;   // bumper-to-bumper gap when stopped
+  double own_decel_mps2 = 4.0;        // braking the follower counts on for itself
+  double anticipation_s = 0.5;        // the leader's speed is predicted this far ahead
   double max_speed_mps = 15.0;
   double gap_gain_per_s = 0.4;
   control::PidGains speed_pid{0.4, 0.05, 0.0};
+  // Trail tracking.
+  double heading_gain = 1.0;              // road-wheel rad per rad of heading error
+  double cross_track_gain_per_s = 1.0;    // Stanley gain k of atan(k e / (v + v0))
+  double understeer_rad_per_mps2 = 0.0;   // starting value of the understeer learned (rad of
+                                          // road-wheel angle per m/s2 of lateral accel)
+  // Estimation.
   double fix_gain = 0.15;             // share of a GPS fix's innovation taken per fix
   double leader_fix_gain = 0.15;      // the same for the leader's V2V positions
   double leader_lost_after_s = 2.0;
-  double crumb_spacing_m = 0.5;
+  double crumb_spacing_m = 0.3;       // smallest distance between crumbs
 };
 
-/// What the follower needs to know about the vehicle it drives.
+/// What the follower needs to know about the vehicle it drives and the one it follows.
 struct FollowerVehicle {
   double wheelbase_m = 3.378;
-  double max_steer_rad = 0.53;
+  double half_track_m = 0.9095;
+  double max_steer_rad = 0.53;        // road-wheel angle at steering 1
+  bool inner_wheel_input = true;      // steering sets the inner wheel (full model), else the
+                                      // bicycle's angle (reduced model)
   double wheel_radius_m = 0.467;
+  double front_m = 2.35;              // GPS antenna (reference point) to the front bumper
+  double leader_rear_m = 2.35;        // the leader's GPS antenna to its rear bumper
+  double leader_wheelbase_m = 3.378;
 };
 
 /// One sensor reading the follower uses (from GpsFixMsg, MagnetometerMsg, WheelSpeedsMsg).
@@ -79,8 +99,13 @@ class ConvoyFollower {
   bool ready() const { return own_.has_value() && leader_.has_value(); }
   Vec2 position_estimate() const { return own_ ? own_->position : Vec2::Zero(); }
   Vec2 leader_estimate() const { return leader_ ? leader_->position : Vec2::Zero(); }
+  /// Bumper-to-bumper gap along the trail, as the follower estimates it.
   double gap_m() const { return gap_m_; }
+  double desired_gap_m() const { return desired_gap_m_; }
   double target_speed_mps() const { return target_speed_; }
+  double leader_accel_mps2() const { return leader_accel_; }
+  double cross_track_m() const { return cross_track_m_; }
+  double understeer_rad_per_mps2() const { return understeer_; }
   const std::vector<Vec2>& trail() const { return trail_; }
 
   /// Checkpoints: estimates, the trail of crumbs, the speed controller, the leader watch.
@@ -97,12 +122,24 @@ class ConvoyFollower {
     double speed = 0.0;
   };
   void update_own(double time_s, double dt, const OwnReadings& own);
-  void update_leader(double time_s, double dt, const std::vector<proto::V2VMessageMsg>& msgs);
+  /// Returns true when a new message was fused (a crumb may be laid).
+  bool update_leader(double time_s, double dt, const std::vector<proto::V2VMessageMsg>& msgs);
   void extend_trail();
-  /// Arc position of the follower on the trail (monotone), and the point `ahead` metres on.
+  /// Arc position of the follower's projection on the trail (monotone).
   double project_on_trail(const Vec2& p);
   Vec2 trail_point(double s) const;
+  double trail_yaw(double s) const;
+  /// Mean curvature of the trail over [s - w, s + w] (within the trail).
+  double trail_curvature(double s, double w) const;
   double trail_length() const { return trail_s_.empty() ? 0.0 : trail_s_.back(); }
+  /// Steering input in [-1, 1] for a bicycle road-wheel angle (Ackermann inner wheel).
+  double steering_input(double bicycle_angle) const;
+  /// Updates the understeer estimate from the own yaw rate and steering.
+  void learn_understeer(double dt, double v);
+  /// The largest bicycle road-wheel angle the steering reaches.
+  double max_bicycle_angle() const;
+  /// Road-wheel angle that drives the reference point (mid-wheelbase) on curvature `k`.
+  double kinematic_angle(double k) const;
 
   FollowerConfig config_;
   FollowerVehicle vehicle_;
@@ -115,12 +152,28 @@ class ConvoyFollower {
   double leader_seen_s_ = -1.0;       // measurement time of the newest leader message
   std::uint64_t leader_sequence_ = 0;
   bool has_leader_sequence_ = false;
+  double leader_speed_time_s_ = -1.0; // when the previous message's speed arrived (< 0: none)
+  double leader_accel_ = 0.0;         // m/s2, from consecutive V2V speeds
+  double leader_speed_ = 0.0;         // the previous message's speed and yaw
+  double leader_heading_yaw_ = 0.0;
+  double leader_yaw_rate_ = 0.0;      // rad/s, from consecutive V2V headings
+  std::uint64_t own_fixes_ = 0;       // GPS fixes fused after the first
+  std::uint64_t leader_fixes_ = 0;    // V2V positions fused after the first
+  double compass_time_s_ = -1.0;      // time of the newest compass reading
+  double own_yaw_rate_ = 0.0;         // rad/s, from the compass
+  double steer_smoothed_ = 0.0;       // commanded road-wheel angle, smoothed like the yaw rate
+  double understeer_num_ = 0.0;       // least-squares sums of the understeer estimate
+  double understeer_den_ = 0.0;
+  double understeer_ = 0.0;           // rad per m/s2 of lateral acceleration
   bool lost_ = false;
   std::vector<Vec2> trail_;
+  std::vector<double> trail_yaw_;     // the leader's yaw at each crumb
   std::vector<double> trail_s_;       // arc length at each crumb
   std::size_t trail_index_ = 0;       // segment the follower was last projected on
   double gap_m_ = 0.0;
+  double desired_gap_m_ = 0.0;
   double target_speed_ = 0.0;
+  double cross_track_m_ = 0.0;
 };
 
 /// Compass heading (clockwise from north) to yaw (counter-clockwise from east), and back.

@@ -162,7 +162,7 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
       const std::string ahead = vehicle_id(k - 1, leaders);
       if (o.follower_policy.empty()) {
         y << "      type: follower\n      follow: " << ahead
-          << "\n      gap: {time_s: 1.0, standstill_m: 10}\n";
+          << "\n      gap: {time_s: 1.0, standstill_bumper_m: 5}\n";
       } else {
         y << "      type: policy\n      follow: " << ahead << "\n      model: "
           << o.follower_policy << "\n";

@@ -276,15 +276,30 @@ ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world
     f.leader = m.required("follow").as_string();
     if (auto n = m.optional("gap")) {
       MapReader g(*n);
+      if (auto old = g.optional("standstill_m")) {
+        old->fail("standstill_m (centre to centre) is now standstill_bumper_m, the gap between "
+                  "the bumpers at rest: for two HMMWVs (4.7 m long) standstill_m 10 is "
+                  "standstill_bumper_m 5.3 (docs/convoy.md)");
+      }
       f.time_gap_s = g.number("time_s", f.time_gap_s, 0.0, 10.0);
-      f.standstill_m = g.number("standstill_m", f.standstill_m, 3.0, 100.0);
+      f.standstill_bumper_m = g.number("standstill_bumper_m", f.standstill_bumper_m, 0.5, 100.0);
+      f.own_decel_mps2 = g.number("own_decel_mps2", f.own_decel_mps2, 0.5, 10.0);
+      f.anticipation_s = g.number("anticipation_s", f.anticipation_s, 0.0, 5.0);
       g.finish();
     }
-    if (auto n = m.optional("lookahead")) {
-      MapReader l(*n);
-      f.lookahead_min_m = l.number("min_m", f.lookahead_min_m, 0.5, 50.0);
-      f.lookahead_time_s = l.number("time_s", f.lookahead_time_s, 0.0, 10.0);
-      l.finish();
+    if (auto old = m.optional("lookahead")) {
+      old->fail("the follower no longer steers towards a look-ahead point (it cut the bends): "
+                "remove lookahead; the trail tracking's gains are under tracking "
+                "(docs/convoy.md)");
+    }
+    if (auto n = m.optional("tracking")) {
+      MapReader t(*n);
+      f.heading_gain = t.number("heading_gain", f.heading_gain, 0.0, 10.0);
+      f.cross_track_gain_per_s =
+          t.number("cross_track_gain_per_s", f.cross_track_gain_per_s, 0.0, 20.0);
+      f.understeer_rad_per_mps2 =
+          t.number("understeer_rad_per_mps2", f.understeer_rad_per_mps2, -0.1, 0.1);
+      t.finish();
     }
     f.max_speed_mps = m.number("max_speed_mps", f.max_speed_mps, 0.1, 100.0);
     f.gap_gain_per_s = m.number("gap_gain_per_s", f.gap_gain_per_s, 0.0, 10.0);

@@ -30,6 +30,7 @@ TEST(Convoy, OneLeaderThreeFollowersDistributedEqualsSingleProcess) {
     EXPECT_EQ(f["obstacles_hit"], 0);
     EXPECT_LT(f["cross_track_m"]["mean"].get<double>(), 0.5);
     EXPECT_GT(f["time_gap_s"]["samples"].get<int>(), 1000);
+    EXPECT_GE(f["bumper_gap_m"]["min"].get<double>(), 2.0);
   }
   const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
   EXPECT_EQ(summary["convoy"], report);

@@ -69,7 +69,7 @@ std::string two_vehicle_convoy(const std::string& path, double speed, double dro
     << "    controller:\n      type: path_follower\n      path: {waypoints: " << path << "}\n"
     << "      speed: {target_mps: " << speed << "}\n"
     << "  - id: f1\n    model: hmmwv\n    start: {x: -12, y: 0}\n    sensors: convoy\n"
-    << "    controller: {type: follower, follow: l1, gap: {time_s: 1.0, standstill_m: 10}}\n";
+    << "    controller: {type: follower, follow: l1, gap: {time_s: 1.0, standstill_bumper_m: 5.3}}\n";
   return t.str();
 }
 
@@ -139,6 +139,8 @@ TEST(ConvoyRun, TwentyPercentV2VDropStillCompletesThePath) {
     EXPECT_LT(f.cross_track_m.mean, 0.5);
     // The path ends at x = 200: every follower stops within its standstill gaps of the end.
     EXPECT_GT(r.tracks.at(f.follower).back().position.x(), 150.0);
+    // Never closer than 2 m bumper to bumper (the leaders brake to their stop at the end).
+    EXPECT_GE(f.bumper_gap_m.min, 2.0) << "at t = " << f.min_bumper_gap_time_s << " s";
   }
 }
 
@@ -171,9 +173,12 @@ TEST(ConvoyRun, SoftSoilSlowsTheConvoyDown) {
     EXPECT_LT(t_rigid, 60.0);
     EXPECT_GT(t_soft, t_rigid + 2.0);
   }
-  for (const auto& f : soft.report) {
-    SCOPED_TRACE(f.follower);
-    EXPECT_EQ(f.leader_lost_events, 0u);
-    EXPECT_EQ(f.obstacles_hit, 0u);
+  for (const auto* run : {&rigid, &soft}) {
+    for (const auto& f : run->report) {
+      SCOPED_TRACE(f.follower);
+      EXPECT_EQ(f.leader_lost_events, 0u);
+      EXPECT_EQ(f.obstacles_hit, 0u);
+      EXPECT_GE(f.bumper_gap_m.min, 2.0) << "at t = " << f.min_bumper_gap_time_s << " s";
+    }
   }
 }

@@ -1,4 +1,6 @@
-// The follower fed directly (open loop): lost and found leaders, stale messages, conversions.
+// The follower fed directly: lost and found leaders, stale messages, conversions (open loop),
+// the gap law's braking-distance term, locked wheels, a standing leader's trail, the steering
+// on a circle, and (closed loop, a small vehicle model in the test) the understeer it learns.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,51 +15,75 @@ using namespace syndds::convoy;
 namespace {
 
 const sensors::Geodetic kOrigin{43.07, -89.4, 260.0};
+const sensors::GeodeticConverter kConverter{kOrigin, sensors::GeodeticModel::wgs84};
+constexpr double kRadius = 0.5;  // wheel radius of the test vehicles
 
-// Drives an ideal straight-line world: the follower at x = -15 + v t, the leader at x = v t,
-// both heading east at `v`; readings are exact (no noise), 10 Hz GPS, 100 Hz the rest.
-struct StraightWorld {
-  sensors::GeodeticConverter converter{kOrigin, sensors::GeodeticModel::wgs84};
-  double v = 5.0;
-  double radius = 0.5;
-
-  OwnReadings own(double t) const {
-    OwnReadings r;
-    proto::GpsFixMsg g;
-    const auto geo = converter.to_geodetic(Vec3(-15.0 + v * t, 0.0, 0.0));
-    g.latitude_deg = geo.lat_deg;
-    g.longitude_deg = geo.lon_deg;
-    g.altitude_m = geo.alt_m;
-    g.stamp.time_s = t;
-    r.gps.push_back(g);
-    proto::MagnetometerMsg m;
-    m.heading_rad = std::numbers::pi / 2.0;  // east
-    r.compass.push_back(m);
-    proto::WheelSpeedsMsg w;
-    w.wheel_spin_rad_s.assign(4, v / radius);
-    r.wheel_speeds.push_back(w);
-    return r;
-  }
-  proto::V2VMessageMsg leader(double t, std::uint64_t seq) const {
-    proto::V2VMessageMsg m;
-    m.vehicle_id = "l1";
-    m.sequence = seq;
-    m.sensor_time_s = t;
-    const auto geo = converter.to_geodetic(Vec3(v * t, 0.0, 0.0));
-    m.latitude_deg = geo.lat_deg;
-    m.longitude_deg = geo.lon_deg;
-    m.altitude_m = geo.alt_m;
-    m.speed_mps = v;
-    m.heading_rad = std::numbers::pi / 2.0;
-    return m;
-  }
-};
+// The vehicle: HMMWV dimensions, the reduced model's steering (input = bicycle angle / max).
+FollowerVehicle test_vehicle() {
+  FollowerVehicle v;
+  v.wheel_radius_m = kRadius;
+  v.inner_wheel_input = false;
+  return v;
+}
 
 FollowerConfig config() {
   FollowerConfig c;
   c.leader = "l1";
   c.leader_lost_after_s = 1.0;
   return c;
+}
+
+double heading_of(double yaw) { return std::numbers::pi / 2.0 - yaw; }  // compass, from north
+
+// Exact readings of a vehicle at `p` with body yaw `yaw` and speed `v`, measured at `t`.
+OwnReadings readings(double t, const Vec2& p, double yaw, double v, bool gps) {
+  OwnReadings r;
+  if (gps) {
+    proto::GpsFixMsg g;
+    const auto geo = kConverter.to_geodetic(Vec3(p.x(), p.y(), 0.0));
+    g.latitude_deg = geo.lat_deg;
+    g.longitude_deg = geo.lon_deg;
+    g.altitude_m = geo.alt_m;
+    g.stamp.time_s = t;
+    r.gps.push_back(g);
+  }
+  proto::MagnetometerMsg m;
+  m.heading_rad = heading_of(yaw);
+  m.stamp.time_s = t;
+  r.compass.push_back(m);
+  proto::WheelSpeedsMsg w;
+  w.wheel_spin_rad_s.assign(4, v / kRadius);
+  r.wheel_speeds.push_back(w);
+  return r;
+}
+
+proto::V2VMessageMsg message(double t, std::uint64_t seq, const Vec2& p, double yaw, double v) {
+  proto::V2VMessageMsg m;
+  m.vehicle_id = "l1";
+  m.sequence = seq;
+  m.sensor_time_s = t;
+  const auto geo = kConverter.to_geodetic(Vec3(p.x(), p.y(), 0.0));
+  m.latitude_deg = geo.lat_deg;
+  m.longitude_deg = geo.lon_deg;
+  m.altitude_m = geo.alt_m;
+  m.speed_mps = v;
+  m.heading_rad = heading_of(yaw);
+  return m;
+}
+
+// An ideal straight-line world: the follower at x = -15 + v t, the leader at x = v t, both
+// heading east at `v`; readings are exact, 10 Hz GPS and V2V, 100 Hz the rest.
+struct StraightWorld {
+  double v = 5.0;
+  OwnReadings own(double t) const { return readings(t, Vec2(-15.0 + v * t, 0.0), 0.0, v, true); }
+  proto::V2VMessageMsg leader(double t, std::uint64_t seq) const {
+    return message(t, seq, Vec2(v * t, 0.0), 0.0, v);
+  }
+};
+
+// The kinematic road-wheel angle that drives the mid-wheelbase point on radius r.
+double kinematic_angle(double r, double wheelbase) {
+  return std::atan(wheelbase / std::sqrt(r * r - 0.25 * wheelbase * wheelbase));
 }
 
 }  // namespace
@@ -69,8 +95,7 @@ TEST(Follower, HeadingConversionIsCompassToMathAngle) {
 }
 
 TEST(Follower, HoldsStillUntilItKnowsWhereItAndItsLeaderAre) {
-  StraightWorld w;
-  ConvoyFollower f(config(), FollowerVehicle{3.378, 0.53, w.radius}, w.converter);
+  ConvoyFollower f(config(), test_vehicle(), kConverter);
   std::vector<FollowerEvent> events;
   const auto cmd = f.update(0.0, 0.01, {}, {}, events);
   EXPECT_EQ(cmd.braking, 1.0);
@@ -80,7 +105,7 @@ TEST(Follower, HoldsStillUntilItKnowsWhereItAndItsLeaderAre) {
 
 TEST(Follower, LosesTheLeaderOnceBrakesAndFindsItAgain) {
   StraightWorld w;
-  ConvoyFollower f(config(), FollowerVehicle{3.378, 0.53, w.radius}, w.converter);
+  ConvoyFollower f(config(), test_vehicle(), kConverter);
   std::vector<FollowerEvent> events;
   std::uint64_t seq = 0;
   auto step = [&](int k, bool link) {
@@ -95,9 +120,12 @@ TEST(Follower, LosesTheLeaderOnceBrakesAndFindsItAgain) {
   EXPECT_TRUE(events.empty());
   EXPECT_FALSE(f.leader_lost());
   EXPECT_GT(f.target_speed_mps(), 0.0);
-  // The estimates agree with the ideal world: the leader 15 m ahead along the trail.
+  // The estimates agree with the ideal world: the leader 15 m ahead centre to centre, the
+  // bumpers 15 - 2.35 - 2.35 m apart.
   EXPECT_NEAR(f.position_estimate().x(), -15.0 + 5.0 * 4.99, 0.1);
-  EXPECT_NEAR(f.gap_m(), 15.0, 0.2);
+  EXPECT_NEAR(f.gap_m(), 10.3, 0.2);
+  // A leader at constant speed: the desired gap is standstill + time gap * speed.
+  EXPECT_NEAR(f.desired_gap_m(), 5.0 + 1.0 * 5.0, 1e-6);
 
   // Link cut: dead reckoning for leader_lost_after_s, then braking and one event.
   int lost_at = -1;
@@ -123,15 +151,193 @@ TEST(Follower, LosesTheLeaderOnceBrakesAndFindsItAgain) {
 
 TEST(Follower, IgnoresMessagesOlderThanOneItUsed) {
   StraightWorld w;
-  ConvoyFollower f(config(), FollowerVehicle{3.378, 0.53, w.radius}, w.converter);
+  ConvoyFollower f(config(), test_vehicle(), kConverter);
   std::vector<FollowerEvent> events;
   f.update(0.0, 0.01, w.own(0.0), {w.leader(0.0, 5)}, events);
   const Vec2 before = f.leader_estimate();
   // A replayed older message claiming the leader is 100 m back changes nothing.
-  auto stale = w.leader(0.0, 4);
-  const auto geo = w.converter.to_geodetic(Vec3(-100.0, 0.0, 0.0));
-  stale.latitude_deg = geo.lat_deg;
-  stale.longitude_deg = geo.lon_deg;
+  auto stale = message(0.0, 4, Vec2(-100.0, 0.0), 0.0, 5.0);
   f.update(0.0, 0.0, {}, {stale}, events);
   EXPECT_NEAR((f.leader_estimate() - before).norm(), 0.0, 1e-9);
+}
+
+// The leader brakes at 6 m/s2 from 8 m/s, harder than the 4 m/s2 the follower counts on for
+// itself; the follower (at 8 m/s, 13 m of bumper gap: its cruise gap) adds the difference of
+// the two braking distances to its desired gap and brakes fully at once.
+TEST(Follower, ABrakingLeaderAddsTheDifferenceOfTheBrakingDistances) {
+  ConvoyFollower f(config(), test_vehicle(), kConverter);
+  std::vector<FollowerEvent> events;
+  const double v = 8.0, brake_at = 5.0, decel = 6.0;
+  double leader_x = 0.0, leader_v = v;
+  std::uint64_t seq = 0;
+  vehicle::DriverInputs cmd;
+  for (int k = 0; k <= 530; ++k) {
+    const double t = k * 0.01;
+    if (t > brake_at + 1e-9) leader_v = std::max(0.0, leader_v - decel * 0.01);
+    leader_x += leader_v * 0.01;
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) msgs.push_back(message(t, seq++, Vec2(leader_x, 0.0), 0.0, leader_v));
+    // The follower is driven open loop at 8 m/s, 17.7 m centre to centre behind at first.
+    cmd = f.update(t, 0.01, readings(t, Vec2(v * t - 17.7, 0.0), 0.0, v, k % 10 == 0), msgs,
+                   events);
+    if (k == 490) {
+      EXPECT_NEAR(f.leader_accel_mps2(), 0.0, 1e-9);
+      EXPECT_NEAR(f.desired_gap_m(), 5.0 + 8.0, 1e-9);  // cruising: no braking term
+      EXPECT_LT(cmd.braking, 0.05);
+    }
+  }
+  // Messages at 5.1, 5.2 and 5.3 s told speeds 7.4, 6.8, 6.2 m/s: 6 m/s2.
+  EXPECT_NEAR(f.leader_accel_mps2(), -decel, 1e-6);
+  const double v_leader = 8.0 - 6.0 * 0.3;
+  const double extra = v * v / (2.0 * 4.0) - v_leader * v_leader / (2.0 * decel);
+  EXPECT_NEAR(f.desired_gap_m(), 5.0 + 8.0 + extra, 1e-6);
+  EXPECT_EQ(cmd.braking, 1.0);
+  EXPECT_EQ(cmd.throttle, 0.0);
+}
+
+// Locked wheels read 0 while the vehicle slides: the speed estimate falls at most 9 m/s2.
+TEST(Follower, LockedWheelsDoNotStopTheSpeedEstimate) {
+  StraightWorld w;
+  w.v = 8.0;
+  ConvoyFollower f(config(), test_vehicle(), kConverter);
+  std::vector<FollowerEvent> events;
+  std::uint64_t seq = 0;
+  for (int k = 0; k < 100; ++k) {
+    const double t = k * 0.01;
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) msgs.push_back(w.leader(t, seq++));
+    f.update(t, 0.01, w.own(t), msgs, events);
+  }
+  const Vec2 before = f.position_estimate();
+  for (int k = 100; k < 110; ++k) {
+    OwnReadings own = w.own(k * 0.01);
+    own.gps.clear();
+    own.wheel_speeds[0].wheel_spin_rad_s.assign(4, 0.0);  // locked
+    f.update(k * 0.01, 0.01, own, {}, events);
+  }
+  // 10 updates at 9 m/s2: 8 - 0.9 m/s, and the estimate moved on by the sum of the speeds.
+  double moved = 0.0;
+  for (int i = 1; i <= 10; ++i) moved += (8.0 - 0.09 * (i - 1)) * 0.01;
+  EXPECT_NEAR(f.position_estimate().x() - before.x(), moved, 1e-9);
+}
+
+// A standing leader's estimate wanders with its GPS noise: it lays no crumbs, so the trail (and
+// the gap measured along it) does not grow.
+TEST(Follower, AStandingLeaderLaysNoCrumbs) {
+  ConvoyFollower f(config(), test_vehicle(), kConverter);
+  std::vector<FollowerEvent> events;
+  std::uint64_t seq = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const double t = k * 0.01;
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) {
+      // Fixes jumping +-0.8 m around x = 0 (GPS noise), the leader standing.
+      const double jump = (seq % 2 == 0 ? 0.8 : -0.8) * (seq % 3 == 0 ? 1.0 : 0.5);
+      msgs.push_back(message(t, seq++, Vec2(jump, 0.6 * jump), 0.0, 0.0));
+    }
+    f.update(t, 0.01, readings(t, Vec2(-12.0, 0.0), 0.0, 0.0, k % 10 == 0), msgs, events);
+  }
+  EXPECT_EQ(f.trail().size(), 1u);  // the follower's own start only
+  EXPECT_LT(std::abs(f.gap_m() - (12.0 - 4.7)), 1.0);
+}
+
+// A straight lead-in, then a circle of radius 20 m, at 5 m/s, exact readings of both, the
+// follower 15 m behind on the same path: the trail's curvature alone steers it on the circle
+// (no heading or cross-track error): the kinematic angle of the mid-wheelbase point on 20 m,
+// plus the understeer term.
+TEST(Follower, OnACircleTheCurvatureOfTheTrailSteers) {
+  const double r = 20.0, v = 5.0;
+  const FollowerVehicle veh = test_vehicle();
+  // The mid-wheelbase point moves at asin(L / 2 / R) inside the body's heading.
+  const double slip = std::asin(0.5 * veh.wheelbase_m / r);
+  // Arc position s: on the lead-in (s < 0) eastwards along y = -r, then counter-clockwise
+  // round the origin; the position and the body's yaw.
+  const auto path = [&](double s) {
+    if (s < 0.0) return std::pair{Vec2(s, -r), 0.0};
+    const double a = s / r;
+    return std::pair{Vec2(r * std::sin(a), -r * std::cos(a)), a - slip};
+  };
+  ConvoyFollower f(config(), veh, kConverter);
+  std::vector<FollowerEvent> events;
+  std::uint64_t seq = 0;
+  vehicle::DriverInputs cmd;
+  for (int k = 0; k <= 3000; ++k) {
+    const double t = k * 0.01;
+    const auto [lp, lyaw] = path(v * t - 10.0);
+    const auto [fp, fyaw] = path(v * t - 25.0);
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) msgs.push_back(message(t, seq++, lp, lyaw, v));
+    cmd = f.update(t, 0.01, readings(t, fp, fyaw, v, k % 10 == 0), msgs, events);
+  }
+  EXPECT_NEAR(f.cross_track_m(), 0.0, 0.02);
+  // Open loop the follower's steering does not turn it, so the understeer it learns is
+  // whatever it starts with (the turn-in's transient): the feed-forward is the kinematic angle
+  // plus that understeer times the lateral acceleration.
+  const double angle =
+      kinematic_angle(r, veh.wheelbase_m) + f.understeer_rad_per_mps2() * v * v / r;
+  EXPECT_NEAR(cmd.steering, angle / veh.max_steer_rad, 0.01);
+}
+
+// On a straight line 0.5 m right of the leader's track, heading parallel to it: the follower
+// steers left by atan(k e / (v + 1)) (Stanley, k = 1 /s).
+TEST(Follower, BesideTheTrailItSteersBackByTheCrossTrackGain) {
+  const double v = 5.0;
+  const FollowerVehicle veh = test_vehicle();
+  ConvoyFollower f(config(), veh, kConverter);
+  std::vector<FollowerEvent> events;
+  std::uint64_t seq = 0;
+  vehicle::DriverInputs cmd;
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = k * 0.01;
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) msgs.push_back(message(t, seq++, Vec2(v * t, 0.0), 0.0, v));
+    cmd = f.update(t, 0.01, readings(t, Vec2(v * t - 15.0, -0.5), 0.0, v, k % 10 == 0), msgs,
+                   events);
+  }
+  EXPECT_NEAR(f.cross_track_m(), -0.5, 0.01);
+  EXPECT_NEAR(cmd.steering, std::atan(0.5 / (v + 1.0)) / veh.max_steer_rad, 0.01);
+}
+
+// Closed loop with a vehicle that understeers (0.03 rad of road-wheel angle per m/s2, soft
+// ground): behind a leader on a 15 m circle, the follower learns the understeer from its own
+// compass and steering and stays on the leader's circle. Without it, it would run about
+// 0.03 * 1.7 m/s2 * 6 m/s / 1 = 0.3 m outside.
+TEST(Follower, LearnsTheUndersteerOfItsVehicle) {
+  const double r = 15.0, v = 5.0, understeer = 0.03;
+  const FollowerVehicle veh = test_vehicle();
+  const double l = veh.wheelbase_m;
+  ConvoyFollower f(config(), veh, kConverter);
+  std::vector<FollowerEvent> events;
+  // The follower's vehicle: the mid-wheelbase point at `p`, body yaw `yaw`, constant speed;
+  // the road-wheel angle `delta` turns it on the curvature k with delta = kin(k) + K v^2 k.
+  Vec2 p(r, -15.0);  // on the circle's tangent line, 15 m of arc behind (close enough)
+  double yaw = std::numbers::pi / 2.0;
+  double delta = 0.0;
+  std::uint64_t seq = 0;
+  double worst_late = 0.0;
+  for (int k = 0; k <= 4000; ++k) {
+    const double t = k * 0.01;
+    const double a = v * t / r;
+    const double lslip = std::asin(0.5 * l / r);
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) {
+      msgs.push_back(message(t, seq++, Vec2(r * std::cos(a), r * std::sin(a)),
+                             a + std::numbers::pi / 2.0 - lslip, v));
+    }
+    const auto cmd = f.update(t, 0.01, readings(t, p, yaw, v, k % 10 == 0), msgs, events);
+    delta = cmd.steering * veh.max_steer_rad;
+    // Curvature from the road-wheel angle: solve delta = kin(k) + K v^2 k by fixed point.
+    double curvature = 0.0;
+    for (int i = 0; i < 50; ++i) {
+      const double kin = delta - understeer * v * v * curvature;
+      const double r_rear = l / std::tan(std::abs(kin) + 1e-12);
+      curvature = std::copysign(1.0 / std::sqrt(r_rear * r_rear + 0.25 * l * l), kin);
+    }
+    const double slip = std::asin(0.5 * l * curvature);
+    p += v * 0.01 * Vec2(std::cos(yaw + slip), std::sin(yaw + slip));
+    yaw += v * curvature * 0.01;
+    if (t > 30.0) worst_late = std::max(worst_late, std::abs(p.norm() - r));
+  }
+  EXPECT_NEAR(f.understeer_rad_per_mps2(), understeer, 0.006);
+  EXPECT_LT(worst_late, 0.1);
 }

@@ -99,7 +99,7 @@ TEST(Determinism, ConvoyReportAndMetricsAreByteIdentical) {
       << "      path: {waypoints: [[0, 0], [100, 0]]}\n      speed: {target_mps: 6}\n"
       << "  - id: f1\n    model: hmmwv\n    dynamics: reduced\n    start: {x: -12, y: 0}\n"
       << "    sensors: convoy\n"
-      << "    controller: {type: follower, follow: l1, gap: {time_s: 0.5, standstill_m: 6}}\n";
+      << "    controller: {type: follower, follow: l1, gap: {time_s: 0.5, standstill_bumper_m: 1.3}}\n";
   const std::string args = "--config-dir " + kConfig;
   const std::string single = single_process_csv(run, scenario.string(), args);
   EXPECT_EQ(distributed_csv(run, scenario.string(), args), single);

@@ -231,7 +231,7 @@ vehicles:
     model: hmmwv
     start: {x: -12, y: 0}
     sensors: convoy
-    controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_m: 8}}
+    controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_bumper_m: 3}}
 )";
   const auto s = parse(leader + follower);
   ASSERT_EQ(s.vehicles.size(), 2u);
@@ -241,7 +241,7 @@ vehicles:
   EXPECT_EQ(s.vehicles[1].controller.type, "follower");
   EXPECT_EQ(s.vehicles[1].controller.convoy.leader, "l1");
   EXPECT_EQ(s.vehicles[1].controller.convoy.time_gap_s, 1.5);
-  EXPECT_EQ(s.vehicles[1].controller.convoy.standstill_m, 8.0);
+  EXPECT_EQ(s.vehicles[1].controller.convoy.standstill_bumper_m, 3.0);
   const auto members = s.member_ids();
   EXPECT_NE(std::find(members.begin(), members.end(), "controller/f1"), members.end());
 
@@ -283,7 +283,7 @@ vehicles:
       << error_of(circle);
   // A learned follower: its policy file must exist, its period fit the heartbeat.
   const std::string policy = replaced(
-      follower, "controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_m: 8}}",
+      follower, "controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_bumper_m: 3}}",
       "controller: {type: policy, follow: l1, model: no_such_policy.pt}");
   EXPECT_NE(error_of(leader + policy).find("controller.model: policy file not found: no_such_policy.pt"),
             std::string::npos)
