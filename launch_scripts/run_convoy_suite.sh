@@ -12,7 +12,8 @@
 # DIR/convoy_suite.md, is printed at the end. Columns: real-time factor, the first leader's
 # maximum speed and the time it took to reach x = 190 m (the path's end is at 200 m), and over
 # the followers: mean and worst cross-track distance to the track of the vehicle followed,
-# smallest distance gap, obstacles hit and leader-lost events. Exit status 0 when every run
+# smallest distance gap (centre to centre), smallest bumper gap (box to box) and the longest
+# time a follower spent below its standstill gap, obstacles hit and leader-lost events. Exit status 0 when every run
 # completed, 2 otherwise (the table says which).
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -58,15 +59,16 @@ python3 - "$OUTPUT" <<'EOF'
 import csv, json, pathlib, sys
 out = pathlib.Path(sys.argv[1])
 rows = ["| scenario | mode | status | RTF | leader max speed (m/s) | leader at x=190 (s) "
-        "| cross-track mean / max (m) | min distance gap (m) | obstacles hit | leader lost |",
-        "|---|---|---|---|---|---|---|---|---|---|"]
+        "| cross-track mean / max (m) | min distance gap (m) | min bumper gap (m) "
+        "| below standstill (s) | obstacles hit | leader lost |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for run in sorted(p for p in out.iterdir() if p.is_dir()):
     name, _, mode = run.name.rpartition("-")
     if name.endswith("-single"):  # "single-process" split on its dash
         name, mode = name[:-len("-single")], "single-process"
     summary_file = run / "summary.json"
     if not summary_file.exists():
-        rows.append(f"| {name} | {mode} | no summary | | | | | | | |")
+        rows.append(f"| {name} | {mode} | no summary | | | | | | | | | |")
         continue
     s = json.loads(summary_file.read_text())
     leader = s["vehicles"][0]
@@ -81,11 +83,14 @@ for run in sorted(p for p in out.iterdir() if p.is_dir()):
         xt_mean = sum(c["cross_track_m"]["mean"] for c in convoy) / len(convoy)
         xt_max = max(c["cross_track_m"]["max"] for c in convoy)
         gap = min(c["distance_gap_m"]["min"] for c in convoy)
+        bumper = min(c["bumper_gap_m"]["min"] for c in convoy)
+        below = max(c["time_below_standstill_s"] for c in convoy)
         hits = sum(c["obstacles_hit"] for c in convoy)
         lost = sum(c["leader_lost_events"] for c in convoy)
-        followers = f"{xt_mean:.2f} / {xt_max:.2f} | {gap:.1f} | {hits} | {lost}"
+        followers = (f"{xt_mean:.2f} / {xt_max:.2f} | {gap:.1f} | {bumper:.2f} | {below:.2f} "
+                     f"| {hits} | {lost}")
     else:
-        followers = "- | - | - | -"
+        followers = "- | - | - | - | - | -"
     rows.append(f"| {name} | {mode} | {s['status']} | {s.get('real_time_factor', 0):.3f} "
                 f"| {leader['max_speed_mps']:.2f} | {arrival} | {followers} |")
 table = "\n".join(rows) + "\n"

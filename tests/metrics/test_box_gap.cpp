@@ -84,9 +84,9 @@ TEST(BoxGap, OverlappingOrTouchingBoxesAreZeroApart) {
   // slab's top face, through its sides. Corners and edges alone would say 0.1 m apart; the
   // separating-axis test finds the overlap.
   const OrientedBox a = place_box({Vec3::Zero(), Quat::Identity()}, Vec3::Zero(), Vec3(1, 5, 1));
-  const OrientedBox b = place_box(
-      {Vec3(0, 0, 1 + std::sqrt(2.0) - 0.1), Quat(Eigen::AngleAxisd(std::numbers::pi / 4, Vec3::UnitX()))},
-      Vec3::Zero(), Vec3(5, 1, 1));
+  const Quat roll(Eigen::AngleAxisd(std::numbers::pi / 4, Vec3::UnitX()));
+  const OrientedBox b =
+      place_box({Vec3(0, 0, 1 + std::sqrt(2.0) - 0.1), roll}, Vec3::Zero(), Vec3(5, 1, 1));
   EXPECT_TRUE(boxes_overlap(a, b));
   EXPECT_EQ(box_distance(a, b), 0.0);
 }
