@@ -84,6 +84,9 @@ VehicleSensors::VehicleSensors(const SensorRig& rig, std::string vehicle_id,
       for (const auto& c : rig.lidars) {
         lidars_.push_back(std::make_unique<LidarSensor>(c, vehicle_id_, seed(c.id), heartbeat_s));
       }
+      for (const auto& c : rig.radars) {
+        radars_.push_back(std::make_unique<RadarSensor>(c, vehicle_id_, seed(c.id), heartbeat_s));
+      }
     }
   } catch (const std::invalid_argument& e) {
     throw ConfigError(rig.file + ": sensor '" + current + "' on vehicle '" + vehicle_id_ + "': " +
@@ -101,6 +104,7 @@ void VehicleSensors::update_dynamics(const vehicle::VehicleSnapshot& snapshot) {
 void VehicleSensors::update_rendered(const Scene& scene, double time_s) {
   for (auto& c : cameras_) c->update(scene, time_s);
   for (auto& l : lidars_) l->update(scene, time_s);
+  for (auto& r : radars_) r->update(scene, time_s);
 }
 
 InteroceptiveBatch VehicleSensors::take_interoceptive(double now_s) {
@@ -123,11 +127,14 @@ RenderedBatch VehicleSensors::take_rendered(double now_s) {
   for (auto& l : lidars_) {
     for (auto& s : l->take_available(now_s)) b.lidar.push_back(std::move(s));
   }
+  for (auto& r : radars_) {
+    for (auto& s : r->take_available(now_s)) b.radar.push_back(std::move(s));
+  }
   return b;
 }
 
 void VehicleSensors::save_state(core::StateWriter& w) const {
-  w.begin("vehicle_sensors", 1);
+  w.begin("vehicle_sensors", 2);
   w.io(vehicle_id_);
   auto id = [](const auto& s) -> const std::string& { return s.config().id; };
   auto pid = [](const auto& s) -> const std::string& { return s->config().id; };
@@ -137,11 +144,13 @@ void VehicleSensors::save_state(core::StateWriter& w) const {
   save_kind(w, tachometers_, id);
   save_kind(w, cameras_, pid);
   save_kind(w, lidars_, pid);
+  save_kind(w, radars_, pid);
   w.end();
 }
 
 void VehicleSensors::load_state(core::StateReader& r) {
-  r.begin("vehicle_sensors", 1);
+  // Version 1 (before radars) holds none.
+  const auto version = r.begin("vehicle_sensors", 2, 1);
   const auto vehicle = r.get<std::string>();
   if (vehicle != vehicle_id_) {
     r.fail("the state is of the sensors of vehicle '" + vehicle + "', not '" + vehicle_id_ + "'");
@@ -154,6 +163,11 @@ void VehicleSensors::load_state(core::StateReader& r) {
   load_kind(r, tachometers_, id, "tachometer");
   load_kind(r, cameras_, pid, "camera");
   load_kind(r, lidars_, pid, "lidar");
+  if (version >= 2) {
+    load_kind(r, radars_, pid, "radar");
+  } else if (!radars_.empty()) {
+    r.fail("the state holds no radars, this rig has " + std::to_string(radars_.size()));
+  }
   r.end();
 }
 

@@ -12,6 +12,7 @@
 #include "sensors/geodesy.hpp"
 #include "sensors/interoceptive.hpp"
 #include "sensors/lidar.hpp"
+#include "sensors/radar.hpp"
 #include "sensors/rig_config.hpp"
 #include "sensors/scene.hpp"
 
@@ -32,21 +33,22 @@ struct InteroceptiveBatch {
   }
 };
 
-/// Camera frames and lidar scans that became available.
+/// Camera frames, lidar and radar scans that became available.
 struct RenderedBatch {
   std::vector<CameraFrame> camera;
   std::vector<LidarScan> lidar;
-  bool empty() const { return camera.empty() && lidar.empty(); }
+  std::vector<RadarScan> radar;
+  bool empty() const { return camera.empty() && lidar.empty() && radar.empty(); }
 };
 
 /// Which sensors of a rig a process builds: the vehicle process simulates the interoceptive
-/// ones, the sensor process renders the cameras and lidars (a renderer starts its threads and
+/// ones, the sensor process renders the cameras, lidars and radars (a renderer starts its threads and
 /// allocates per pixel or ray, so no other process builds one).
 enum class SensorSet { all, interoceptive, rendered };
 
 /// Every sensor of a rig on one vehicle (or those of one SensorSet).
 ///  - interoceptive sensors: update_dynamics(snapshot) after every dynamics step (step_s);
-///  - cameras and lidars: update_rendered(scene, t) once per frame (heartbeat_s) after the
+///  - cameras, lidars and radars: update_rendered(scene, t) once per frame (heartbeat_s) after the
 ///    scene holds every vehicle's pose and terrain change for time t and was committed;
 ///  - take_*(now): samples whose available time (measurement + lag) is <= now.
 class VehicleSensors {
@@ -68,6 +70,7 @@ class VehicleSensors {
   std::vector<TachometerSensor>& tachometers() { return tachometers_; }
   std::vector<std::unique_ptr<CameraSensor>>& cameras() { return cameras_; }
   std::vector<std::unique_ptr<LidarSensor>>& lidars() { return lidars_; }
+  std::vector<std::unique_ptr<RadarSensor>>& radars() { return radars_; }
 
   /// Checkpoint state of every sensor built (between frames; docs/sensors.md, "Checkpoint
   /// state"): random streams, bias walks, schedules, samples waiting for their lag, open
@@ -85,6 +88,7 @@ class VehicleSensors {
   std::vector<TachometerSensor> tachometers_;
   std::vector<std::unique_ptr<CameraSensor>> cameras_;
   std::vector<std::unique_ptr<LidarSensor>> lidars_;
+  std::vector<std::unique_ptr<RadarSensor>> radars_;
 };
 
 }  // namespace syndds::sensors

@@ -163,6 +163,59 @@ void parse_lidar(MapReader& m, LidarConfig& c) {
   if (const auto error = config_error(c); !error.empty()) m.node().fail(error);
 }
 
+void parse_radar(MapReader& m, RadarConfig& c) {
+  auto open_range = [&](std::string_view key, double& lo, double& hi) {
+    std::tie(lo, hi) = range_pair(m, key, {lo, hi});
+  };
+  open_range("hfov_deg", c.hfov_min_deg, c.hfov_max_deg);
+  open_range("vfov_deg", c.vfov_min_deg, c.vfov_max_deg);
+  open_range("range_m", c.min_range_m, c.max_range_m);
+  if (auto r = m.optional("rays")) {
+    const auto d = r->as_doubles(2);
+    for (double v : d) {
+      if (v != std::floor(v) || v < 1 || v > 65535) r->fail("rays: [horizontal, vertical], whole numbers 1..65535");
+    }
+    c.horizontal_rays = static_cast<int>(d[0]);
+    c.vertical_rays = static_cast<int>(d[1]);
+  }
+  if (auto k = m.optional("cluster")) {
+    MapReader g(*k);
+    c.range_gate_m = g.positive("range_gate_m", c.range_gate_m);
+    c.speed_gate_mps = g.positive("speed_gate_mps", c.speed_gate_mps);
+    c.min_points = integer(g, "min_points", c.min_points, 1, 1 << 20);
+    g.finish();
+  }
+  c.min_strength_db = m.number("min_strength_db", c.min_strength_db, -400.0, 100.0);
+  c.max_detections = integer(m, "max_detections", c.max_detections, 1, kMaxRadarDetections);
+  c.ground = m.choice("ground", std::string("remove"), {"remove", "keep"}) == "keep"
+                 ? RadarGround::keep
+                 : RadarGround::remove;
+  if (auto r = m.optional("reflectivity")) {
+    // vehicle, terrain, other, and any obstacle label (rock, tree, ...).
+    MapReader k(*r);
+    c.reflectivity.vehicle = k.number("vehicle", c.reflectivity.vehicle, 0.0, 1e3);
+    c.reflectivity.terrain = k.number("terrain", c.reflectivity.terrain, 0.0, 1e3);
+    c.reflectivity.other = k.number("other", c.reflectivity.other, 0.0, 1e3);
+    for (const auto& item : r->raw()) {
+      const auto key = item.first.as<std::string>();
+      if (key == "vehicle" || key == "terrain" || key == "other") continue;
+      c.reflectivity.labels[key] = k.number(key, std::nullopt, 0.0, 1e3);
+    }
+    k.finish();
+  }
+  if (auto nz = m.optional("noise")) {
+    MapReader k(*nz);
+    c.range_noise_std_m = non_negative(k, "range_std_m", c.range_noise_std_m);
+    c.azimuth_noise_std_rad = non_negative(k, "azimuth_std_rad", c.azimuth_noise_std_rad);
+    c.elevation_noise_std_rad = non_negative(k, "elevation_std_rad", c.elevation_noise_std_rad);
+    c.speed_noise_std_mps = non_negative(k, "speed_std_mps", c.speed_noise_std_mps);
+    k.finish();
+  }
+  c.hide_own_vehicle = m.get_or("hide_own_vehicle", c.hide_own_vehicle);
+  c.threads = integer(m, "threads", c.threads, 1, 64);
+  if (const auto error = config_error(c); !error.empty()) m.node().fail(error);
+}
+
 SceneConfig parse_scene(const YamlNode& node) {
   MapReader m(node);
   SceneConfig s;
@@ -214,7 +267,7 @@ SensorRig parse_sensor_rig(const YamlNode& root) {
     }
     if (!ids.insert(id).second) m.required("id").fail("duplicate sensor id '" + id + "'");
     const std::string type = m.choice(
-        "type", std::nullopt, {"camera", "lidar", "gps", "imu", "magnetometer", "tachometer"});
+        "type", std::nullopt, {"camera", "lidar", "radar", "gps", "imu", "magnetometer", "tachometer"});
     auto rate_and_lag = [&](double rate, double lag) {
       return std::pair{m.positive("rate_hz", rate), non_negative(m, "lag_s", lag)};
     };
@@ -236,6 +289,13 @@ SensorRig parse_sensor_rig(const YamlNode& root) {
       c.mount = mount(c.mount);
       parse_lidar(m, c);
       rig.lidars.push_back(c);
+    } else if (type == "radar") {
+      RadarConfig c;
+      c.id = id;
+      std::tie(c.rate_hz, c.lag_s) = rate_and_lag(c.rate_hz, c.lag_s);
+      c.mount = mount(c.mount);
+      parse_radar(m, c);
+      rig.radars.push_back(c);
     } else if (type == "gps") {
       GpsConfig c;
       c.id = id;

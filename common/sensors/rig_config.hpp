@@ -20,13 +20,17 @@ struct SensorRig {
   SceneConfig scene;  // lighting and tessellation for the renderers ("scene:" block)
   std::vector<CameraConfig> cameras;
   std::vector<LidarConfig> lidars;
+  std::vector<RadarConfig> radars;
   std::vector<GpsConfig> gps;
   std::vector<ImuConfig> imus;
   std::vector<MagnetometerConfig> magnetometers;
   std::vector<TachometerConfig> tachometers;
   std::vector<std::string> sensor_ids;  // in file order
 
-  bool has_rendered_sensors() const { return !cameras.empty() || !lidars.empty(); }
+  /// Cameras, lidars and radars: ray traced in the vehicle's sensor process.
+  bool has_rendered_sensors() const {
+    return !cameras.empty() || !lidars.empty() || !radars.empty();
+  }
 };
 
 /// Reads a rig file; ConfigError (file:line:column: key path: message) on any problem.

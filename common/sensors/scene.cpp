@@ -580,6 +580,7 @@ std::size_t Scene::update_terrain_world(std::span<const HeightUpdate> updates) {
 void Scene::add_obstacle(const world::Obstacle& obstacle, std::optional<Rgb> colour) {
   Surface surface;
   surface.kind = SurfaceKind::obstacle;
+  surface.label = obstacle.label;
   surface.colour = colour.value_or(obstacle_colour(obstacle.label));
   surface.reflectance = config_.obstacle_reflectance;
   const Pose& pose = obstacle.pose;
@@ -714,6 +715,7 @@ void Scene::add_vehicle(const std::string& id, const VehicleShape& shape) {
   RTCGeometry g = pos->second.geometry;
   rtcRetainGeometry(g);  // keep our handle valid after attach() releases its reference
   pos->second.id = attach(g, surface);
+  vehicle_of_geometry_[pos->second.id] = &pos->second;
   check_device("vehicle creation");
 }
 
@@ -721,6 +723,7 @@ void Scene::remove_vehicle(const std::string& id) {
   auto it = vehicles_.find(id);
   if (it == vehicles_.end()) return;
   detach(it->second.id);
+  vehicle_of_geometry_.erase(it->second.id);
   rtcReleaseGeometry(it->second.geometry);
   used_slots_[static_cast<std::size_t>(it->second.slot)] = false;
   primitive_count_ -= it->second.triangles;
@@ -768,6 +771,37 @@ void Scene::set_vehicle_pose(const std::string& id, const vehicle::VehicleSnapsh
   const std::size_t n = std::min<std::size_t>(4, snapshot.wheels.size());
   for (std::size_t w = 0; w < n; ++w) wheels[w] = snapshot.wheels[w].pose;
   set_vehicle_pose(id, snapshot.pose, std::span<const Pose>(wheels.data(), n));
+  set_vehicle_velocity(id, snapshot.linear_velocity, snapshot.angular_velocity);
+}
+
+void Scene::set_vehicle_velocity(const std::string& id, const Vec3& linear, const Vec3& angular) {
+  auto it = vehicles_.find(id);
+  if (it == vehicles_.end()) throw std::invalid_argument("no vehicle '" + id + "' in scene");
+  if (!linear.allFinite() || !angular.allFinite()) {
+    throw std::invalid_argument("vehicle '" + id + "': non-finite velocity");
+  }
+  it->second.linear_velocity = linear;
+  it->second.angular_velocity = angular;
+}
+
+namespace {
+Vec3 rigid_velocity(const Pose& chassis, const Vec3& linear, const Vec3& angular, const Vec3& p) {
+  return linear + angular.cross(p - chassis.position);
+}
+}  // namespace
+
+Vec3 Scene::point_velocity(unsigned geom_id, const Vec3& p) const {
+  const auto it = vehicle_of_geometry_.find(geom_id);
+  if (it == vehicle_of_geometry_.end()) return Vec3::Zero();
+  const VehicleEntry& e = *it->second;
+  return rigid_velocity(e.chassis, e.linear_velocity, e.angular_velocity, p);
+}
+
+Vec3 Scene::vehicle_point_velocity(const std::string& id, const Vec3& p) const {
+  const auto it = vehicles_.find(id);
+  if (it == vehicles_.end()) return Vec3::Zero();
+  const VehicleEntry& e = it->second;
+  return rigid_velocity(e.chassis, e.linear_velocity, e.angular_velocity, p);
 }
 
 std::optional<Pose> Scene::vehicle_pose(const std::string& id) const {

@@ -1,5 +1,5 @@
 #pragma once
-// What the camera and lidar see, held in an Embree 3 scene:
+// What the camera, lidar and radar see, held in an Embree 3 scene:
 //  - terrain: a regular height grid cut into square tiles of quads, one Embree geometry per
 //    tile; update_terrain() rewrites the changed vertices and marks only their tiles, which
 //    commit() refits (build quality REFIT) - ruts from deformable soil cost a few tiles.
@@ -131,6 +131,7 @@ struct Surface {
   std::vector<Rgb> part_colours;
   std::vector<float> part_reflectances;
   int vehicle_slot = -1;
+  std::string label;  // obstacles: their label ("rock", ...; may be empty)
 
   Rgb colour_of(unsigned prim) const {
     return prim < prim_part.size() ? part_colours[prim_part[prim]] : colour;
@@ -195,6 +196,14 @@ class Scene {
   void set_vehicle_pose(const std::string& id, const Pose& chassis, std::span<const Pose> wheels);
   void set_vehicle_pose(const std::string& id, const vehicle::VehicleSnapshot& snapshot);
   std::optional<Pose> vehicle_pose(const std::string& id) const;
+  /// Sets a vehicle's velocities (world frame; linear of the chassis reference point), which
+  /// radars see as Doppler (zero until set). Non-finite values throw std::invalid_argument.
+  void set_vehicle_velocity(const std::string& id, const Vec3& linear, const Vec3& angular);
+  /// Velocity (world frame) of the surface point `p` of geometry `geom_id`: the rigid motion
+  /// of its vehicle's chassis (wheel spin is not added), zero for terrain and obstacles.
+  Vec3 point_velocity(unsigned geom_id, const Vec3& p) const;
+  /// Velocity of the point `p` rigidly attached to vehicle `id` (zero for an unknown id).
+  Vec3 vehicle_point_velocity(const std::string& id, const Vec3& p) const;
   /// Slot used to hide a vehicle from its own sensors (-1 if unknown).
   int vehicle_slot(const std::string& id) const;
 
@@ -233,6 +242,8 @@ class Scene {
     int slot = 0;
     VehicleShape shape;
     Pose chassis;
+    Vec3 linear_velocity = Vec3::Zero();
+    Vec3 angular_velocity = Vec3::Zero();
     std::vector<Vec3> body_local;   // body box corners in the chassis frame
     std::vector<Vec3> wheel_local;  // one wheel's vertices in the wheel frame
     std::size_t triangles = 0;
@@ -263,6 +274,7 @@ class Scene {
   int texture_width_ = 0, texture_height_ = 0;
   std::vector<float> texture_;  // linear RGB
   std::map<std::string, VehicleEntry> vehicles_;
+  std::map<unsigned, const VehicleEntry*> vehicle_of_geometry_;
   std::map<std::string, std::optional<TriMesh>> meshes_;
   std::vector<bool> used_slots_;
   std::size_t primitive_count_ = 0;

@@ -34,6 +34,35 @@ std::string config_error(const LidarConfig& c) {
   return "";
 }
 
+std::string config_error(const RadarConfig& c) {
+  if (c.horizontal_rays < 1 || c.vertical_rays < 1 || c.horizontal_rays > 65535 ||
+      c.vertical_rays > 65535) {
+    return "radar rays must be 1..65535 in each direction";
+  }
+  if (!(c.max_range_m > c.min_range_m) || c.min_range_m < 0.0) {
+    return "need 0 <= min_range_m < max_range_m";
+  }
+  if (!(c.hfov_max_deg > c.hfov_min_deg) || c.hfov_max_deg - c.hfov_min_deg > 360.0 + 1e-9 ||
+      !(c.vfov_max_deg > c.vfov_min_deg) || c.vfov_min_deg < -90.0 || c.vfov_max_deg > 90.0) {
+    return "bad field of view (need min < max, at most 360 degrees across, elevations in "
+           "[-90, 90])";
+  }
+  if (!(c.range_gate_m > 0.0) || !(c.speed_gate_mps > 0.0)) {
+    return "cluster gates must be > 0";
+  }
+  if (c.min_points < 1) return "cluster min_points must be >= 1";
+  if (c.max_detections < 1 || c.max_detections > kMaxRadarDetections) {
+    return "max_detections must be 1.." + std::to_string(kMaxRadarDetections);
+  }
+  const std::int64_t rays = std::int64_t{c.horizontal_rays} * c.vertical_rays;
+  if (rays > kMaxRadarRaysPerScan) {
+    return std::to_string(c.horizontal_rays) + " x " + std::to_string(c.vertical_rays) +
+           " rays make " + std::to_string(rays) + " rays per scan; the budget is " +
+           std::to_string(kMaxRadarRaysPerScan) + " (docs/sensors.md, Budgets)";
+  }
+  return "";
+}
+
 std::string config_error(const CameraConfig& c) {
   const auto& in = c.intrinsics;
   if (in.width < 16 || in.height < 9 || in.width > 7680 || in.height > 4320) {

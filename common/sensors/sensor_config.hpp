@@ -1,7 +1,7 @@
 #pragma once
 // Plain configuration of the sensors of a rig (docs/sensors.md): what a rig file says, with
 // no renderer, scene or noise stream behind it. Readers and budget checks live in
-// rig_config.hpp; the sensors themselves (camera.hpp, lidar.hpp, interoceptive.hpp) are built
+// rig_config.hpp; the sensors themselves (camera.hpp, lidar.hpp, radar.hpp, interoceptive.hpp) are built
 // from these structs only by the processes that simulate them.
 #include <cmath>
 #include <cstdint>
@@ -165,12 +165,66 @@ struct LidarConfig {
   int threads = 1;
 };
 
+enum class RadarGround { remove, keep };
+
+/// Radar reflectivity (dimensionless, the share of the incident power a surface sends back
+/// towards the radar at normal incidence) by what a ray hits: vehicles, the terrain, and
+/// obstacles by label (docs/sensors.md, "Radar").
+struct RadarReflectivity {
+  double vehicle = 1.0;   // metal bodies
+  double terrain = 0.02;  // soil, snow
+  std::map<std::string, double> labels{{"rock", 0.3}, {"tree", 0.1}, {"bush", 0.05},
+                                       {"wall", 0.5}};
+  double other = 0.3;  // an obstacle whose label is not listed
+
+  double of_obstacle(const std::string& label) const {
+    const auto it = labels.find(label);
+    return it == labels.end() ? other : it->second;
+  }
+};
+
+/// Radar (docs/sensors.md, "Radar"): a grid of rays over the field of view (cell centres),
+/// returns clustered into detections over the ray grid, the radar equation for strength.
+struct RadarConfig {
+  std::string id = "radar";
+  double rate_hz = 20.0;
+  double lag_s = 0.05;
+  Mount mount;
+  double hfov_min_deg = -10.0;
+  double hfov_max_deg = 10.0;
+  double vfov_min_deg = -2.5;
+  double vfov_max_deg = 2.5;
+  int horizontal_rays = 200;  // across the horizontal field of view
+  int vertical_rays = 50;
+  double min_range_m = 0.5;
+  double max_range_m = 150.0;
+  // Clustering: neighbouring rays (8-neighbourhood of the ray grid) whose returns differ by at
+  // most these join one detection; a detection needs min_points returns.
+  double range_gate_m = 4.0;
+  double speed_gate_mps = 0.5;
+  int min_points = 1;
+  double min_strength_db = -90.0;  // received power re a 1 m2 target at 1 m
+  int max_detections = 128;        // the strongest are kept
+  RadarGround ground = RadarGround::remove;
+  RadarReflectivity reflectivity;
+  double range_noise_std_m = 0.0;
+  double azimuth_noise_std_rad = 0.0;
+  double elevation_noise_std_rad = 0.0;
+  double speed_noise_std_mps = 0.0;
+  bool hide_own_vehicle = true;
+  int threads = 1;
+};
+
 // Budgets: the work one sensor may ask for per scan or frame, so that a rig within them
 // renders within the frame deadline and no process allocates in proportion to a number it
 // has not checked (docs/sensors.md, "Budgets").
 /// Rays of one lidar scan: channels x samples x beam sub-rays. 2^21 is 8 times an Ouster
 /// OS1-128 in its 2048 x 128 mode, 73 times a Velodyne VLP-16 at 0.2 degrees (16 x 1800).
 inline constexpr std::int64_t kMaxLidarRaysPerScan = std::int64_t{1} << 21;
+/// Rays of one radar scan: horizontal x vertical rays; a 0.02 degree grid over 40 x 10 degrees.
+inline constexpr std::int64_t kMaxRadarRaysPerScan = std::int64_t{1} << 20;
+/// Detections one radar scan may report (automotive radars report 64 to a few hundred).
+inline constexpr int kMaxRadarDetections = 4096;
 /// Rays of one camera frame: width x height x exposure subframes; one 8K UHD image.
 inline constexpr std::int64_t kMaxCameraPixelsPerFrame = std::int64_t{7680} * 4320;
 /// Sensor ids name CSV rows, DDS keys and files: a letter or digit, then letters, digits,
@@ -181,5 +235,6 @@ bool is_valid_sensor_id(const std::string& id);
 /// checked in constant time (the renderers allocate per ray only when they are built).
 std::string config_error(const LidarConfig& config);
 std::string config_error(const CameraConfig& config);
+std::string config_error(const RadarConfig& config);
 
 }  // namespace syndds::sensors
