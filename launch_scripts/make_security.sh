@@ -78,7 +78,7 @@ data_out_vehicle="syndds/vehicle_state syndds/terrain_deformation syndds/collisi
   syndds/terrain_snapshot syndds/gps_fix syndds/imu syndds/magnetometer syndds/wheel_speeds
   syndds/v2v_message syndds/vehicle_event"
 data_out_controller="syndds/driver_command syndds/vehicle_event"
-data_out_sensor="syndds/image syndds/point_cloud"
+data_out_sensor="syndds/image syndds/point_cloud syndds/radar"
 topics_xml() { for t in $1; do printf '            <topic>%s</topic>\n' "$t"; done; }
 
 grant() {  # $1 = name, $2 = protocol topics written, $3 = data topics written, $4 = vehicle id

@@ -270,6 +270,16 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
         dir / "wheel_speeds.csv", stamped({"fl_rad_s", "fr_rad_s", "rl_rad_s", "rr_rad_s"}), open);
   }
   if (v2v) v2v_ = std::make_unique<CsvFile>(dir / "v2v.csv", kV2VColumns, open);
+  bool radar = false;
+  for (const auto& v : scenario.vehicles) radar = radar || (v.sensors && !v.sensors->rig.radars.empty());
+  if (radar) {
+    radar_ = std::make_unique<CsvFile>(
+        dir / "radar.csv",
+        stamped({"detection", "range_m", "azimuth_rad", "elevation_rad", "radial_speed_mps",
+                 "strength_db", "rcs_dbsm", "points", "x", "y", "z", "world_x", "world_y",
+                 "world_z"}),
+        open);
+  }
   write_summary(nullptr);
 }
 
@@ -286,6 +296,7 @@ std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
       subs.push_back({t, ""});
     }
   }
+  if (radar_) subs.push_back({proto::Topic::radar, ""});
   return subs;
 }
 
@@ -438,6 +449,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
     }
   }
   if (gps_) record_sensors(samples);
+  if (radar_) record_radar(samples);
   if (soil_) {
     std::uint64_t frame_bytes = 0;
     for (const auto& d : samples.terrain_deformations) {
@@ -484,10 +496,23 @@ void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
   }
 }
 
+void RecorderAgent::record_radar(const proto::FrameSamples& samples) {
+  for (const auto& m : samples.radar_scans) {
+    for (std::size_t k = 0; k < m.detections.size(); ++k) {
+      const auto& d = m.detections[k];
+      const Vec3 w = m.pose.position + m.pose.orientation * Vec3(d.x, d.y, d.z);
+      stamped_row(*radar_, m, k, Fixed{d.range_m, 3}, Fixed{d.azimuth_rad, 5},
+                  Fixed{d.elevation_rad, 5}, Fixed{d.radial_speed_mps, 3}, Fixed{d.strength_db, 2},
+                  Fixed{d.rcs_dbsm, 2}, d.points, Fixed{d.x, 3}, Fixed{d.y, 3}, Fixed{d.z, 3},
+                  Fixed{w.x(), 3}, Fixed{w.y(), 3}, Fixed{w.z(), 3});
+    }
+  }
+}
+
 void RecorderAgent::commit() {
   commit_rows({vehicles_.get(), commands_.get(), events_.get(), wheels_.get(),
                terrain_changes_.get(), gps_.get(), imu_.get(), compass_.get(), wheel_speeds_.get(),
-               v2v_.get()});
+               v2v_.get(), radar_.get()});
   last_frame_ = pending_frame_;
 }
 
@@ -711,7 +736,7 @@ std::vector<CsvFile*> RecorderAgent::files() const {
   return {vehicles_.get(), commands_.get(),     events_.get(),
           wheels_.get(),   terrain_changes_.get(), gps_.get(),
           imu_.get(),      compass_.get(),      wheel_speeds_.get(),
-          v2v_.get()};
+          v2v_.get(),      radar_.get()};
 }
 
 namespace {
@@ -787,7 +812,7 @@ void map_io(Archive& a, std::map<std::string, V>& map, F&& fields) {
 
 void RecorderAgent::save_state(core::StateWriter& w) {
   if (!failure_.empty()) throw WriteError("no checkpoint of a failed recorder: " + failure_);
-  w.begin("recorder", 3);
+  w.begin("recorder", 4);
   for (CsvFile* f : files()) {
     if (f && f->has_pending()) {
       throw std::logic_error(f->path().string() + ": rows not committed at a checkpoint");
@@ -813,9 +838,12 @@ void RecorderAgent::save_state(core::StateWriter& w) {
 }
 
 void RecorderAgent::load_state(core::StateReader& r) {
-  r.begin("recorder", 3);
-  for (CsvFile* f : files()) {
-    const bool has = r.get<bool>();
+  // Version 3 (before radar.csv) lists one file fewer: the last, radar.csv, is absent.
+  const auto version = r.begin("recorder", 4, 3);
+  const auto files_now = files();
+  for (std::size_t k = 0; k < files_now.size(); ++k) {
+    CsvFile* f = files_now[k];
+    const bool has = version >= 4 || k + 1 < files_now.size() ? r.get<bool>() : false;
     if (has != (f != nullptr)) {
       r.fail(std::string("the checkpointed recorder ") + (has ? "wrote" : "did not write") +
              " a CSV file this scenario " + (has ? "does not have" : "has"));

@@ -5,7 +5,7 @@
 // recorder itself (a full disk) fails the frame, which ends the run with the reason. summary.json
 // is rewritten (atomically) about once a second while the run goes on, so a recorder that is
 // killed still says how far it got. Files (docs/outputs.md): vehicles.csv, commands.csv,
-// events.csv, wheels.csv, scene.json, summary.json, summary.txt, with followers convoy.json and
+// events.csv, wheels.csv, scene.json, radar.csv (with radars), summary.json, summary.txt, with followers convoy.json and
 // metrics.json, and on deformable terrain terrain_changes.csv, terrain_height.png,
 // terrain_rut.png, terrain_images.json.
 #include <chrono>
@@ -126,6 +126,8 @@ class RecorderAgent final : public proto::Agent {
   /// terrain_changes.csv: the soil vertices changed since the last snapshot, at `frame`.
   void record_terrain_changes(std::int64_t frame);
   void record_sensors(const proto::FrameSamples& samples);
+  /// radar.csv: one row per detection, with its world position.
+  void record_radar(const proto::FrameSamples& samples);
   /// Writes the rows gathered since the last commit, in every file, as one unit.
   void commit();
   void write_summary(const proto::RunControlMsg* end);
@@ -158,6 +160,7 @@ class RecorderAgent final : public proto::Agent {
   std::unique_ptr<CsvFile> compass_;
   std::unique_ptr<CsvFile> wheel_speeds_;
   std::unique_ptr<CsvFile> v2v_;  // only when some vehicle broadcasts V2V messages
+  std::unique_ptr<CsvFile> radar_;  // only when some vehicle carries a radar
   // Convoys: (follower, vehicle followed) pairs and every vehicle's track, for the report.
   std::vector<std::pair<std::string, std::string>> followers_;
   std::map<std::string, convoy::GapGeometry> gap_geometry_;  // per follower: boxes, standstill

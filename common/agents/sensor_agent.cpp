@@ -95,7 +95,7 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
     const auto& v = s.vehicles[i];
     scene_->add_vehicle(v.id, sensors::vehicle_shape(v.params, sensors::vehicle_palette(i)));
     scene_->set_vehicle_pose(v.id, v.start, {});
-    poses_[v.id] = {v.start, {}};
+    poses_[v.id] = {v.start, {}, Vec3::Zero(), Vec3::Zero()};
   }
   scene_->commit();
   sensors_ = std::make_unique<sensors::VehicleSensors>(config_.rig, vehicle_id_, s.seed,
@@ -125,7 +125,7 @@ std::vector<proto::Subscription> SensorAgent::subscriptions() const {
 }
 
 std::vector<proto::Topic> SensorAgent::publications() const {
-  return {proto::Topic::image, proto::Topic::point_cloud};
+  return {proto::Topic::image, proto::Topic::point_cloud, proto::Topic::radar};
 }
 
 void SensorAgent::update_world(const proto::FrameSamples& inputs) {
@@ -135,7 +135,8 @@ void SensorAgent::update_world(const proto::FrameSamples& inputs) {
     wheels.reserve(st.wheels.size());
     for (const auto& w : st.wheels) wheels.push_back(w.pose);
     scene_->set_vehicle_pose(st.vehicle_id, st.pose, wheels);
-    poses_[st.vehicle_id] = {st.pose, std::move(wheels)};
+    scene_->set_vehicle_velocity(st.vehicle_id, st.linear_velocity, st.angular_velocity);
+    poses_[st.vehicle_id] = {st.pose, std::move(wheels), st.linear_velocity, st.angular_velocity};
   }
   if (soil_) {
     // The soil copy merges every list by the SCM rule; the scene shows the merged heights.
@@ -238,18 +239,20 @@ void SensorAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& fi
 }
 
 void SensorAgent::save_state(core::StateWriter& w) {
-  w.begin("sensor_agent", 2);
+  w.begin("sensor_agent", 3);
   w.io(frames_rendered_);
   w.io(static_cast<std::uint64_t>(poses_.size()));
-  for (const auto& [id, pose] : poses_) {
+  for (const auto& [id, view] : poses_) {
     w.io(id);
-    w.io(pose.first.position);
-    w.io(pose.first.orientation);
-    w.io(static_cast<std::uint64_t>(pose.second.size()));
-    for (const auto& p : pose.second) {
+    w.io(view.chassis.position);
+    w.io(view.chassis.orientation);
+    w.io(static_cast<std::uint64_t>(view.wheels.size()));
+    for (const auto& p : view.wheels) {
       w.io(p.position);
       w.io(p.orientation);
     }
+    w.io(view.linear_velocity);
+    w.io(view.angular_velocity);
   }
   sensors_->save_state(w);
   w.io(soil_ != nullptr);
@@ -305,21 +308,26 @@ void SensorAgent::load_videos(core::StateReader& r, std::uint64_t count) {
 }
 
 void SensorAgent::load_state(core::StateReader& r) {
-  // Version 1 (before videos could be checkpointed) holds no videos.
-  const auto version = r.begin("sensor_agent", 2, 1);
+  // Version 1 (before videos could be checkpointed) holds no videos, version 2 (before
+  // radars) no velocities.
+  const auto version = r.begin("sensor_agent", 3, 1);
   r.io(frames_rendered_);
-  std::map<std::string, std::pair<Pose, std::vector<Pose>>> poses;
+  std::map<std::string, VehicleView> poses;
   const auto n = r.get<std::uint64_t>();
   for (std::uint64_t k = 0; k < n; ++k) {
     const auto id = r.get<std::string>();
     if (!scene_->has_vehicle(id)) r.fail("vehicle '" + id + "' is not in this scenario's scene");
-    auto& pose = poses[id];
-    r.io(pose.first.position);
-    r.io(pose.first.orientation);
-    pose.second.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
-    for (auto& p : pose.second) {
+    auto& view = poses[id];
+    r.io(view.chassis.position);
+    r.io(view.chassis.orientation);
+    view.wheels.resize(static_cast<std::size_t>(r.get<std::uint64_t>()));
+    for (auto& p : view.wheels) {
       r.io(p.position);
       r.io(p.orientation);
+    }
+    if (version >= 3) {
+      r.io(view.linear_velocity);
+      r.io(view.angular_velocity);
     }
   }
   sensors_->load_state(r);
@@ -338,10 +346,13 @@ void SensorAgent::load_state(core::StateReader& r) {
   r.end();
   // The scene as it was: vehicles removed since the start stay removed, the others where they
   // were, the terrain at the soil copy's heights.
-  for (const auto& [id, pose] : poses_) {
+  for (const auto& [id, view] : poses_) {
     if (!poses.contains(id)) scene_->remove_vehicle(id);
   }
-  for (const auto& [id, pose] : poses) scene_->set_vehicle_pose(id, pose.first, pose.second);
+  for (const auto& [id, view] : poses) {
+    scene_->set_vehicle_pose(id, view.chassis, view.wheels);
+    scene_->set_vehicle_velocity(id, view.linear_velocity, view.angular_velocity);
+  }
   poses_ = std::move(poses);
   if (soil_) {
     if (stepped_) reset_terrain_();  // a rollback: ruts of later frames are drawn in the scene

@@ -1,7 +1,7 @@
 #pragma once
 // The sensor member of one vehicle ("sensor/<id>"): keeps an Embree scene of the whole world
 // (terrain with every vehicle's ruts, obstacles, every vehicle at its synced pose) and renders
-// the vehicle's cameras and lidars. In frame k it sees the states and deformations stamped
+// the vehicle's cameras, lidars and radars. In frame k it sees the states and deformations stamped
 // k-1 (the world at t_{k-1}), renders it, and publishes what became available, stamped k.
 // A vehicle lost under on_member_loss: continue leaves the scene in the frame it is reported.
 #include <functional>
@@ -68,9 +68,15 @@ class SensorAgent final : public proto::Agent {
   std::map<std::string, std::unique_ptr<sensors::VideoWriter>> videos_;
   std::unique_ptr<record::CsvFile> index_;  // frames.csv, when frames are saved
   std::uint64_t frames_rendered_ = 0;
-  // The pose the scene shows of each vehicle (kept for checkpoints: a vehicle whose states
-  // stop arriving stays where it was), absent once removed.
-  std::map<std::string, std::pair<Pose, std::vector<Pose>>> poses_;
+  // What the scene shows of each vehicle (kept for checkpoints: a vehicle whose states stop
+  // arriving stays where it was, moving as it was), absent once removed.
+  struct VehicleView {
+    Pose chassis;
+    std::vector<Pose> wheels;
+    Vec3 linear_velocity = Vec3::Zero();  // radars see these as Doppler
+    Vec3 angular_velocity = Vec3::Zero();
+  };
+  std::map<std::string, VehicleView> poses_;
   std::function<void()> reset_terrain_;  // the scene's soil as it was at the start (SCM)
   bool stepped_ = false;
 };

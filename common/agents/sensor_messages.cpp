@@ -67,6 +67,17 @@ void append_messages(const sensors::RenderedBatch& batch, const std::string& veh
     }
     out.point_clouds.push_back(std::move(m));
   }
+  for (const auto& scan : batch.radar) {
+    auto m = header<proto::RadarScanMsg>(scan, vehicle_id, source, frame);
+    m.pose = scan.pose;
+    m.velocity = scan.velocity;
+    m.detections.reserve(scan.detections.size());
+    for (const auto& d : scan.detections) {
+      m.detections.push_back({d.x, d.y, d.z, d.range_m, d.azimuth_rad, d.elevation_rad,
+                              d.radial_speed_mps, d.strength_db, d.rcs_dbsm, d.points});
+    }
+    out.radar_scans.push_back(std::move(m));
+  }
 }
 
 }  // namespace syndds::agents

@@ -8,7 +8,7 @@ namespace syndds::agents {
 /// Appends the interoceptive samples of `batch` to `out`, stamped (frame, source).
 void append_messages(const sensors::InteroceptiveBatch& batch, const std::string& vehicle_id,
                      const std::string& source, std::int64_t frame, proto::FrameSamples& out);
-/// Appends camera frames and lidar scans of `batch` to `out`, stamped (frame, source).
+/// Appends camera frames, lidar and radar scans of `batch` to `out`, stamped (frame, source).
 void append_messages(const sensors::RenderedBatch& batch, const std::string& vehicle_id,
                      const std::string& source, std::int64_t frame, proto::FrameSamples& out);
 

@@ -66,7 +66,8 @@ std::string_view to_string(MemberKind kind);
   X(image, ImageMsg, Image, images, 4)                                                      \
   X(point_cloud, PointCloudMsg, PointCloud, point_clouds, 4)                                \
   X(v2v_message, V2VMessageMsg, V2VMessage, v2v_messages, 32)                               \
-  X(vehicle_event, VehicleEventMsg, VehicleEvent, vehicle_events, 256)
+  X(vehicle_event, VehicleEventMsg, VehicleEvent, vehicle_events, 256)                      \
+  X(radar, RadarScanMsg, RadarScan, radar_scans, 4)
 
 /// The protocol messages (not data topics), one row each: X(message struct, IDL type).
 #define SYNDDS_PROTOCOL_MESSAGES(X)          \
@@ -272,6 +273,31 @@ struct PointCloudMsg {
   std::vector<PointMsg> points;
 };
 SYNDDS_FIELDS(PointCloudMsg, vehicle_id, source, frame, stamp, pose, channels, samples, points)
+
+/// One radar detection (common/sensors/radar.hpp): a cluster of returns.
+struct RadarDetectionMsg {
+  float x = 0, y = 0, z = 0;   // centroid, sensor frame, metres
+  float range_m = 0;
+  float azimuth_rad = 0;       // from x towards y
+  float elevation_rad = 0;     // up
+  float radial_speed_mps = 0;  // range rate: > 0 moving away
+  float strength_db = 0;       // received power re a 1 m^2 target at 1 m
+  float rcs_dbsm = 0;          // radar cross-section, dB re 1 m^2
+  std::uint32_t points = 0;    // returns clustered
+};
+SYNDDS_FIELDS(RadarDetectionMsg, x, y, z, range_m, azimuth_rad, elevation_rad, radial_speed_mps,
+              strength_db, rcs_dbsm, points)
+
+struct RadarScanMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  SensorStampMsg stamp;
+  Pose pose;                            // radar pose in the world
+  Vec3 velocity = Vec3::Zero();         // the radar's own velocity (world frame)
+  std::vector<RadarDetectionMsg> detections;  // by range
+};
+SYNDDS_FIELDS(RadarScanMsg, vehicle_id, source, frame, stamp, pose, velocity, detections)
 
 /// Vehicle-to-vehicle broadcast: what a vehicle tells the others about itself, from its own
 /// sensors (GPS, compass, tachometer: noise and lag included, never ground truth).

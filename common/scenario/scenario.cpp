@@ -428,9 +428,9 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
     }
   }
   // A sensor measures on the grid it is fed at: the dynamics step for the interoceptive ones,
-  // the frame for cameras and lidars. Checked here so that a rig too fast for the scenario is
-  // refused before any process starts (VehicleSensors checks again with the exact tick rule;
-  // the margin here only ever accepts more).
+  // the frame for cameras, lidars and radars. Checked here so that a rig too fast for the
+  // scenario is refused before any process starts (VehicleSensors checks again with the exact
+  // tick rule; the margin here only ever accepts more).
   auto check_rate = [&](const std::string& id, double rate_hz, double tick_s, const char* fed) {
     if (rate_hz * tick_s > 1.0 + 1e-6) {
       std::ostringstream msg;
@@ -445,6 +445,7 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
   for (const auto& s : c.rig.tachometers) check_rate(s.id, s.rate_hz, time.step_s, "time.step_s");
   for (const auto& s : c.rig.cameras) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
   for (const auto& s : c.rig.lidars) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
+  for (const auto& s : c.rig.radars) check_rate(s.id, s.rate_hz, heartbeat_s, "time.heartbeat_s");
   return c;
 }
 

@@ -132,7 +132,7 @@ struct VehicleConfig {
   std::optional<convoy::V2VConfig> v2v;  // broadcasts V2V messages (needs GPS, compass, tachometer)
   /// GPS, IMU, compass or tachometer: simulated in the vehicle process at the dynamics rate.
   bool has_interoceptive_sensors() const;
-  /// Cameras or lidars: rendered by the vehicle's own sensor process ("sensor/<id>").
+  /// Cameras, lidars or radars: rendered by the vehicle's own sensor process ("sensor/<id>").
   bool has_rendered_sensors() const { return sensors && sensors->rig.has_rendered_sensors(); }
 };
 

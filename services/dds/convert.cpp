@@ -209,6 +209,26 @@ void check(const proto::V2VMessageMsg& m) {
   in("heading_rad", m.heading_rad, -7.0, 7.0);
 }
 
+// A radar's detections are drawn and may be acted on: every number finite, or the detection
+// and the field are named.
+void check(const proto::RadarScanMsg& m) {
+  const std::string what = "radar from " + m.source + " (sensor " + m.stamp.sensor_id + ")";
+  if (!m.pose.position.allFinite() || !m.pose.orientation.coeffs().allFinite() ||
+      !m.velocity.allFinite()) {
+    throw ProtocolError(what + ": pose or velocity is not finite");
+  }
+  for (std::size_t k = 0; k < m.detections.size(); ++k) {
+    proto::for_each_field<proto::RadarDetectionMsg>([&](const char* name, auto member, auto) {
+      if constexpr (std::is_floating_point_v<std::remove_cvref_t<decltype(m.detections[k].*member)>>) {
+        if (!std::isfinite(m.detections[k].*member)) {
+          throw ProtocolError(what + ": detection " + std::to_string(k) + " " + name +
+                              " is not finite");
+        }
+      }
+    });
+  }
+}
+
 // Another vehicle's process feels these bodies: a NaN or a negative footprint is malformed.
 void check_body(const proto::VehicleBodyMsg& b, const std::string& what) {
   auto finite = [&](const char* field, const auto& v) {

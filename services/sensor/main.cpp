@@ -1,11 +1,11 @@
-// syndds_sensor: renders one vehicle's cameras and lidars (Embree) from the synced world.
+// syndds_sensor: renders one vehicle's cameras, lidars and radars (Embree) from the synced world.
 #include "common/member_main.hpp"
 
 int main(int argc, char** argv) {
   std::string vehicle;
   std::string output = "runs/latest";
   return syndds::service::member_main(
-      "sensor", "syndds sensor: renders one vehicle's cameras and lidars from the synced world",
+      "sensor", "syndds sensor: renders one vehicle's cameras, lidars and radars from the synced world",
       argc, argv,
       [&](CLI::App& app) {
         app.add_option("--vehicle", vehicle, "Vehicle id from the scenario")->required();

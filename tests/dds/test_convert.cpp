@@ -286,6 +286,22 @@ TEST(Convert, NonFiniteTerrainVertexNamesTheVertexAndTheField) {
   }
 }
 
+TEST(Convert, NonFiniteRadarDetectionNamesTheDetectionAndTheField) {
+  proto::RadarScanMsg r;
+  r.source = "sensor/y";
+  r.stamp.sensor_id = "front_radar";
+  r.detections.resize(3);
+  r.detections[2].radial_speed_mps = std::nanf("");
+  EXPECT_EQ(error_of([&] { sdds::from_dds(sdds::to_dds(r)); }),
+            "radar from sensor/y (sensor front_radar): detection 2 radial_speed_mps is not finite");
+  r.detections[2].radial_speed_mps = 1.0f;
+  r.velocity.x() = HUGE_VAL;
+  EXPECT_EQ(error_of([&] { sdds::from_dds(sdds::to_dds(r)); }),
+            "radar from sensor/y (sensor front_radar): pose or velocity is not finite");
+  r.velocity.x() = 0.0;
+  EXPECT_EQ(sdds::from_dds(sdds::to_dds(r)).detections.size(), 3u);
+}
+
 // A packed list that does not decode exactly is refused naming the topic, the writer and the
 // byte (a truncated sample, a corrupted length, garbage after the list).
 TEST(Convert, MalformedPackedVerticesAreRefusedNamingTheByte) {

@@ -85,7 +85,7 @@ TEST(SensorRig, ErrorsNameFileLineAndKey) {
   EXPECT_NE(dup.find("rig.yaml:4:"), std::string::npos) << dup;
   EXPECT_NE(dup.find("duplicate sensor id 'a'"), std::string::npos) << dup;
 
-  const std::string type = error_of([] { parse("name: r\nsensors:\n  - {id: a, type: radar}\n"); });
+  const std::string type = error_of([] { parse("name: r\nsensors:\n  - {id: a, type: sonar}\n"); });
   EXPECT_NE(type.find("must be one of"), std::string::npos) << type;
 
   const std::string range = error_of(
