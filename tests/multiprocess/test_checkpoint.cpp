@@ -370,3 +370,31 @@ TEST(Checkpoint, ConvoyChaseCameraKilledIsRecoveredByteIdentical) {
   expect_same_run(want, out, false);
   EXPECT_TRUE(fs::exists(out / "sensors" / "f3" / "chase_camera.avi"));
 }
+
+// A radar in its own sensor process (tests/multiprocess/scenarios/radar.yaml) with checkpoint:
+// and on_member_loss: recover: the sensor process is killed while scans wait for their lag;
+// the run ends with the single-process run's files, radar.csv byte for byte.
+TEST(Checkpoint, RadarKilledIsRecoveredByteIdentical) {
+  TestRun run;
+  const std::string scenario =
+      recoverable_copy(kSource + "/tests/multiprocess/scenarios/radar.yaml", run.dir, 1.0);
+  const fs::path want = reference(run, scenario);
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, scenario);
+  const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
+  ASSERT_TRUE(wait_until(
+      [&] { return (complete(out, 200) && rows() > 3u * 330u) || launcher->poll(); }, 120))
+      << launcher->log();
+  ASSERT_FALSE(launcher->poll()) << launcher->log();
+  const int pid = launched_pid(out, "sensor/r");
+  ASSERT_GT(pid, 0);
+  ::kill(pid, SIGKILL);
+  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  EXPECT_NE(read_file(out / "recoveries.csv").find(",sensor/r,\"its process exited\""),
+            std::string::npos);
+  // vehicles, commands, events, wheels, scenario, gps, imu, compass, wheel speeds, radar.
+  expect_same_run(want, out, false, 0, 10);
+  const std::string radar = read_file(out / "radar.csv");
+  EXPECT_GT(count_lines(radar), 300u);
+  EXPECT_NE(radar.find(",r,front_radar,"), std::string::npos);
+}
