@@ -1,4 +1,4 @@
-// Camera and lidar throughput on a realistic scene: 100 x 100 m terrain at 0.1 m (2 M
+// Camera, lidar and radar throughput on a realistic scene: 100 x 100 m terrain at 0.1 m (2 M
 // triangles), 4 vehicles, 30 obstacles. Run:
 //   build/tests/sensors/bench_sensors [frames] [case] [tile cells] [shadow distance] [meshes]
 #include <algorithm>
@@ -11,6 +11,8 @@
 #include "scene_fixture.hpp"
 #include "sensors/camera.hpp"
 #include "sensors/lidar.hpp"
+#include "sensors/radar.hpp"
+#include "sensors/rig_config.hpp"
 
 using namespace syndds;
 using namespace syndds::sensors;
@@ -202,6 +204,27 @@ int main(int argc, char** argv) {
         median_seconds(n, [&](int f) { div.scan(scene, static_cast<std::uint64_t>(f)); }).wall;
     std::printf("lidar 900x16x5 sub-rays threads %d: %.3f ms/scan, %.2f M rays/s\n", threads,
                 1e3 * per2, 72000 / per2 * 1e-6);
+  }
+  for (int threads : {1, 2}) {
+    if (!only.empty() && only != "radar") continue;
+    // The example rig's forward radar (config/sensors/convoy_radar.yaml: 200 x 50 rays, 150 m),
+    // standing behind the four vehicles, which drive away at 5 m/s.
+    RadarConfig cfg =
+        load_sensor_rig(std::string(SYNDDS_CONFIG_DIR) + "/sensors/convoy_radar.yaml").radars.at(0);
+    cfg.threads = threads;
+    cfg.mount.pose.position = Vec3(-30, 0, 1.1);
+    for (int v = 0; v < 4; ++v) scene.set_vehicle_velocity(vehicle_name(v), Vec3(5, 0, 0), Vec3::Zero());
+    RadarSensor radar(cfg, "", 1, 0.01);
+    radar.scan(scene, 0);
+    const int n = frames * 5;
+    std::size_t detections = 0;
+    const auto t = median_seconds(n, [&](int f) {
+      detections += radar.scan(scene, static_cast<std::uint64_t>(f)).detections.size();
+    });
+    std::printf("radar %dx%d threads %d: %.3f ms/scan, %.2f M rays/s, caller CPU %.3f ms "
+                "(%zu detections/scan)\n",
+                cfg.horizontal_rays, cfg.vertical_rays, threads, 1e3 * t.wall,
+                radar.rays() / t.wall * 1e-6, 1e3 * t.cpu, detections / static_cast<std::size_t>(n));
   }
   return 0;
 }
