@@ -36,6 +36,30 @@ void LiveState::on_collision(const proto::CollisionEventMsg& e) {
   if (contacts_.size() > kMaxContactMarks) contacts_.pop_front();
 }
 
+void LiveState::on_radar(const proto::RadarScanMsg& m) {
+  std::lock_guard lock(mutex_);
+  const auto key = std::make_pair(m.vehicle_id, m.stamp.sensor_id);
+  auto it = radar_.find(key);
+  if (it == radar_.end()) {
+    if (radar_.size() >= kMaxRadarSensors) return;
+    it = radar_.emplace(key, RadarScan{}).first;
+  } else if (m.stamp.time_s < it->second.time_s) {
+    return;
+  }
+  RadarScan& s = it->second;
+  s.frame = m.frame;
+  s.time_s = m.stamp.time_s;
+  s.detections.clear();
+  const Eigen::Matrix3d r = m.pose.orientation.toRotationMatrix();
+  for (const auto& d : m.detections) {
+    if (s.detections.size() >= kMaxRadarDetections) break;
+    const Vec3 at = m.pose.position + r * Vec3(d.x, d.y, d.z);
+    if (!at.allFinite()) continue;
+    s.detections.push_back({at, d.radial_speed_mps, d.strength_db});
+  }
+  s.change = ++radar_changes_;
+}
+
 void LiveState::on_terrain(const std::vector<proto::TerrainVertexMsg>& vertices) {
   std::lock_guard lock(mutex_);
   for (const auto& x : vertices) {
@@ -95,7 +119,8 @@ bool LiveState::has_news(const Cursor& cursor) const {
   std::lock_guard lock(mutex_);
   return cursor.frame != frame_ || cursor.vehicles < vehicle_changes_ ||
          cursor.terrain < soil_changes_ || cursor.members < member_changes_ ||
-         cursor.status < status_changes_ || cursor.contacts < contact_changes_;
+         cursor.status < status_changes_ || cursor.contacts < contact_changes_ ||
+         cursor.radar < radar_changes_;
 }
 
 std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* more) {
@@ -143,6 +168,23 @@ std::string LiveState::update(Cursor& cursor, std::size_t max_vertices, bool* mo
   }
   cursor.contacts = contact_changes_;
   u["contacts"] = contacts;
+  nlohmann::json radar = nlohmann::json::array();
+  for (const auto& [key, s] : radar_) {
+    if (s.change <= cursor.radar) continue;
+    nlohmann::json detections = nlohmann::json::array();
+    for (const auto& d : s.detections) {
+      detections.push_back({{"at", {d.at.x(), d.at.y(), d.at.z()}},
+                            {"radial_speed_mps", d.radial_speed_mps},
+                            {"strength_db", d.strength_db}});
+    }
+    radar.push_back({{"vehicle", key.first},
+                     {"sensor", key.second},
+                     {"frame", s.frame},
+                     {"time_s", s.time_s},
+                     {"detections", detections}});
+  }
+  cursor.radar = radar_changes_;
+  u["radar"] = radar;
   // Soil: the log is in change order; start after the cursor.
   auto it = std::upper_bound(soil_log_.begin(), soil_log_.end(),
                              std::make_pair(cursor.terrain, ~std::uint64_t{0}));
@@ -191,6 +233,11 @@ std::size_t LiveState::soil_vertices() const {
 std::size_t LiveState::soil_log_size() const {
   std::lock_guard lock(mutex_);
   return soil_log_.size();
+}
+
+std::size_t LiveState::radar_scans() const {
+  std::lock_guard lock(mutex_);
+  return radar_.size();
 }
 
 }  // namespace syndds::viewer

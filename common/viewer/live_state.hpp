@@ -11,6 +11,7 @@
 #include <mutex>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "protocol/messages.hpp"
@@ -24,6 +25,7 @@ struct Cursor {
   std::uint64_t members = 0;
   std::uint64_t status = 0;   // status changes up to this number were sent
   std::uint64_t contacts = 0;  // contact marks up to this number were sent
+  std::uint64_t radar = 0;     // radar scans up to this change number were sent
   std::int64_t frame = -2;    // the frame last sent (-2: nothing sent yet)
 };
 
@@ -39,19 +41,29 @@ class LiveState {
   /// kMaxContactMarks are kept for connections that come later.
   void on_collision(const proto::CollisionEventMsg& e);
   static constexpr std::size_t kMaxContactMarks = 256;
+  /// A radar's scan: it replaces the scan held for its (vehicle, sensor) unless it is older
+  /// (an earlier stamp time); a scan without detections clears that radar's detections. Each
+  /// detection is kept at its world position (the scan's pose applied to its sensor-frame
+  /// x, y, z) with its radial speed and strength. Bounded: scans of at most kMaxRadarSensors
+  /// (vehicle, sensor) pairs (a scan of a further pair is dropped), and of each scan its first
+  /// kMaxRadarDetections detections (a scan lists them by range: the nearest).
+  void on_radar(const proto::RadarScanMsg& m);
+  static constexpr std::size_t kMaxRadarSensors = 64;
+  static constexpr std::size_t kMaxRadarDetections = 256;
   /// A member announced itself.
   void on_member(const proto::MemberAnnounceMsg& m, double wall_s);
   /// The run ended (completed or aborted).
   void on_run_end(const proto::RunControlMsg& c);
 
   /// One update for a connection at `cursor` as a JSON text: the run's progress and real-time
-  /// factor, every vehicle whose state changed, the contact marks not sent yet, at most `max_vertices` soil vertices changed
+  /// factor, every vehicle whose state changed, the contact marks not sent yet, the radar scans
+  /// that changed (docs/viewer.md, "Radar"), at most `max_vertices` soil vertices changed
   /// since the cursor ([i, j, height] triples, oldest change first), the member list when it
   /// changed; the cursor moves past what was put in. `more` is set when soil changes remain.
   std::string update(Cursor& cursor, std::size_t max_vertices, bool* more = nullptr);
 
-  /// Whether an update for `cursor` would carry anything new (a frame, a state, soil, members,
-  /// the status): a connection with nothing new sends nothing.
+  /// Whether an update for `cursor` would carry anything new (a frame, a state, a contact mark, a
+  /// radar scan, soil, members, the status): a connection with nothing new sends nothing.
   bool has_news(const Cursor& cursor) const;
 
   std::int64_t frame() const;
@@ -60,6 +72,8 @@ class LiveState {
   std::size_t soil_vertices() const;
   /// Soil changes kept (at most about twice the vertices; older duplicates are dropped).
   std::size_t soil_log_size() const;
+  /// Radar scans held: one per (vehicle, sensor).
+  std::size_t radar_scans() const;
 
  private:
   struct Vehicle {
@@ -82,6 +96,18 @@ class LiveState {
   };
   std::deque<ContactMark> contacts_;
   std::uint64_t contact_changes_ = 0;
+  struct RadarDetection {
+    Vec3 at = Vec3::Zero();  // world frame
+    float radial_speed_mps = 0, strength_db = 0;
+  };
+  struct RadarScan {
+    std::int64_t frame = 0;
+    double time_s = 0.0;  // the scan's stamp time
+    std::vector<RadarDetection> detections;
+    std::uint64_t change = 0;
+  };
+  std::map<std::pair<std::string, std::string>, RadarScan> radar_;  // by (vehicle, sensor)
+  std::uint64_t radar_changes_ = 0;
 
   mutable std::mutex mutex_;
   std::map<std::string, Vehicle> vehicles_;

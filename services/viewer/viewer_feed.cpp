@@ -93,6 +93,16 @@ ViewerFeed::ViewerFeed(const dds::DdsOptions& options, const scenario::Scenario&
         },
         Scope::all_vehicles)));
   }
+  bool radars = false;
+  for (const auto& v : scenario.vehicles) {
+    radars = radars || (v.sensors && !v.sensors->rig.radars.empty());
+  }
+  if (radars) {
+    // Each radar's newest scan; the page draws its detections (docs/viewer.md, "Radar").
+    readers_.push_back(keep(p.make_reader<msg::RadarScan>(
+        dds::topics::data(proto::Topic::radar), kViewerReader,
+        [&live](msg::RadarScan&& r) { live.on_radar(dds::from_dds(r)); }, Scope::all_vehicles)));
+  }
   readers_.push_back(keep(p.make_reader<msg::MemberAnnounce>(
       dds::topics::kMemberAnnounce, dds::profiles::kProtocolReader,
       [&live](msg::MemberAnnounce&& a) { live.on_member(dds::from_dds(a), wall_s()); })));

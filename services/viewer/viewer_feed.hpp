@@ -1,9 +1,9 @@
 #pragma once
 // The viewer's DDS side: a participant of the run's domain and partition that only reads, never
 // announces itself and never writes, so the coordinator does not know it exists and nothing
-// in the run can wait for it. Vehicle states, soil deformations, camera images, lidar clouds and
-// the frame grants are read best effort (QoS profile viewer_reader: a missed sample is not
-// shown, the next replaces it); announcements and the run's end reliably (they are rare).
+// in the run can wait for it. Vehicle states, soil deformations, collision events, camera images,
+// lidar clouds and radar scans are read best effort (QoS profile viewer_reader: a missed sample
+// is not shown, the next replaces it); announcements and the run's end reliably (they are rare).
 #include <memory>
 #include <vector>
 

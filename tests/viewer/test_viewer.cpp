@@ -11,11 +11,13 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <thread>
 
 #include "scenario/scenario.hpp"
@@ -55,6 +57,36 @@ std::vector<proto::TerrainVertexMsg> vertices(std::initializer_list<std::array<d
 nlohmann::json update(viewer::LiveState& live, viewer::Cursor& c, std::size_t max = 1000,
                       bool* more = nullptr) {
   return nlohmann::json::parse(live.update(c, max, more));
+}
+
+// A radar scan of `sensor` on `vehicle` at stamp time `t`, the radar at `pose`; detections
+// (x, y, z in the sensor frame, radial speed, strength).
+proto::RadarScanMsg radar_scan(const std::string& vehicle, const std::string& sensor, double t,
+                               const Pose& pose,
+                               std::initializer_list<std::array<float, 5>> detections) {
+  proto::RadarScanMsg m;
+  m.vehicle_id = vehicle;
+  m.stamp.sensor_id = sensor;
+  m.stamp.time_s = t;
+  m.frame = static_cast<std::int64_t>(std::lround(t / 0.01)) + 5;
+  m.pose = pose;
+  for (const auto& d : detections) {
+    proto::RadarDetectionMsg r;
+    r.x = d[0];
+    r.y = d[1];
+    r.z = d[2];
+    r.range_m = std::hypot(d[0], d[1], d[2]);
+    r.radial_speed_mps = d[3];
+    r.strength_db = d[4];
+    m.detections.push_back(r);
+  }
+  return m;
+}
+
+void expect_at(const nlohmann::json& d, double x, double y, double z) {
+  EXPECT_NEAR(d["at"][0].get<double>(), x, 1e-5) << d;
+  EXPECT_NEAR(d["at"][1].get<double>(), y, 1e-5) << d;
+  EXPECT_NEAR(d["at"][2].get<double>(), z, 1e-5) << d;
 }
 
 }  // namespace
@@ -155,6 +187,96 @@ TEST(LiveState, ContactMarksReachEveryConnectionOnceAndStayBounded) {
   EXPECT_EQ(u["contacts"].back()["with"],
             "rock" + std::to_string(2 * viewer::LiveState::kMaxContactMarks - 1));
   EXPECT_EQ(u["contacts"].back()["vehicle_contact"], false);
+}
+
+TEST(LiveState, KeepsTheNewestRadarScanOfEachSensorWithItsDetectionsInTheWorld) {
+  viewer::LiveState live;
+  viewer::Cursor c;
+  // The radar at (10, 20, 1) turned 90 degrees left: its x (forward) is the world's y, its y
+  // (left) the world's -x.
+  Pose yawed;
+  yawed.position = Vec3(10, 20, 1);
+  yawed.orientation = Quat(Eigen::AngleAxisd(std::numbers::pi / 2, Vec3::UnitZ()));
+  live.on_radar(radar_scan("a", "front", 0.05, yawed, {{5, 0, 0, -3, -40}, {0, 2, 0.5, 4, -60}}));
+  EXPECT_TRUE(live.has_news(c));
+  auto u = update(live, c);
+  ASSERT_EQ(u["radar"].size(), 1u);
+  auto scan = u["radar"][0];
+  EXPECT_EQ(scan["vehicle"], "a");
+  EXPECT_EQ(scan["sensor"], "front");
+  EXPECT_DOUBLE_EQ(scan["time_s"].get<double>(), 0.05);
+  ASSERT_EQ(scan["detections"].size(), 2u);
+  expect_at(scan["detections"][0], 10, 25, 1);
+  expect_at(scan["detections"][1], 8, 20, 1.5);
+  EXPECT_DOUBLE_EQ(scan["detections"][0]["radial_speed_mps"].get<double>(), -3.0);
+  EXPECT_DOUBLE_EQ(scan["detections"][1]["radial_speed_mps"].get<double>(), 4.0);
+  EXPECT_DOUBLE_EQ(scan["detections"][0]["strength_db"].get<double>(), -40.0);
+  EXPECT_FALSE(live.has_news(c));
+  EXPECT_TRUE(update(live, c)["radar"].empty());  // sent once
+
+  // An older scan of the same radar changes nothing; a newer one replaces the scan held.
+  live.on_radar(radar_scan("a", "front", 0.0, yawed, {{1, 1, 1, 0, 0}}));
+  EXPECT_FALSE(live.has_news(c));
+  // Upside down (half a turn about x) and moved: y and z change sign.
+  Pose rolled;
+  rolled.position = Vec3(-3, 4, 2);
+  rolled.orientation = Quat(Eigen::AngleAxisd(std::numbers::pi, Vec3::UnitX()));
+  live.on_radar(radar_scan("a", "front", 0.10, rolled, {{7, 1, 0.5, 2, -50}}));
+  u = update(live, c);
+  ASSERT_EQ(u["radar"].size(), 1u);
+  EXPECT_DOUBLE_EQ(u["radar"][0]["time_s"].get<double>(), 0.10);
+  ASSERT_EQ(u["radar"][0]["detections"].size(), 1u);
+  expect_at(u["radar"][0]["detections"][0], 4, 3, 1.5);
+  // A scan that saw nothing clears that radar's detections.
+  live.on_radar(radar_scan("a", "front", 0.15, rolled, {}));
+  u = update(live, c);
+  ASSERT_EQ(u["radar"].size(), 1u);
+  EXPECT_TRUE(u["radar"][0]["detections"].empty());
+
+  // Another radar of the same vehicle and one of another vehicle: a scan each; only the one
+  // that changed is sent, and a connection opened later gets every radar's newest scan.
+  live.on_radar(radar_scan("a", "rear", 0.05, yawed, {{2, 0, 0, 1, -30}}));
+  live.on_radar(radar_scan("b", "front", 0.05, yawed, {{3, 0, 0, -1, -30}}));
+  EXPECT_EQ(live.radar_scans(), 3u);
+  EXPECT_EQ(update(live, c)["radar"].size(), 2u);
+  live.on_radar(radar_scan("b", "front", 0.10, yawed, {{4, 0, 0, -1, -30}}));
+  u = update(live, c);
+  ASSERT_EQ(u["radar"].size(), 1u);
+  EXPECT_EQ(u["radar"][0]["vehicle"], "b");
+  expect_at(u["radar"][0]["detections"][0], 10, 24, 1);
+  viewer::Cursor late;
+  EXPECT_EQ(update(live, late)["radar"].size(), 3u);
+}
+
+TEST(LiveState, RadarScansStayBoundedInSensorsAndDetections) {
+  viewer::LiveState live;
+  Pose at_origin;
+  for (std::size_t k = 0; k < 2 * viewer::LiveState::kMaxRadarSensors; ++k) {
+    live.on_radar(
+        radar_scan("v" + std::to_string(k), "front", 0.05, at_origin, {{1, 0, 0, 0, 0}}));
+  }
+  EXPECT_EQ(live.radar_scans(), viewer::LiveState::kMaxRadarSensors);
+  // A scan with more detections than are kept: the first ones (the nearest, as a scan lists
+  // them by range).
+  proto::RadarScanMsg many = radar_scan("v0", "front", 0.10, at_origin, {});
+  for (std::size_t k = 0; k < 2 * viewer::LiveState::kMaxRadarDetections; ++k) {
+    proto::RadarDetectionMsg d;
+    d.x = static_cast<float>(k + 1);
+    d.range_m = d.x;
+    many.detections.push_back(d);
+  }
+  live.on_radar(many);
+  viewer::Cursor c;
+  const auto u = update(live, c);
+  ASSERT_EQ(u["radar"].size(), viewer::LiveState::kMaxRadarSensors);
+  std::size_t largest = 0;
+  for (const auto& scan : u["radar"]) {
+    largest = std::max(largest, scan["detections"].size());
+    if (scan["vehicle"] != "v0") continue;
+    ASSERT_EQ(scan["detections"].size(), viewer::LiveState::kMaxRadarDetections);
+    expect_at(scan["detections"].back(), viewer::LiveState::kMaxRadarDetections, 0, 0);
+  }
+  EXPECT_EQ(largest, viewer::LiveState::kMaxRadarDetections);
 }
 
 TEST(LiveState, ASlowConnectionGetsEachSoilVertexOnceWithItsNewestHeight) {
@@ -259,6 +381,10 @@ TEST(LiveState, NothingNewMeansNothingToSend) {
   EXPECT_TRUE(live.has_news(c));
   update(live, c);
   live.on_member(m, 1.0);  // the same member again
+  EXPECT_FALSE(live.has_news(c));
+  live.on_radar(radar_scan("a", "front", 0.0, Pose{}, {}));
+  EXPECT_TRUE(live.has_news(c));
+  update(live, c);
   EXPECT_FALSE(live.has_news(c));
   live.on_run_end(proto::RunControlMsg{});
   EXPECT_TRUE(live.has_news(c));
