@@ -3,13 +3,19 @@
 //   node browser_tests.mjs replay URL SHOT.png        default scenario, recorded
 //   node browser_tests.mjs ruts URL SHOT.png          scm_crossing, recorded
 //   node browser_tests.mjs contact URL SHOT.png       a recorded head-on: its contact marks
+//   node browser_tests.mjs radar URL SHOT.png BAD_URL a recorded radar (radar_scene.yaml): its
+//                                                     detections; BAD_URL: the same run with a
+//                                                     malformed radar.csv
 //   node browser_tests.mjs live URL                   a live scm_crossing run
+//   node browser_tests.mjs radarlive URL RADAR.csv    a live radar_scene.yaml run: its radar's
+//                                                     detections, as RADAR.csv records them
 //   node browser_tests.mjs watch URL [sensors]        a live run: states arrive (with
 //                                                     `sensors`: lead's camera and lidar too);
 //                                                     then watches until killed
 //   node browser_tests.mjs origin URL LIVE_URL        a replay viewer (URL) and a live one:
 //                                                     other sites' pages cannot reach either
 import assert from 'node:assert/strict';
+import { readFileSync } from 'node:fs';
 import http from 'node:http';
 import { launchChromium, openViewer } from '../../tools/viewer_browser.mjs';
 
@@ -231,6 +237,102 @@ async function contact() {
   }
 }
 
-const cases = { replay, ruts, live, watch, origin, contact };
+// tests/viewer/radar_scene.yaml recorded: r's radar sees `away` driving off and `towards`
+// coming at it. At each time the page draws the newest scan at or before it, in the 3-D view and
+// the top-down panel; approaching and receding detections differ in colour (blue, red). A
+// malformed radar.csv is named with its line, and the rest of the replay works.
+async function radar() {
+  const badUrl = process.argv[5];
+  const { browser, page } = await openViewer(url);
+  try {
+    const scans = await page.evaluate(() => window.syndds.radarScans);
+    log(`${scans} radar scans with detections`);
+    assert.ok(scans > 40, 'radar.csv is read');
+    const heartbeat = await page.evaluate(() => window.syndds.state.scene.heartbeat_s);
+    for (const t of [1.5, 2.5, 3.5]) {
+      await page.evaluate((s) => window.syndds.setTime(s), t);
+      const r = await page.evaluate(() => window.syndds.radarDetections());
+      const shownT = await page.evaluate(() => window.syndds.state.frame) * heartbeat;
+      log(`at ${shownT.toFixed(2)} s:`, JSON.stringify(r.detections.map((d) =>
+        [d.time_s, d.radial_speed_mps, d.colour])), `panel ${r.panel}`);
+      assert.ok(r.drawn > 0 && r.drawn === r.detections.length, 'detections are drawn');
+      assert.equal(r.panel, r.drawn, 'and dotted in the top-down panel');
+      // The newest scan at or before the time shown: one scan of the 20 Hz radar.
+      const times = new Set(r.detections.map((d) => d.time_s));
+      assert.equal(times.size, 1, 'one scan of the one radar');
+      const [scanT] = times;
+      assert.ok(scanT <= shownT + 1e-9 && scanT > shownT - 0.05 - 1e-9, `scan at ${scanT} s is the newest`);
+      const approaching = r.detections.filter((d) => d.radial_speed_mps < -1);
+      const receding = r.detections.filter((d) => d.radial_speed_mps > 1);
+      assert.ok(approaching.length > 0 && receding.length > 0, 'towards approaches, away recedes');
+      const rgb = (c) => [1, 3, 5].map((k) => parseInt(c.slice(k, k + 2), 16));
+      for (const d of approaching) {
+        const [red, , blue] = rgb(d.colour);
+        assert.ok(blue > red + 20, `approaching ${d.radial_speed_mps} m/s is blue: ${d.colour}`);
+      }
+      for (const d of receding) {
+        const [red, , blue] = rgb(d.colour);
+        assert.ok(red > blue + 20, `receding ${d.radial_speed_mps} m/s is red: ${d.colour}`);
+      }
+    }
+    const legend = await page.textContent('#radar-legend');
+    assert.match(legend, /-10 m\/s approaching.*\+10 m\/s receding/s, 'the legend names the scale');
+    await page.evaluate(() => { window.syndds.select('r'); window.syndds.setView('follow'); window.syndds.setTime(2.5); });
+    await page.screenshot({ path: shot });
+  } finally {
+    await browser.close();
+  }
+  const bad = await openViewer(badUrl);
+  try {
+    const s = await bad.page.evaluate(() => ({ warnings: window.syndds.warnings, frames: window.syndds.frames,
+      drawn: window.syndds.radarDetections().drawn, shown: document.getElementById('error').textContent }));
+    log('malformed radar.csv:', JSON.stringify(s.warnings));
+    assert.equal(s.warnings.length, 1);
+    assert.match(s.warnings[0], /radar\.csv line 3: world_y 'north' is not a number/);
+    assert.ok(s.shown.includes(s.warnings[0]), 'the page shows it');
+    assert.equal(s.drawn, 0, 'no detections drawn from it');
+    assert.ok(s.frames > 100, 'the replay itself works');
+  } finally {
+    await bad.browser.close();
+  }
+}
+
+// tests/viewer/radar_scene.yaml live: the page draws r's newest radar scan, each detection at
+// the world position, with the radial speed, that the recorder writes to radar.csv.
+async function radarlive() {
+  const csvPath = shot;
+  const { browser, page } = await openViewer(url);
+  let seen;
+  try {
+    await page.waitForFunction(() => window.syndds.radarDetections().drawn > 0, null, { timeout: 60000 });
+    seen = await page.evaluate(() => window.syndds.radarDetections());
+  } finally {
+    await browser.close();
+  }
+  const t = seen.detections[0].time_s;
+  log(`${seen.drawn} detections of the scan at ${t} s:`,
+    JSON.stringify(seen.detections.map((d) => [d.at.map((x) => +x.toFixed(3)), +d.radial_speed_mps.toFixed(3)])));
+  assert.ok(seen.detections.every((d) => d.time_s === t), 'one scan');
+  // The recorder commits a frame's rows after the frame: wait (bounded) for that scan's.
+  let rows = [];
+  for (let k = 0; k < 600 && rows.length < seen.drawn; ++k) {
+    if (k > 0) await new Promise((r) => setTimeout(r, 100));
+    let text = '';
+    try { text = readFileSync(csvPath, 'utf8'); } catch { continue; }
+    const lines = text.split('\n').filter((l) => l.length > 0).map((l) => l.split(','));
+    const c = Object.fromEntries(lines[0].map((h, i) => [h, i]));
+    rows = lines.slice(1).filter((r) => Number(r[c.time_s]) === t).map((r) => ({
+      at: [+r[c.world_x], +r[c.world_y], +r[c.world_z]], speed: +r[c.radial_speed_mps] }));
+  }
+  assert.equal(rows.length, seen.drawn, `radar.csv has the scan at ${t} s with as many detections`);
+  seen.detections.forEach((d, k) => {
+    for (let a = 0; a < 3; ++a) {
+      assert.ok(Math.abs(d.at[a] - rows[k].at[a]) < 1e-3, `detection ${k} at ${d.at} as recorded (${rows[k].at})`);
+    }
+    assert.ok(Math.abs(d.radial_speed_mps - rows[k].speed) < 1e-3, `detection ${k}'s radial speed as recorded`);
+  });
+}
+
+const cases = { replay, ruts, live, watch, origin, contact, radar, radarlive };
 if (!cases[kind]) { console.error(`unknown case ${kind}`); process.exit(1); }
 cases[kind]().then(() => log('passed'), (e) => { console.error(`browser_tests ${kind}: FAILED: ${e.message}`); process.exit(1); });

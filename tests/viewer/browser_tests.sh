@@ -2,10 +2,13 @@
 # The viewer as a user meets it, in headless Chromium: one case per call (CTest runs each in its
 # own network namespace through tests/netns_exec.sh). Exit 77 (skipped) without chromium or the
 # npm packages (launch_scripts/setup.sh installs both).
-#   browser_tests.sh replay|ruts|contact|live|kill|origin OUT_DIR
+#   browser_tests.sh replay|ruts|contact|radar|live|kill|origin OUT_DIR
 #     replay  the default scenario recorded: loads, the slider moves the vehicles, screenshot
 #     ruts    scm_crossing recorded: the ruts are replayed and change the picture, screenshot
 #     contact two vehicles head-on recorded: a contact mark per vehicle, from the contact on
+#     radar   tests/viewer/radar_scene.yaml recorded: the newest radar scan's detections drawn,
+#             approaching blue and receding red; a malformed radar.csv named by line; the same
+#             live: the page's detections are the ones radar.csv records
 #     live    scm_crossing live with --view: ruts appear while it runs; vehicles.csv is
 #             byte-identical to the single-process run
 #     kill    the default scenario live: the viewer is killed (SIGKILL) while a browser watches;
@@ -23,9 +26,9 @@ CHROMIUM=${SYNDDS_CHROMIUM:-/usr/bin/chromium}
   { echo "skipped: npm packages missing (launch_scripts/setup.sh)"; exit 77; }
 mkdir -p "$OUT"
 work=$(mktemp -d)
-vpid=""; lvpid=""
+vpid=""; lvpid=""; bvpid=""
 cleanup() {
-  for p in $vpid $lvpid; do kill "$p" 2>/dev/null || true; done
+  for p in $vpid $lvpid $bvpid; do kill "$p" 2>/dev/null || true; done
   rm -rf "$work"
 }
 trap cleanup EXIT
@@ -56,6 +59,30 @@ case "$CASE" in
         --output "$work/run" --quiet --log-level warn
     replay_viewer "$work/run"
     node "$ROOT/tests/viewer/browser_tests.mjs" contact "$(cat "$work/url")" "$OUT/viewer_contact.png"
+    ;;
+  radar)
+    "$BIN/syndds_sim" "$ROOT/tests/viewer/radar_scene.yaml" --output "$work/run" --quiet \
+        --log-level warn
+    replay_viewer "$work/run"
+    # The same run with line 3 of radar.csv (its second detection) spoilt in world_y.
+    cp -r "$work/run" "$work/bad"
+    awk -F, -v OFS=, 'NR == 1 { for (k = 1; k <= NF; ++k) if ($k == "world_y") c = k }
+                      NR == 3 { $c = "north" } { print }' "$work/run/radar.csv" > "$work/bad/radar.csv"
+    "$BIN/syndds_viewer" --replay "$work/bad" --port 0 --url-file "$work/bad_url" \
+        > "$work/bad_viewer.log" 2>&1 &
+    bvpid=$!
+    wait_file "$work/bad_url"
+    node "$ROOT/tests/viewer/browser_tests.mjs" radar "$(cat "$work/url")" "$OUT/viewer_radar.png" \
+        "$(cat "$work/bad_url")"
+    # Live: the page gets the radar's scans while the run goes on (--duration: time for the page to
+    # load before the run ends).
+    "$ROOT/launch_scripts/run_scenario.sh" "$ROOT/tests/viewer/radar_scene.yaml" --duration 6 \
+        --realtime --view --view-port 0 --output "$work/live" > "$work/launcher.log" 2>&1 &
+    lpid=$!
+    wait_file "$work/live/logs/viewer.url"
+    node "$ROOT/tests/viewer/browser_tests.mjs" radarlive "$(cat "$work/live/logs/viewer.url")" \
+        "$work/live/radar.csv"
+    wait "$lpid" || { cat "$work/launcher.log" >&2; exit 1; }
     ;;
   ruts)
     single scm_crossing 8 "$work/run"

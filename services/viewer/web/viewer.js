@@ -19,6 +19,13 @@ function fail(message) {
   $('error').textContent = message;
   window.syndds.error = message;
 }
+// A problem that leaves the rest of the page working (a run file it cannot use): shown in the
+// error box, kept in window.syndds.warnings.
+function warn(message) {
+  window.syndds.warnings.push(message);
+  $('error').style.display = 'block';
+  $('error').textContent = window.syndds.warnings.join('\n');
+}
 
 // ---- CSV (as the recorder writes it: a header, RFC 4180 quotes on text cells) ----
 function parseCsvLine(line) {
@@ -69,7 +76,7 @@ const state = {
   soil: null, rtf: null, status: '-', members: [], dirty: true,
   meshes: new Map(), meshStats: { obstacles: 0, vehicles: 0 },
 };
-window.syndds = { ready: false, error: null, state, meshErrors: [] };
+window.syndds = { ready: false, error: null, warnings: [], state, meshErrors: [] };
 
 function colourOf(c) { return new THREE.Color(c[0], c[1], c[2]); }
 
@@ -97,6 +104,77 @@ function parseCollision(detail) {
   if (!at) return null;
   return { at: [+at[1], +at[2], +at[3]], vehicleContact: detail.startsWith('vehicle=') };
 }
+
+// Radar detections (docs/viewer.md, "Radar"): the newest scan of each radar (vehicle, sensor),
+// a small sphere at each detection's world position in the 3-D view (ringed in black and drawn
+// over the scene: a detection lies on a surface, half inside it) and a dot in the top-down
+// panel, both coloured by the detection's radial speed on a diverging scale: approaching
+// (negative) blue, receding (positive) red, 0 light grey, linear in between and clamped at
+// +-RADAR_SPEED_MPS (the ends and middle of ColorBrewer's RdBu).
+const RADAR_SPEED_MPS = 10;
+const RADAR_APPROACHING = [0x21, 0x66, 0xac], RADAR_STILL = [0xf7, 0xf7, 0xf7];
+const RADAR_RECEDING = [0xb2, 0x18, 0x2b];
+function radarColour(speed) {
+  const u = Math.max(-1, Math.min(1, speed / RADAR_SPEED_MPS));
+  const end = u < 0 ? RADAR_APPROACHING : RADAR_RECEDING;
+  const rgb = RADAR_STILL.map((x, k) => Math.round(x + (end[k] - x) * Math.abs(u)));
+  return '#' + rgb.map((x) => x.toString(16).padStart(2, '0')).join('');
+}
+const radarGeometry = new THREE.SphereGeometry(0.3, 12, 8);
+const radarRingGeometry = new THREE.SphereGeometry(0.4, 12, 8);
+const radarMaterial = new THREE.MeshBasicMaterial({ color: 0xffffff, depthTest: false });
+const radarRingMaterial = new THREE.MeshBasicMaterial({ color: 0x000000, depthTest: false });
+const radarScans = new Map();  // 'vehicle/sensor' -> {vehicle, sensor, time, detections: [{at, speed, strength}]}
+let radarMarks = null;         // one instance per detection drawn; replaced by a larger one as needed
+let radarRings = null;         // the same, black and larger, drawn before radarMarks
+let radarDrawn = [];           // the detections drawn, in instance order
+function showRadar() {
+  radarDrawn = [];
+  for (const s of radarScans.values()) {
+    for (const d of s.detections) {
+      radarDrawn.push({ vehicle: s.vehicle, sensor: s.sensor, time_s: s.time, at: d.at,
+        radial_speed_mps: d.speed, strength_db: d.strength, colour: radarColour(d.speed) });
+    }
+  }
+  const n = radarDrawn.length;
+  if (!radarMarks || radarMarks.instanceMatrix.count < n) {
+    for (const o of [radarMarks, radarRings]) if (o) { scene3.remove(o); o.dispose(); }
+    const capacity = Math.max(64, 2 * n);
+    radarRings = new THREE.InstancedMesh(radarRingGeometry, radarRingMaterial, capacity);
+    radarMarks = new THREE.InstancedMesh(radarGeometry, radarMaterial, capacity);
+    radarMarks.instanceColor = new THREE.InstancedBufferAttribute(new Float32Array(3 * capacity), 3);
+    radarRings.renderOrder = 1; radarMarks.renderOrder = 2;
+    for (const o of [radarRings, radarMarks]) {
+      o.frustumCulled = false;  // its bounds change with every scan
+      scene3.add(o);
+    }
+  }
+  const m = new THREE.Matrix4(), c = new THREE.Color();
+  radarDrawn.forEach((d, k) => {
+    m.makeTranslation(d.at[0], d.at[1], d.at[2]);
+    radarMarks.setMatrixAt(k, m);
+    radarRings.setMatrixAt(k, m);
+    radarMarks.setColorAt(k, c.set(d.colour));
+  });
+  radarMarks.count = radarRings.count = n;
+  radarMarks.instanceMatrix.needsUpdate = radarRings.instanceMatrix.needsUpdate = true;
+  radarMarks.instanceColor.needsUpdate = true;
+  $('radar-legend').style.display = 'block';
+  state.dirty = true;
+  drawTopDown();
+}
+// The detections drawn, for the tests: how many spheres the 3-D view has and the panel's dots,
+// and each detection with the colour its sphere is drawn in.
+window.syndds.radarDetections = () => {
+  const c = new THREE.Color();
+  return {
+    drawn: radarMarks ? radarMarks.count : 0, panel: topDown.radarDots,
+    detections: radarDrawn.map((d, k) => {
+      radarMarks.getColorAt(k, c);
+      return { ...d, colour: '#' + c.getHexString() };
+    }),
+  };
+};
 
 function buildTerrain(t, soil) {
   const g = new THREE.BufferGeometry();
@@ -547,6 +625,64 @@ function vehicleScreenPositions() {
 }
 
 // ---- replay ----
+// radar.csv (one row per detection) as {'vehicle/sensor' -> {vehicle, sensor, scans, period}}:
+// scans [{sequence, time, detections: [{at, speed, strength}]}] in time order, `period` the time
+// from one scan to the next (sequence numbers count every scan, also the ones that detected
+// nothing and so have no rows; Infinity from a single scan). Throws an Error naming the line of
+// a missing column, a row of the wrong length or a cell that is not a number.
+const RADAR_COLUMNS = ['vehicle', 'sensor', 'sequence', 'time_s', 'radial_speed_mps', 'strength_db',
+  'world_x', 'world_y', 'world_z'];
+function parseRadarCsv(text) {
+  const lines = text.split('\n');
+  const header = parseCsvLine(lines[0] || '');
+  const col = Object.fromEntries(header.map((h, k) => [h, k]));
+  for (const name of RADAR_COLUMNS) {
+    if (col[name] === undefined) throw new Error(`radar.csv line 1: no column '${name}'`);
+  }
+  const sensors = new Map();
+  for (let k = 1; k < lines.length; ++k) {
+    if (lines[k].length === 0) continue;
+    const r = parseCsvLine(lines[k]);
+    if (r.length !== header.length) {
+      throw new Error(`radar.csv line ${k + 1}: ${r.length} cells, the header has ${header.length}`);
+    }
+    const num = (name) => {
+      const cell = r[col[name]], x = Number(cell);
+      if (cell.trim() === '' || !Number.isFinite(x)) {
+        throw new Error(`radar.csv line ${k + 1}: ${name} '${cell}' is not a number`);
+      }
+      return x;
+    };
+    const key = `${r[col.vehicle]}/${r[col.sensor]}`;
+    let s = sensors.get(key);
+    if (!s) sensors.set(key, s = { vehicle: r[col.vehicle], sensor: r[col.sensor], scans: [], period: Infinity });
+    const sequence = num('sequence'), time = num('time_s');
+    let scan = s.scans[s.scans.length - 1];
+    if (!scan || scan.sequence !== sequence) s.scans.push(scan = { sequence, time, detections: [] });
+    scan.detections.push({ at: [num('world_x'), num('world_y'), num('world_z')],
+      speed: num('radial_speed_mps'), strength: num('strength_db') });
+  }
+  for (const s of sensors.values()) {
+    s.scans.sort((a, b) => a.time - b.time);
+    for (let k = 1; k < s.scans.length; ++k) {
+      const dt = s.scans[k].time - s.scans[k - 1].time, dn = s.scans[k].sequence - s.scans[k - 1].sequence;
+      if (dt > 0 && dn > 0) s.period = Math.min(s.period, dt / dn);
+    }
+  }
+  return sensors;
+}
+// The scan of radar `s` shown at time t: the newest at or before t, unless a scan that detected
+// nothing (no rows) came after it.
+function newestScan(s, t) {
+  let lo = 0, hi = s.scans.length;  // the first scan after t
+  while (lo < hi) {
+    const mid = (lo + hi) >> 1;
+    if (s.scans[mid].time <= t + 1e-9) lo = mid + 1; else hi = mid;
+  }
+  const scan = s.scans[lo - 1];
+  return scan && t < scan.time + s.period - 1e-9 ? scan : null;
+}
+
 async function startReplay(info) {
   const files = new Set(info.run_files || []);
   const vcsv = parseCsv(await fetchText('/run/vehicles.csv'));
@@ -620,6 +756,17 @@ async function startReplay(info) {
       if (c) { const m = addContactMark(c.at, c.vehicleContact); m.userData.frame = +r[d.frame]; collisionMarks.push(m); }
     }
   }
+  // Radar detections (radar.csv): each radar's newest scan at or before the time shown.
+  let radarSensors = null;
+  if (files.has('radar.csv')) {
+    try {
+      radarSensors = parseRadarCsv(await fetchText('/run/radar.csv'));
+    } catch (e) {
+      warn(`viewer: ${e.message}; radar detections not shown`);
+    }
+  }
+  window.syndds.radarScans = radarSensors
+    ? [...radarSensors.values()].reduce((n, s) => n + s.scans.length, 0) : 0;
   let applied = -1;  // soil snapshots applied up to this frame
   let snapIndex = 0;
   const slider = $('slider');
@@ -632,6 +779,15 @@ async function startReplay(info) {
     for (const [id, s] of fr.v) showVehicle(id, s);
     for (const [id, v] of state.vehicles) v.track.show(tracks.get(id)[k]);
     for (const m of collisionMarks) m.visible = m.userData.frame <= fr.frame;
+    if (radarSensors) {
+      const t = fr.frame * state.scene.heartbeat_s;
+      radarScans.clear();
+      for (const [key, s] of radarSensors) {
+        const scan = newestScan(s, t);
+        if (scan) radarScans.set(key, { vehicle: s.vehicle, sensor: s.sensor, time: scan.time, detections: scan.detections });
+      }
+      showRadar();
+    }
     if (state.soil) {
       if (fr.frame < applied) { state.soil.reset(); applied = -1; snapIndex = 0; }
       while (snapIndex < snapshots.length && snapshots[snapIndex].frame <= fr.frame) {
@@ -731,7 +887,8 @@ function startLive() {
       lidarPoints.geometry = new THREE.BufferGeometry();
       lidarPoints.geometry.setAttribute('position', new THREE.BufferAttribute(p, 3));
       state.dirty = true;
-      drawLidar(p);
+      topDown.lidar = p;
+      drawTopDown();
       window.syndds.pointClouds = (window.syndds.pointClouds || 0) + 1;
       return;
     }
@@ -750,6 +907,13 @@ function startLive() {
     }
     if (state.soil) for (const [i, j, h] of m.soil) state.soil.set(i, j, h);
     for (const c of m.contacts || []) addContactMark(c.at, c.vehicle_contact);
+    if (m.radar && m.radar.length) {
+      for (const r of m.radar) {
+        radarScans.set(`${r.vehicle}/${r.sensor}`, { vehicle: r.vehicle, sensor: r.sensor, time: r.time_s,
+          detections: r.detections.map((d) => ({ at: d.at, speed: d.radial_speed_mps, strength: d.strength_db })) });
+      }
+      showRadar();
+    }
     if (m.members) {
       state.members = m.members;
       $('members').textContent = 'members\n' + m.members.map((x) => `  ${x.id} (${x.host} ${x.pid})`).join('\n');
@@ -781,22 +945,49 @@ function startLive() {
   setInterval(tick, 25);
 }
 
-function drawLidar(p) {
+// The top-down panel: the chosen vehicle's surroundings from above, its forward up: the live
+// lidar points (cyan) and the radar detections drawn (in their radial-speed colours). It spans
+// 30 m around the vehicle, more (to 200 m) when radar detections lie farther; hidden until it
+// has something to show.
+const topDown = { lidar: null, radarDots: 0 };
+function drawTopDown() {
   const cv = $('lidar');
+  if (!topDown.lidar && radarScans.size === 0) return;
   cv.style.display = 'block';
   const g = cv.getContext('2d');
   g.fillStyle = '#111'; g.fillRect(0, 0, cv.width, cv.height);
+  topDown.radarDots = 0;
   const v = state.vehicles.get(state.selected);
   if (!v) return;
   const c = v.body.position, yaw = headingOf(v.body.quaternion);
-  const cs = Math.cos(-yaw), sn = Math.sin(-yaw), scale = cv.width / 60;  // 30 m around
-  g.fillStyle = '#00e0ff';
-  for (let k = 0; k < p.length; k += 3) {
-    const dx = p[k] - c.x, dy = p[k + 1] - c.y;
+  const cs = Math.cos(-yaw), sn = Math.sin(-yaw);
+  let half = 30;
+  for (const d of radarDrawn) half = Math.max(half, 1.1 * Math.hypot(d.at[0] - c.x, d.at[1] - c.y));
+  half = Math.min(200, 10 * Math.ceil(half / 10));
+  const scale = cv.width / (2 * half);
+  const toPanel = (x, y) => {
+    const dx = x - c.x, dy = y - c.y;
     const fx = cs * dx - sn * dy, fy = sn * dx + cs * dy;  // vehicle frame: x forward, y left
-    g.fillRect(cv.width / 2 - fy * scale, cv.height / 2 - fx * scale, 1.5, 1.5);
+    return [cv.width / 2 - fy * scale, cv.height / 2 - fx * scale];
+  };
+  const p = topDown.lidar;
+  if (p) {
+    g.fillStyle = '#00e0ff';
+    for (let k = 0; k < p.length; k += 3) {
+      const [px, py] = toPanel(p[k], p[k + 1]);
+      g.fillRect(px, py, 1.5, 1.5);
+    }
+  }
+  for (const d of radarDrawn) {
+    const [px, py] = toPanel(d.at[0], d.at[1]);
+    if (px < 0 || py < 0 || px >= cv.width || py >= cv.height) continue;
+    g.fillStyle = d.colour;
+    g.beginPath(); g.arc(px, py, 3, 0, 2 * Math.PI); g.fill();
+    ++topDown.radarDots;
   }
   g.fillStyle = '#fff'; g.fillRect(cv.width / 2 - 2, cv.height / 2 - 3, 4, 6);
+  g.fillStyle = '#aaa'; g.font = '10px system-ui, sans-serif';
+  g.fillText(`${half} m around ${state.selected}`, 4, cv.height - 5);
 }
 
 // ---- start ----
@@ -824,7 +1015,10 @@ async function main() {
   select.addEventListener('change', () => {
     state.selected = select.value; state.dirty = true;
     if (state.view !== 'follow') setView(state.view);
+    drawTopDown();
   });
+  $('radar-scale').textContent =
+    `-${RADAR_SPEED_MPS} m/s approaching (blue), 0 (grey), +${RADAR_SPEED_MPS} m/s receding (red), clamped`;
   for (const b of ['follow', 'orbit', 'top']) $(b).addEventListener('click', () => setView(b));
   controls.addEventListener('start', () => { if (state.view === 'follow') setView('orbit'); });
   controls.addEventListener('change', () => { state.dirty = true; });
