@@ -7,6 +7,11 @@ gap and the contacts, per run and per terrain.
 
     tools/leader_emergency_stop.py --output DIR [--runs 20] [--terrains rigid,scm_hard,scm_soft]
         [--jobs 2] [--gap 'time_s: 1.0, standstill_bumper_m: 5'] [--build-dir build]
+        [--radar] [--v2v 'rate_hz: 10, latency_s: 0.0, drop_probability: 0.5']
+
+--radar gives the follower the convoy_radar rig and takes its gap from its forward radar
+(controller radar: {sensor: front_radar}; docs/convoy.md "Radar gap"); --v2v replaces the
+leader's V2V block (e.g. to drop messages).
 
 Stop times: uniform in [3, 20] s (the ramp ends at 8 s), drawn by Python's random.Random with the
 terrain's seed (201, 202, 203), rounded to whole frames (0.01 s). Runs go to
@@ -60,6 +65,10 @@ def main():
     p.add_argument("--gap", default=None,
                    help="the follower's gap block instead of the generator's (YAML flow map)")
     p.add_argument("--build-dir", default=str(ROOT / "build"))
+    p.add_argument("--radar", action="store_true",
+                   help="the follower keeps its gap with its forward radar (convoy_radar rig)")
+    p.add_argument("--v2v", default=None,
+                   help="the leader's v2v block instead of the generator's (YAML flow map)")
     a = p.parse_args()
     terrains = a.terrains.split(",")
     for t in terrains:
@@ -81,6 +90,14 @@ def main():
             if a.gap is not None:
                 default = f"gap: {{time_s: 1.0, standstill_bumper_m: {gen.STANDSTILL_BUMPER_M:g}}}"
                 text = text.replace(default, f"gap: {{{a.gap}}}")
+            if a.v2v is not None:
+                default = "v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}"
+                assert default in text
+                text = text.replace(default, f"v2v: {{{a.v2v}}}")
+            if a.radar:
+                head, follower = text.split("  - id: f1\n")
+                follower = follower.replace("    sensors: convoy\n", "    sensors: convoy_radar\n")
+                text = head + "  - id: f1\n" + follower + "      radar: {sensor: front_radar}\n"
             scenario = out / "scenarios" / f"{t}_{k}.yaml"
             scenario.write_text(text)
             jobs.append((t, k, stop, scenario, out / "runs" / f"{t}_{k}"))

@@ -25,6 +25,11 @@ convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
   v.inner_wheel_input = own.dynamics == "full";
   v.wheel_radius_m = p.wheels.radius_m;
   v.front_m = p.chassis.box_centre_m.x() + p.chassis.half_extents_m.x() - antenna_x(own);
+  for (const auto& r : own.sensors ? own.sensors->rig.radars : std::vector<sensors::RadarConfig>{}) {
+    if (r.id != own.controller.convoy.radar_sensor) continue;
+    v.radar_ahead_of_front_m = r.mount.pose.position.x() - p.chassis.box_centre_m.x() -
+                               p.chassis.half_extents_m.x();
+  }
   if (leader) {
     const auto& c = leader->params.chassis;
     v.leader_rear_m = c.half_extents_m.x() - c.box_centre_m.x() + antenna_x(*leader);
@@ -48,13 +53,16 @@ FollowerAgent::FollowerAgent(const scenario::Scenario& scenario,
       member_id_(scenario::controller_member(vehicle.id)),
       follower_(vehicle.controller.convoy,
                 follower_vehicle(vehicle, scenario.find_vehicle(vehicle.controller.convoy.leader)),
-                converter(vehicle)) {}
+                converter(vehicle)),
+      radar_(!vehicle.controller.convoy.radar_sensor.empty()) {}
 
 std::vector<proto::Subscription> FollowerAgent::subscriptions() const {
-  return {{proto::Topic::gps_fix, vehicle_id_},
-          {proto::Topic::magnetometer, vehicle_id_},
-          {proto::Topic::wheel_speeds, vehicle_id_},
-          {proto::Topic::v2v_message, leader_id_}};
+  std::vector<proto::Subscription> subs = {{proto::Topic::gps_fix, vehicle_id_},
+                                           {proto::Topic::magnetometer, vehicle_id_},
+                                           {proto::Topic::wheel_speeds, vehicle_id_},
+                                           {proto::Topic::v2v_message, leader_id_}};
+  if (radar_) subs.push_back({proto::Topic::radar, vehicle_id_});
+  return subs;
 }
 
 void FollowerAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
@@ -64,6 +72,7 @@ void FollowerAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
   std::vector<convoy::FollowerEvent> events;
   // The inputs describe the end of frame k-1: that is the time the follower estimates for.
   const double now = ctx.sim_time_s - ctx.heartbeat_s;
+  if (radar_) follower_.observe_radar(inputs.radar_scans);
   const auto cmd = follower_.update(now, ctx.heartbeat_s, own, inputs.v2v_messages, events);
   outputs.driver_commands.push_back(command_message(vehicle_id_, member_id_, ctx.frame, cmd));
   for (const auto& e : events) {

@@ -1,7 +1,7 @@
 #pragma once
 // The convoy follower member (controller/<id> with `controller: {type: follower}`): reads its
 // vehicle's own GPS, compass and wheel-speed samples and the V2V messages of the vehicle it
-// follows, all stamped k-1, and publishes the DriverCommand stamped k, plus a VehicleEvent when
+// follows (and with `radar:` its own radar's scans), all stamped k-1, and publishes the DriverCommand stamped k, plus a VehicleEvent when
 // it loses or finds again its leader. Never reads a true vehicle state.
 #include "convoy/follower.hpp"
 #include "protocol/agent.hpp"
@@ -34,6 +34,7 @@ class FollowerAgent final : public proto::Agent {
   std::string leader_id_;
   std::string member_id_;
   convoy::ConvoyFollower follower_;
+  bool radar_ = false;  // reads its own radar's scans (controller radar.sensor)
 };
 
 }  // namespace syndds::agents

@@ -304,6 +304,21 @@ void ConvoyFollower::learn_understeer(double dt, double v) {
                            kUndersteerMin, kUndersteerMax);
 }
 
+void ConvoyFollower::observe_radar(const std::vector<proto::RadarScanMsg>& scans) {
+  if (config_.radar_sensor.empty()) return;
+  for (const auto& scan : scans) {
+    if (scan.stamp.sensor_id != config_.radar_sensor || scan.stamp.time_s < radar_time_s_) continue;
+    // Detections come by range: the first in the lane is the nearest.
+    for (const auto& d : scan.detections) {
+      if (d.x <= 0.0f || std::abs(d.y) > config_.radar_lane_half_width_m) continue;
+      radar_time_s_ = scan.stamp.time_s;
+      radar_gap_m_ = d.x + vehicle_.radar_ahead_of_front_m;
+      radar_range_rate_ = d.radial_speed_mps;
+      break;
+    }
+  }
+}
+
 vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const OwnReadings& own,
                                              const std::vector<proto::V2VMessageMsg>& leader,
                                              std::vector<FollowerEvent>& events) {
@@ -347,7 +362,16 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
   const double beyond = (leader_->position - trail_.back()).dot(direction(leader_->yaw));
   const double centres = std::max(0.0, trail_length() - s_here) + beyond;
   gap_m_ = centres - vehicle_.front_m - vehicle_.leader_rear_m;
-  const double v_leader = std::max(leader_->speed, 0.0);
+  double v_leader = std::max(leader_->speed, 0.0);
+  radar_used_ = false;
+  if (radar_time_s_ >= 0.0 && time_s - radar_time_s_ <= config_.radar_max_age_s) {
+    const double radar_gap = radar_gap_m_ + radar_range_rate_ * (time_s - radar_time_s_);
+    if (std::abs(radar_gap - gap_m_) <= config_.radar_gate_m) {
+      gap_m_ = radar_gap;
+      v_leader = std::max(0.0, v + radar_range_rate_);
+      radar_used_ = true;
+    }
+  }
   const double decel = -leader_accel_;
   // Where the leader would stop at its present deceleration, against where the follower would
   // at its own: the difference is room the time gap does not give.
@@ -383,7 +407,15 @@ namespace syndds::convoy {
 
 template <typename Archive>
 void ConvoyFollower::state_io(Archive& a) {
-  a.begin("convoy_follower", 2);
+  // Version 2 (before the radar gap) holds no radar detection.
+  const std::uint32_t version = [&] {
+    if constexpr (std::is_same_v<Archive, core::StateReader>) {
+      return a.begin("convoy_follower", 3, 2);
+    } else {
+      a.begin("convoy_follower", 3);
+      return std::uint32_t{3};
+    }
+  }();
   speed_pid_.state_io(a);
   for (auto* e : {&own_, &leader_}) {
     bool has = e->has_value();
@@ -426,6 +458,12 @@ void ConvoyFollower::state_io(Archive& a) {
   a.io(desired_gap_m_);
   a.io(target_speed_);
   a.io(cross_track_m_);
+  if (version >= 3) {
+    a.io(radar_time_s_);
+    a.io(radar_gap_m_);
+    a.io(radar_range_rate_);
+    a.io(radar_used_);
+  }
   a.end();
 }
 

@@ -22,6 +22,11 @@
 //   predicted `anticipation_s` ahead from its acceleration + gap_gain * (gap - desired); in a
 //   bend no faster than the lateral acceleration limit allows; a speed PID to one throttle /
 //   brake signal.
+// - Radar (optional, `radar.sensor`): the nearest detection of the follower's own forward
+//   radar that lies in its lane (abs(y) <= lane_half_width_m in the radar frame), within
+//   gate_m of the V2V gap, measured at most max_age_s ago, replaces the V2V gap (carried to now
+//   by its range rate) and gives the leader's speed as own speed + range rate. Otherwise (no
+//   such detection: the leader in a bend, out of the field of view, occluded) the V2V gap.
 // - Leader lost: no V2V message measured within `leader_lost_after_s` -> brake to a stop and
 //   report `leader_lost` once; a fresh message reports `leader_found` and following resumes.
 #include <optional>
@@ -57,6 +62,11 @@ struct FollowerConfig {
   double leader_fix_gain = 0.15;      // the same for the leader's V2V positions
   double leader_lost_after_s = 2.0;
   double crumb_spacing_m = 0.3;       // smallest distance between crumbs
+  // Radar gap (empty sensor: V2V only).
+  std::string radar_sensor;           // id of a radar in the follower's own rig
+  double radar_lane_half_width_m = 1.5;
+  double radar_gate_m = 3.0;
+  double radar_max_age_s = 0.25;
 };
 
 /// What the follower needs to know about the vehicle it drives and the one it follows.
@@ -70,6 +80,7 @@ struct FollowerVehicle {
   double front_m = 2.35;              // GPS antenna (reference point) to the front bumper
   double leader_rear_m = 2.35;        // the leader's GPS antenna to its rear bumper
   double leader_wheelbase_m = 3.378;
+  double radar_ahead_of_front_m = 0.0;  // the radar's mount ahead of the front bumper
 };
 
 /// One sensor reading the follower uses (from GpsFixMsg, MagnetometerMsg, WheelSpeedsMsg).
@@ -94,6 +105,12 @@ class ConvoyFollower {
   vehicle::DriverInputs update(double time_s, double dt, const OwnReadings& own,
                                const std::vector<proto::V2VMessageMsg>& leader,
                                std::vector<FollowerEvent>& events);
+
+  /// Radar scans of the follower's own vehicle (any sensor: those of `radar_sensor` are used),
+  /// before update(). Keeps the newest in-lane detection.
+  void observe_radar(const std::vector<proto::RadarScanMsg>& scans);
+  /// Whether the last update() took its gap from the radar.
+  bool radar_in_use() const { return radar_used_; }
 
   bool leader_lost() const { return lost_; }
   bool ready() const { return own_.has_value() && leader_.has_value(); }
@@ -174,6 +191,11 @@ class ConvoyFollower {
   double desired_gap_m_ = 0.0;
   double target_speed_ = 0.0;
   double cross_track_m_ = 0.0;
+  // Newest in-lane radar detection: measurement time (< 0: none), bumper gap, range rate.
+  double radar_time_s_ = -1.0;
+  double radar_gap_m_ = 0.0;
+  double radar_range_rate_ = 0.0;
+  bool radar_used_ = false;
 };
 
 /// Compass heading (clockwise from north) to yaw (counter-clockwise from east), and back.

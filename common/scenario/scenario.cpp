@@ -1,5 +1,6 @@
 #include "scenario/scenario.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -307,6 +308,15 @@ ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world
     f.fix_gain = m.number("gps_gain", f.fix_gain, 0.0, 1.0);
     f.leader_fix_gain = m.number("v2v_gain", f.leader_fix_gain, 0.0, 1.0);
     f.leader_lost_after_s = m.number("leader_lost_after_s", f.leader_lost_after_s, 0.05, 600.0);
+    if (auto n = m.optional("radar")) {
+      MapReader r(*n);
+      f.radar_sensor = r.get<std::string>("sensor");
+      f.radar_lane_half_width_m =
+          r.number("lane_half_width_m", f.radar_lane_half_width_m, 0.1, 10.0);
+      f.radar_gate_m = r.number("gate_m", f.radar_gate_m, 0.1, 100.0);
+      f.radar_max_age_s = r.number("max_age_s", f.radar_max_age_s, 0.0, 10.0);
+      r.finish();
+    }
   }
   if (c.type == "path_follower") {
     MapReader p(m.required("path"));
@@ -505,6 +515,13 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   if (v2v_node) needs_own_sensors(*v2v_node, "v2v");
   if (v.controller.follows()) {
     needs_own_sensors(*controller_node, ("a " + v.controller.type + " controller").c_str());
+  }
+  if (const std::string& radar = v.controller.convoy.radar_sensor; !radar.empty()) {
+    const auto& radars = v.sensors->rig.radars;
+    if (std::none_of(radars.begin(), radars.end(), [&](const auto& r) { return r.id == radar; })) {
+      MapReader(*controller_node).required("radar").fail(
+          "no radar '" + radar + "' in the vehicle's sensor rig " + v.sensors->rig.file);
+    }
   }
   if (start) {
     v.start = parse_start(*start, world);

@@ -1,6 +1,7 @@
 // The follower fed directly: lost and found leaders, stale messages, conversions (open loop),
 // the gap law's braking-distance term, locked wheels, a standing leader's trail, the steering
-// on a circle, and (closed loop, a small vehicle model in the test) the understeer it learns.
+// on a circle, (closed loop, a small vehicle model in the test) the understeer it learns, and
+// the gap taken from its own radar.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -340,4 +341,65 @@ TEST(Follower, LearnsTheUndersteerOfItsVehicle) {
   }
   EXPECT_NEAR(f.understeer_rad_per_mps2(), understeer, 0.006);
   EXPECT_LT(worst_late, 0.1);
+}
+
+// With `radar.sensor`, the nearest detection of that radar in the follower's lane, close to the
+// V2V gap and fresh, gives the gap (carried to now by its range rate); any other detection is
+// ignored and the V2V gap stays.
+TEST(Follower, AnInLaneRadarDetectionGivesTheGap) {
+  FollowerConfig c = config();
+  c.radar_sensor = "front_radar";
+  FollowerVehicle vehicle = test_vehicle();
+  vehicle.radar_ahead_of_front_m = 0.05;
+  const StraightWorld w;
+  auto scan = [](const std::string& sensor, double t, float x, float y, float rate) {
+    proto::RadarScanMsg s;
+    s.stamp.sensor_id = sensor;
+    s.stamp.time_s = t;
+    proto::RadarDetectionMsg d;
+    d.x = x;
+    d.y = y;
+    d.radial_speed_mps = rate;
+    s.detections.push_back(d);
+    return s;
+  };
+  struct Case {
+    const char* name;
+    proto::RadarScanMsg scan;
+    bool used;
+    double gap;
+  };
+  const double t = 3.0;
+  const double v2v_gap = 15.0 - 2.35 - 2.35;
+  const std::vector<Case> cases = {
+      {"in lane", scan("front_radar", t, 9.0f, 0.2f, -1.0f), true, 9.05},
+      {"carried to now", scan("front_radar", t - 0.1, 9.0f, 0.2f, -1.0f), true, 8.95},
+      {"out of lane", scan("front_radar", t, 9.0f, 2.0f, -1.0f), false, v2v_gap},
+      {"beyond the gate", scan("front_radar", t, 5.0f, 0.0f, 0.0f), false, v2v_gap},
+      {"stale", scan("front_radar", t - 0.5, 9.0f, 0.0f, 0.0f), false, v2v_gap},
+      {"another radar", scan("rear_radar", t, 9.0f, 0.0f, 0.0f), false, v2v_gap},
+  };
+  for (const auto& k : cases) {
+    SCOPED_TRACE(k.name);
+    ConvoyFollower f(c, vehicle, kConverter);
+    std::vector<FollowerEvent> events;
+    std::uint64_t seq = 0;
+    for (int i = 0; i < 300; ++i) {
+      const double ti = i * 0.01;
+      std::vector<proto::V2VMessageMsg> msgs;
+      if (i % 10 == 0) msgs.push_back(w.leader(ti, seq++));
+      f.update(ti, 0.01, w.own(ti), msgs, events);
+    }
+    EXPECT_FALSE(f.radar_in_use());
+    EXPECT_NEAR(f.gap_m(), v2v_gap, 0.05);
+    f.observe_radar({k.scan});
+    f.update(t, 0.01, w.own(t), {w.leader(t, seq++)}, events);
+    EXPECT_EQ(f.radar_in_use(), k.used);
+    EXPECT_NEAR(f.gap_m(), k.gap, 0.05);
+    if (k.used) {
+      // The leader's speed from the range rate (own 5 m/s, closing at 1 m/s): 4 m/s, and the
+      // gap short of the 10 m desired: the target is below the leader's speed.
+      EXPECT_LT(f.target_speed_mps(), 4.0);
+    }
+  }
 }
