@@ -281,6 +281,18 @@ vehicles:
   EXPECT_NE(error_of(circle).find("vehicles[0]: controller.follow: follow chain without a leader: l1 -> f1 -> l1"),
             std::string::npos)
       << error_of(circle);
+  // The radar gap: a radar of the follower's own rig, named.
+  const std::string radar_gap = replaced(
+      replaced(follower, "sensors: convoy\n", "sensors: convoy_radar\n"),
+      "standstill_bumper_m: 3}}", "standstill_bumper_m: 3}, radar: {sensor: front_radar}}");
+  EXPECT_EQ(parse(leader + radar_gap).vehicles[1].controller.convoy.radar_sensor, "front_radar");
+  EXPECT_NE(error_of(leader + replaced(radar_gap, "sensor: front_radar", "sensor: rear_radar"))
+                .find("controller.radar: no radar 'rear_radar' in the vehicle's sensor rig"),
+            std::string::npos)
+      << error_of(leader + replaced(radar_gap, "sensor: front_radar", "sensor: rear_radar"));
+  EXPECT_NE(error_of(leader + replaced(radar_gap, "sensor: front_radar", "sensor: front_radar, gate: 2"))
+                .find("unknown key"),
+            std::string::npos);
   // A learned follower: its policy file must exist, its period fit the heartbeat.
   const std::string policy = replaced(
       follower, "controller: {type: follower, follow: l1, gap: {time_s: 1.5, standstill_bumper_m: 3}}",
