@@ -297,8 +297,9 @@ async function radar() {
   }
 }
 
-// tests/viewer/radar_scene.yaml live: the page draws r's newest radar scan, each detection at
-// the world position, with the radial speed, that the recorder writes to radar.csv.
+// tests/viewer/radar_scene.yaml run distributed with a live viewer, the page opened after the
+// run ended: it draws r's newest radar scan, each detection at the world position, with the
+// radial speed, that the recorder writes to radar.csv.
 async function radarlive() {
   const csvPath = shot;
   const { browser, page } = await openViewer(url);
@@ -325,6 +326,10 @@ async function radarlive() {
       at: [+r[c.world_x], +r[c.world_y], +r[c.world_z]], speed: +r[c.radial_speed_mps] }));
   }
   assert.equal(rows.length, seen.drawn, `radar.csv has the scan at ${t} s with as many detections`);
+  // The run ended before the page loaded: what it draws is the newest scan recorded.
+  const times = readFileSync(csvPath, 'utf8').split('\n').slice(1).filter((l) => l.length > 0)
+    .map((l) => Number(l.split(',')[4]));
+  assert.equal(t, Math.max(...times), 'the newest scan of the run');
   seen.detections.forEach((d, k) => {
     for (let a = 0; a < 3; ++a) {
       assert.ok(Math.abs(d.at[a] - rows[k].at[a]) < 1e-3, `detection ${k} at ${d.at} as recorded (${rows[k].at})`);

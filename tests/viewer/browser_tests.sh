@@ -8,7 +8,8 @@
 #     contact two vehicles head-on recorded: a contact mark per vehicle, from the contact on
 #     radar   tests/viewer/radar_scene.yaml recorded: the newest radar scan's detections drawn,
 #             approaching blue and receding red; a malformed radar.csv named by line; the same
-#             live: the page's detections are the ones radar.csv records
+#             run distributed with a live viewer: the page's detections are the newest scan
+#             radar.csv records
 #     live    scm_crossing live with --view: ruts appear while it runs; vehicles.csv is
 #             byte-identical to the single-process run
 #     kill    the default scenario live: the viewer is killed (SIGKILL) while a browser watches;
@@ -74,15 +75,18 @@ case "$CASE" in
     wait_file "$work/bad_url"
     node "$ROOT/tests/viewer/browser_tests.mjs" radar "$(cat "$work/url")" "$OUT/viewer_radar.png" \
         "$(cat "$work/bad_url")"
-    # Live: the page gets the radar's scans while the run goes on (--duration: time for the page to
-    # load before the run ends).
-    "$ROOT/launch_scripts/run_scenario.sh" "$ROOT/tests/viewer/radar_scene.yaml" --duration 6 \
-        --realtime --view --view-port 0 --output "$work/live" > "$work/launcher.log" 2>&1 &
-    lpid=$!
-    wait_file "$work/live/logs/viewer.url"
-    node "$ROOT/tests/viewer/browser_tests.mjs" radarlive "$(cat "$work/live/logs/viewer.url")" \
+    # Live: a live viewer started before the run (it keeps serving after the run ended, so the
+    # page may load at any time: no wall-clock race), the distributed run to its end, then the
+    # page: the newest scan it draws is the one radar.csv records last.
+    "$BIN/syndds_viewer" "$ROOT/tests/viewer/radar_scene.yaml" --run-id radar-live --port 0 \
+        --url-file "$work/live_url" > "$work/live_viewer.log" 2>&1 &
+    bvpid="$bvpid $!"
+    wait_file "$work/live_url"
+    "$ROOT/launch_scripts/run_scenario.sh" "$ROOT/tests/viewer/radar_scene.yaml" \
+        --run-id radar-live --output "$work/live" > "$work/launcher.log" 2>&1 \
+      || { cat "$work/launcher.log" >&2; exit 1; }
+    node "$ROOT/tests/viewer/browser_tests.mjs" radarlive "$(cat "$work/live_url")" \
         "$work/live/radar.csv"
-    wait "$lpid" || { cat "$work/launcher.log" >&2; exit 1; }
     ;;
   ruts)
     single scm_crossing 8 "$work/run"
