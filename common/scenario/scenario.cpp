@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "core/hash.hpp"
+#include "protocol/messages.hpp"
 
 #ifndef SYNDDS_DEFAULT_CONFIG_DIR
 #define SYNDDS_DEFAULT_CONFIG_DIR "config"
@@ -435,6 +436,21 @@ VehicleSensorsConfig parse_vehicle_sensors(const YamlNode& node, const std::stri
       rig_node->fail(std::string("rig ") + file + ": its " + kind + " sensors make " +
                      std::to_string(static_cast<int>(n)) +
                      " samples per frame; at most 32 fit (lower rate_hz or heartbeat_s)");
+    }
+  }
+  // Cameras, lidars and radars publish one image or scan per frame at most each; a frame's
+  // samples of one kind and vehicle must fit the writer's history (TopicTraits::max_per_frame).
+  for (const auto& [kind, n, limit] :
+       {std::tuple{"camera", per_frame(c.rig.cameras),
+                   proto::TopicTraits<proto::Topic::image>::max_per_frame},
+        std::tuple{"lidar", per_frame(c.rig.lidars),
+                   proto::TopicTraits<proto::Topic::point_cloud>::max_per_frame},
+        std::tuple{"radar", per_frame(c.rig.radars),
+                   proto::TopicTraits<proto::Topic::radar>::max_per_frame}}) {
+    if (n > limit) {
+      rig_node->fail(std::string("rig ") + file + ": its " + kind + " sensors make " +
+                     std::to_string(static_cast<int>(n)) + " samples per frame; at most " +
+                     std::to_string(limit) + " fit (fewer sensors, lower rate_hz or heartbeat_s)");
     }
   }
   // A sensor measures on the grid it is fed at: the dynamics step for the interoceptive ones,

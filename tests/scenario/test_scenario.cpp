@@ -308,6 +308,25 @@ vehicles:
       << error_of(leader + odd_period);
 }
 
+// Each camera, lidar or radar publishes at most one sample a frame; more of one kind on one
+// vehicle than its topic's writer keeps per frame is refused when the scenario loads.
+TEST(Scenario, TooManyRadarsOnOneVehicleAreRefused) {
+  const std::string dir = testing::TempDir();
+  auto rig = [&](int radars) {
+    const std::string file = dir + "/radars_" + std::to_string(radars) + ".yaml";
+    std::ofstream out(file);
+    out << "name: radars\nsensors:\n";
+    for (int k = 0; k < radars; ++k) out << "  - {id: r" << k << ", type: radar, rate_hz: 20}\n";
+    std::string text = kMinimal;
+    text.replace(text.find("model: hmmwv"), 12, "model: hmmwv\n    sensors: " + file);
+    return text;
+  };
+  EXPECT_EQ(parse(rig(4)).vehicles[0].sensors->rig.radars.size(), 4u);
+  EXPECT_NE(error_of(rig(5)).find("its radar sensors make 5 samples per frame; at most 4 fit"),
+            std::string::npos)
+      << error_of(rig(5));
+}
+
 // The vehicle process simulates the rig's interoceptive sensors only: it builds no camera or
 // lidar renderer (each starts its threads and allocates per pixel or ray), the sensor process
 // does. Counted by the threads a 16-thread camera would start.
