@@ -138,9 +138,13 @@ TEST(Radar, RadialSpeedIsTheVelocityAlongTheLineOfSight) {
     const RadarDetection& d = s.detections[0];
     const double want = radial(c.velocity, world_point(s, d), sensor.position);
     EXPECT_NEAR(d.radial_speed_mps, want, 0.05);
-    if (c.expected_sign > 0) EXPECT_GT(want, 0.5);
-    if (c.expected_sign < 0) EXPECT_LT(want, -0.5);
-    if (c.expected_sign == 0) EXPECT_NEAR(want, 0.0, 0.05);
+    if (c.expected_sign > 0) {
+      EXPECT_GT(want, 0.5);
+    } else if (c.expected_sign < 0) {
+      EXPECT_LT(want, -0.5);
+    } else {
+      EXPECT_NEAR(want, 0.0, 0.05);
+    }
   }
 }
 
@@ -230,7 +234,9 @@ TEST(Radar, VehiclesSideBySideAreSeparateDetections) {
     }
     std::sort(az.begin(), az.end());
     EXPECT_NEAR(az.back(), std::atan2(1.5, 30.0 - 2.35), 0.01);
-    if (both) EXPECT_NEAR(az.front(), std::atan2(-1.5, 30.0 - 2.35), 0.01);
+    if (both) {
+      EXPECT_NEAR(az.front(), std::atan2(-1.5, 30.0 - 2.35), 0.01);
+    }
   }
 }
 

@@ -252,8 +252,9 @@ TEST(LiveState, RadarScansStayBoundedInSensorsAndDetections) {
   viewer::LiveState live;
   Pose at_origin;
   for (std::size_t k = 0; k < 2 * viewer::LiveState::kMaxRadarSensors; ++k) {
-    live.on_radar(
-        radar_scan("v" + std::to_string(k), "front", 0.05, at_origin, {{1, 0, 0, 0, 0}}));
+    std::string vehicle = "v";  // not "v" + to_string(k): GCC 12 warns wrongly (-Wrestrict)
+    vehicle += std::to_string(k);
+    live.on_radar(radar_scan(vehicle, "front", 0.05, at_origin, {{1, 0, 0, 0, 0}}));
   }
   EXPECT_EQ(live.radar_scans(), viewer::LiveState::kMaxRadarSensors);
   // A scan with more detections than are kept: the first ones (the nearest, as a scan lists
