@@ -82,12 +82,7 @@ void LidarRenderer::render(const Scene& scene, const Pose& pose, std::vector<Bea
   if (!scene.committed()) throw std::logic_error("lidar render: scene not committed");
   const int sub = config_.beam_samples;
   const int rays_per_sample = config_.channels * sub;
-  const Eigen::Matrix3d rot = pose.orientation.toRotationMatrix();
-  float m[9], o[3];
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) m[3 * i + j] = static_cast<float>(rot(i, j));
-    o[i] = static_cast<float>(pose.position[i]);
-  }
+  const RayFrame frame(pose);
   const auto tnear = static_cast<float>(config_.min_range_m);
   const auto tfar = static_cast<float>(config_.max_range_m);
   RTCScene handle = scene.handle();
@@ -104,28 +99,7 @@ void LidarRenderer::render(const Scene& scene, const Pose& pose, std::vector<Bea
     alignas(64) int valid[16];
     float dir[16][3];
     for (std::size_t base = r0; base < r1; base += 16) {
-      for (int l = 0; l < 16; ++l) {
-        const std::size_t r = base + static_cast<std::size_t>(l);
-        valid[l] = r < r1 ? -1 : 0;
-        if (!valid[l]) continue;
-        const float* d = &directions_[3 * r];
-        for (int i = 0; i < 3; ++i)
-          dir[l][i] = m[3 * i] * d[0] + m[3 * i + 1] * d[1] + m[3 * i + 2] * d[2];
-        rh.ray.org_x[l] = o[0];
-        rh.ray.org_y[l] = o[1];
-        rh.ray.org_z[l] = o[2];
-        rh.ray.dir_x[l] = dir[l][0];
-        rh.ray.dir_y[l] = dir[l][1];
-        rh.ray.dir_z[l] = dir[l][2];
-        rh.ray.tnear[l] = tnear;
-        rh.ray.tfar[l] = tfar;
-        rh.ray.time[l] = 0.0f;
-        rh.ray.mask[l] = 0xFFFFFFFFu;
-        rh.ray.id[l] = static_cast<unsigned>(l);
-        rh.ray.flags[l] = 0;
-        rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
-      }
+      fill_packet(rh, valid, dir, base, r1, directions_.data(), frame, tnear, tfar);
       intersect(packets, valid, handle, &ctx.context, rh);
       for (int l = 0; l < 16; ++l) {
         if (!valid[l]) continue;
@@ -208,14 +182,7 @@ LidarSensor::LidarSensor(const LidarConfig& config, std::string vehicle_id, std:
 }
 
 Pose LidarSensor::sensor_pose(const Scene& scene) const {
-  if (vehicle_id_.empty()) return config_.mount.pose;
-  const auto vehicle = scene.vehicle_pose(vehicle_id_);
-  if (!vehicle)
-    throw std::runtime_error(config_.id + ": vehicle '" + vehicle_id_ + "' not in scene");
-  Pose p;
-  p.position = vehicle->position + vehicle->orientation * config_.mount.pose.position;
-  p.orientation = vehicle->orientation * config_.mount.pose.orientation;
-  return p;
+  return mounted_pose(scene, vehicle_id_, config_.mount.pose, config_.id);
 }
 
 namespace {

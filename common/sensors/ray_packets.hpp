@@ -1,8 +1,56 @@
 #pragma once
-// Internal to the renderers: 16-ray packets traced either as packets or ray by ray.
+// Internal to the renderers: 16-ray packets filled from a sensor's directions, traced either
+// as packets or ray by ray.
 #include <embree3/rtcore.h>
 
+#include <cstddef>
+
+#include "core/math.hpp"
+
 namespace syndds::sensors {
+
+/// A sensor's world pose as the packet fill below takes it: rotation row-major, origin.
+struct RayFrame {
+  float m[9];
+  float o[3];
+  explicit RayFrame(const Pose& pose) {
+    const Eigen::Matrix3d rot = pose.orientation.toRotationMatrix();
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) m[3 * i + j] = static_cast<float>(rot(i, j));
+      o[i] = static_cast<float>(pose.position[i]);
+    }
+  }
+};
+
+// Fills a packet with rays base, base + 1, ... (lanes at or past `end` invalid): from the
+// frame's origin along sensor-frame directions `directions` (xyz per ray) rotated into the
+// world (also written to dir[lane]), between tnear and tfar.
+inline void fill_packet(RTCRayHit16& rh, int* valid, float (*dir)[3], std::size_t base,
+                        std::size_t end, const float* directions, const RayFrame& f, float tnear,
+                        float tfar) {
+  for (int l = 0; l < 16; ++l) {
+    const std::size_t r = base + static_cast<std::size_t>(l);
+    valid[l] = r < end ? -1 : 0;
+    if (!valid[l]) continue;
+    const float* d = &directions[3 * r];
+    for (int i = 0; i < 3; ++i)
+      dir[l][i] = f.m[3 * i] * d[0] + f.m[3 * i + 1] * d[1] + f.m[3 * i + 2] * d[2];
+    rh.ray.org_x[l] = f.o[0];
+    rh.ray.org_y[l] = f.o[1];
+    rh.ray.org_z[l] = f.o[2];
+    rh.ray.dir_x[l] = dir[l][0];
+    rh.ray.dir_y[l] = dir[l][1];
+    rh.ray.dir_z[l] = dir[l][2];
+    rh.ray.tnear[l] = tnear;
+    rh.ray.tfar[l] = tfar;
+    rh.ray.time[l] = 0.0f;
+    rh.ray.mask[l] = 0xFFFFFFFFu;
+    rh.ray.id[l] = static_cast<unsigned>(l);
+    rh.ray.flags[l] = 0;
+    rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+  }
+}
 
 // Traces the valid lanes of a packet: 16-wide when rays are coherent, one by one otherwise
 // (low-resolution cameras: neighbouring pixels diverge by a degree or more and Embree's

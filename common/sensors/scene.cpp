@@ -810,6 +810,19 @@ std::optional<Pose> Scene::vehicle_pose(const std::string& id) const {
   return it->second.chassis;
 }
 
+Pose mounted_pose(const Scene& scene, const std::string& vehicle_id, const Pose& mount,
+                  const std::string& sensor_id) {
+  if (vehicle_id.empty()) return mount;
+  const auto vehicle = scene.vehicle_pose(vehicle_id);
+  if (!vehicle) {
+    throw std::runtime_error(sensor_id + ": vehicle '" + vehicle_id + "' not in scene");
+  }
+  Pose p;
+  p.position = vehicle->position + vehicle->orientation * mount.position;
+  p.orientation = vehicle->orientation * mount.orientation;
+  return p;
+}
+
 int Scene::vehicle_slot(const std::string& id) const {
   auto it = vehicles_.find(id);
   return it == vehicles_.end() ? -1 : it->second.slot;

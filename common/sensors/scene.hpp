@@ -119,6 +119,13 @@ Rgb vehicle_palette(std::size_t index);
 /// Default obstacle colours by label (rock, tree, bush, wall, ...; others orange).
 Rgb obstacle_colour(std::string_view label);
 
+class Scene;
+/// World pose of a sensor mounted at `mount` (chassis frame) on vehicle `vehicle_id`; an empty
+/// id: `mount` is the world pose. Throws std::runtime_error naming `sensor_id` when the vehicle
+/// is not in the scene.
+Pose mounted_pose(const Scene& scene, const std::string& vehicle_id, const Pose& mount,
+                  const std::string& sensor_id);
+
 /// Per-geometry surface data the renderers shade with.
 enum class SurfaceKind : std::uint8_t { terrain, obstacle, vehicle };
 struct Surface {
