@@ -20,7 +20,7 @@
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
-die() { echo "run_ensemble: $*" >&2; exit "${2:-1}"; }
+die() { echo "run_ensemble: $1" >&2; exit "${2:-1}"; }  # message [exit status, default 1]
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
 JOBS=$(nproc 2>/dev/null || echo 1); DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
