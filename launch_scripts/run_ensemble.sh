@@ -5,6 +5,7 @@
 #   launch_scripts/run_ensemble.sh --courses N --output DIR [--terrains rigid,scm_hard,scm_soft]
 #       [--convoy 1L3F|2L2F|3L1F] [--follower-policy FILE] [--jobs J] [--distributed]
 #       [--first-seed S] [--duration S]
+#       [--slurm [--slurm-args "SBATCH OPTIONS"] [--wait]] [--gather-only]
 #
 # --follower-policy drives the followers with a learned policy (e.g.
 # policies/convoy_follow_lowdim.pt; docs/learning.md) instead of the classical follower.
@@ -16,26 +17,47 @@
 # times, so an interrupted and resumed ensemble ends with the same file as an uninterrupted one)
 # and DIR/runs.csv (one row per run: status, simulated and wall time, real-time factor), then the
 # figures (DIR/figures/) and DIR/report.md (tools/ensemble_figures.py).
-# Exit status: 0 every run completed, 2 some failed (listed), 1 bad command line, 130 interrupted.
+#
+# --slurm runs nothing here: it submits one Slurm array job with one task per run still to run
+# (launch_scripts/slurm/ensemble_task.sbatch; task i runs line i + 1 of DIR/slurm/todo.txt), at
+# most J at a time if --jobs is given, and a gather job that starts once every task has ended
+# and writes the CSVs, figures and report.md as above. It prints the job ids (also kept in
+# DIR/slurm/jobs). Each run's log is DIR/runs/<seed>_<terrain>.log, the jobs' output is in
+# DIR/slurm/. Every node must see DIR and this repository (programs, config/) at the same paths:
+# a shared filesystem. --slurm-args adds sbatch options to both jobs, split at spaces (e.g.
+# "-p short -t 30"); --wait waits for the gather job and exits as a local run does. --slurm
+# refuses --distributed (for one run across nodes: launch_scripts/slurm/run_scenario.sbatch).
+# --gather-only runs nothing: it writes the CSVs, figures and report.md from the runs DIR holds
+# (the gather job runs it). --run-one SEED_TERRAIN runs that one run as the ensemble would (each
+# array task runs it).
+# Exit status: 0 every run completed (--slurm without --wait: submitted), 2 some failed (listed),
+# 1 bad command line or environment, 130 interrupted.
 set -u
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 die() { echo "run_ensemble: $1" >&2; exit "${2:-1}"; }  # message [exit status, default 1]
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
-JOBS=$(nproc 2>/dev/null || echo 1); DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
+JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
+SLURM=0; SLURM_ARGS=""; SLURM_ARGS_SET=0; SLURM_EXTRA=(); WAIT=0; GATHER_ONLY=0; RUN_ONE=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --courses) [ $# -ge 2 ] || die "--courses needs a number"; COURSES=$2; shift ;;
     --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
     --terrains) [ $# -ge 2 ] || die "--terrains needs a list"; TERRAINS=$2; shift ;;
     --convoy) [ $# -ge 2 ] || die "--convoy needs a value"; CONVOY=$2; shift ;;
-    --jobs) [ $# -ge 2 ] || die "--jobs needs a number"; JOBS=$2; shift ;;
+    --jobs) [ $# -ge 2 ] || die "--jobs needs a number"; JOBS=$2; JOBS_SET=1; shift ;;
     --first-seed) [ $# -ge 2 ] || die "--first-seed needs a number"; FIRST=$2; shift ;;
     --duration) [ $# -ge 2 ] || die "--duration needs seconds"; DURATION=(--duration "$2"); shift ;;
     --follower-policy) [ $# -ge 2 ] || die "--follower-policy needs a file"; POLICY=$2; shift ;;
     --distributed) DISTRIBUTED=1 ;;
-    -h|--help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --slurm) SLURM=1 ;;
+    --slurm-args) [ $# -ge 2 ] || die "--slurm-args needs sbatch options in one argument"
+      SLURM_ARGS=$2; SLURM_ARGS_SET=1; shift ;;
+    --wait) WAIT=1 ;;
+    --gather-only) GATHER_ONLY=1 ;;
+    --run-one) [ $# -ge 2 ] || die "--run-one needs a run id (SEED_TERRAIN)"; RUN_ONE=$2; shift ;;
+    -h|--help) awk 'NR > 1 && !/^#/ { exit } NR > 1 { sub(/^# ?/, ""); print }' "$0"; exit 0 ;;
     *) die "unknown option: $1 (see --help)" ;;
   esac
   shift
@@ -50,15 +72,39 @@ for t in "${terrains[@]}"; do
   case "$t" in rigid|scm_hard|scm_soft) ;; *) die "--terrains: unknown terrain '$t' (rigid, scm_hard, scm_soft)" ;; esac
 done
 case "$CONVOY" in 1L3F|2L2F|3L1F) ;; *) die "--convoy must be 1L3F, 2L2F or 3L1F, got '$CONVOY'" ;; esac
+if [ $SLURM = 0 ]; then
+  [ $WAIT = 0 ] || die "--wait needs --slurm (a local ensemble always waits for its runs)"
+  [ $SLURM_ARGS_SET = 0 ] || die "--slurm-args needs --slurm"
+else
+  [ $DISTRIBUTED = 0 ] || die "--slurm and --distributed together: with --slurm each run is one single-process Slurm task; for one run across nodes use launch_scripts/slurm/run_scenario.sbatch"
+  [ $GATHER_ONLY = 0 ] || die "--slurm and --gather-only together: --gather-only runs here, choose one"
+  [ -z "$RUN_ONE" ] || die "--slurm and --run-one together: --run-one runs here, choose one"
+  command -v sbatch > /dev/null || die "--slurm needs Slurm's sbatch on PATH (run it on a machine of the cluster, e.g. its login node)"
+  if [ $WAIT = 1 ]; then
+    for p in scontrol squeue; do command -v "$p" > /dev/null || die "--wait needs Slurm's $p on PATH"; done
+  fi
+  read -r -a SLURM_EXTRA <<< "$SLURM_ARGS"
+  for a in "${SLURM_EXTRA[@]}"; do
+    case "$a" in
+      -a|--array|--array=*|-d|--dependency|--dependency=*|-W|--wait|--parsable|--wrap|--wrap=*)
+        die "--slurm-args: $a is set by run_ensemble.sh, not by hand" ;;
+    esac
+  done
+fi
+[ $GATHER_ONLY = 0 ] || [ -z "$RUN_ONE" ] || die "--gather-only and --run-one together: choose one"
 for p in syndds_course syndds_sim; do
   [ -x "$BIN/$p" ] || die "$BIN/$p is missing: run launch_scripts/setup.sh first"
 done
-command -v python3 > /dev/null || die "python3 is needed to write the CSV files (apt-get install python3)"
+if [ $SLURM = 0 ] && [ -z "$RUN_ONE" ]; then
+  command -v python3 > /dev/null || die "python3 is needed to write the CSV files (apt-get install python3)"
+fi
 if [ -n "$POLICY" ] && [ ! -f "$ROOT/config/$POLICY" ] && [ ! -f "$POLICY" ]; then
   die "--follower-policy: no file $POLICY (looked in config/ and here)"
 fi
 [ -n "$POLICY" ] && [ ! -f "$ROOT/config/$POLICY" ] && POLICY=$(cd "$(dirname "$POLICY")" && pwd)/$(basename "$POLICY")
 mkdir -p "$OUTPUT/courses" "$OUTPUT/runs" || die "cannot create $OUTPUT"
+# The jobs run elsewhere: they get absolute paths.
+[ $SLURM = 0 ] || OUTPUT=$(cd "$OUTPUT" && pwd)
 # The courses are generated once: an ensemble folder belongs to one convoy and one follower.
 setup="convoy=$CONVOY follower_policy=${POLICY:-classical}"
 if [ -f "$OUTPUT/ensemble.setup" ]; then
@@ -82,7 +128,6 @@ for ((k = 0; k < COURSES; ++k)); do
   done
 done
 skipped=$((${#ids[@]} - ${#todo[@]}))
-echo "run_ensemble: ${#ids[@]} runs ($COURSES courses x ${#terrains[@]} terrains, $CONVOY); $skipped finished before, ${#todo[@]} to run, $JOBS at a time"
 
 # One run: the course's scenario (generated once), then the run itself; its log beside its folder.
 run_one() {
@@ -105,6 +150,182 @@ run_one() {
   fi
 }
 
+# The CSVs, the figures and report.md from the runs DIR holds: the one implementation for a local
+# ensemble and for the gather job of a Slurm one (--gather-only). Arguments: the runs that
+# failed, listed at the end (exit status 2).
+gather() {
+python3 - "$OUTPUT" "$CONVOY" "${POLICY:-classical}" "${ids[@]}" <<'EOF'
+import csv, json, pathlib, sys
+out, convoy, controller, ids = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4:]
+metrics = ["m_p_avg", "m_p_max", "m_as_avg", "m_as_max", "m_rs_avg", "m_rs_max"]
+def cell(v):
+    return "" if v is None else f"{v:.9g}" if isinstance(v, float) else str(v)
+with open(out / "ensemble.csv", "w", newline="") as f, \
+     open(out / "runs.csv", "w", newline="") as g:
+    e, r = csv.writer(f, lineterminator="\n"), csv.writer(g, lineterminator="\n")
+    e.writerow(["seed", "terrain", "convoy", "controller", "status", "follower", "position", "leader",
+                *metrics, "obstacles_hit", "samples", "segment_length_m",
+                "leader_max_speed_mps", "leader_mean_speed_mps"])
+    r.writerow(["seed", "terrain", "status", "sim_time_s", "wall_time_s", "real_time_factor"])
+    for run_id in ids:
+        seed, terrain = run_id.split("_", 1)
+        run = out / "runs" / run_id
+        try:
+            s = json.loads((run / "summary.json").read_text())
+            status = s.get("status", "unknown")
+        except (OSError, ValueError):
+            s, status = {}, "no summary"
+        r.writerow([seed, terrain, status, cell(s.get("sim_time_s")), cell(s.get("wall_time_s")),
+                    cell(s.get("real_time_factor"))])
+        try:
+            j = json.loads((run / "metrics.json").read_text())
+            followers, leaders = j["followers"], {l["id"]: l for l in j["leaders"]}
+        except (OSError, ValueError, KeyError, TypeError):
+            followers, leaders = [], {}
+        if status != "completed" or not followers:
+            e.writerow([seed, terrain, convoy, controller, status] + [""] * (3 + len(metrics) + 5))
+            continue
+        for m in sorted(followers, key=lambda m: m["position"]):
+            head = leaders.get(m["leader"], {})
+            e.writerow([seed, terrain, convoy, controller, status, m["id"], m["position"], m["leader"],
+                        *[cell(m[k]) for k in metrics], m["obstacles_hit"], m["samples"],
+                        cell(m["segment_length_m"]), cell(head.get("max_speed_mps")),
+                        cell(head.get("mean_moving_speed_mps"))])
+EOF
+[ $? = 0 ] || die "could not write $OUTPUT/ensemble.csv" 2
+echo "run_ensemble: $OUTPUT/ensemble.csv (metrics per run and follower), $OUTPUT/runs.csv (times)"
+# Figures and report.md need Debian's matplotlib, which lives with the system's Python.
+if /usr/bin/python3 -c "import matplotlib, numpy" 2> /dev/null; then
+  /usr/bin/python3 "$ROOT/tools/ensemble_figures.py" "$OUTPUT" || die "could not draw the figures" 2
+else
+  echo "run_ensemble: no figures: install python3-matplotlib python3-numpy (launch_scripts/setup.sh does)" >&2
+fi
+if [ $# -gt 0 ]; then
+  echo "run_ensemble: $# runs failed: $*" >&2
+  exit 2
+fi
+}
+
+if [ -n "$RUN_ONE" ]; then
+  case " ${ids[*]} " in
+    *" $RUN_ONE "*) ;;
+    *) die "--run-one: $RUN_ONE is not a run of this ensemble (SEED_TERRAIN, seeds $FIRST..$((FIRST + COURSES - 1)), terrains $TERRAINS)" ;;
+  esac
+  run_one "$RUN_ONE"  # replaces this shell with the run; returns only if the course failed
+  exit 1
+fi
+if [ $GATHER_ONLY = 1 ]; then
+  failed=()
+  for id in "${ids[@]}"; do completed "$OUTPUT/runs/$id" || failed+=("$id"); done
+  gather "${failed[@]}"
+  exit 0
+fi
+
+# Slurm jobs submitted for DIR (DIR/slurm/jobs: "array ID" and "gather ID" lines) that have not
+# ended yet: their ids, one a line. Nothing when there are none or Slurm cannot be asked.
+SL=$OUTPUT/slurm
+unended_jobs() {
+  [ -s "$SL/jobs" ] && command -v squeue > /dev/null || return 0
+  local list
+  list=$(awk '{ print $2 }' "$SL/jobs" | paste -sd, -)
+  [ -n "$list" ] || return 0
+  squeue -h --jobs="$list" -o '%F %T' 2> /dev/null |
+    awk '$2 !~ /^(COMPLETED|CANCELLED|FAILED|TIMEOUT|NODE_FAIL|PREEMPTED|BOOT_FAIL|DEADLINE|OUT_OF_MEMORY|SPECIAL_EXIT|REVOKED)$/ && !seen[$1]++ { print $1 }'
+}
+alive=$(unended_jobs | paste -sd' ' -)
+[ -z "$alive" ] || die "$OUTPUT has Slurm jobs that have not ended ($alive): wait for them (squeue --jobs=${alive// /,}) or cancel them (scancel $alive) first"
+
+if [ $SLURM = 1 ]; then
+  at_a_time=""; [ $JOBS_SET = 0 ] || at_a_time=", $JOBS at a time"
+  echo "run_ensemble: ${#ids[@]} runs ($COURSES courses x ${#terrains[@]} terrains, $CONVOY); $skipped finished before, ${#todo[@]} to submit$at_a_time"
+  mkdir -p "$SL" || die "cannot create $SL"
+  if [ ${#todo[@]} -gt 0 ]; then
+    max=$(scontrol show config 2> /dev/null | sed -n 's/^MaxArraySize *= *\([0-9]*\).*/\1/p')
+    [ -z "$max" ] || [ ${#todo[@]} -le "$max" ] ||
+      die "${#todo[@]} runs to submit, more than one array job may hold on this cluster (MaxArraySize $max): submit fewer courses first (a smaller --courses; the same command with the full --courses then submits only the rest)"
+  fi
+  printf '%s\n' "${todo[@]}" | sed '/^$/d' > "$SL/todo.txt" || die "cannot write $SL/todo.txt"
+  # What an array task and the gather job run: this script, with the ensemble's options, on
+  # any node (the same paths everywhere).
+  build=$(cd "$BIN/.." && pwd)
+  command=(env "SYNDDS_BUILD_DIR=$build" "$ROOT/launch_scripts/run_ensemble.sh" --courses "$COURSES"
+           --output "$OUTPUT" --terrains "$TERRAINS" --convoy "$CONVOY" --first-seed "$FIRST"
+           "${DURATION[@]}")
+  [ -z "$POLICY" ] || command+=(--follower-policy "$POLICY")
+  {
+    echo '#!/usr/bin/env bash'
+    echo '# The gather job of this ensemble (written by run_ensemble.sh --slurm).'
+    printf 'exec'; printf ' %q' "${command[@]}" --gather-only; echo
+  } > "$SL/gather.sh" || die "cannot write $SL/gather.sh"
+  name=ensemble-$(basename "$OUTPUT")
+  array=""; after=()
+  if [ ${#todo[@]} -gt 0 ]; then
+    limit=""; [ $JOBS_SET = 0 ] || limit="%$JOBS"
+    out=$(sbatch --parsable --array="0-$((${#todo[@]} - 1))$limit" --job-name="$name" \
+          --chdir="$OUTPUT" --output="$SL/task-%A_%a.out" "${SLURM_EXTRA[@]}" \
+          "$ROOT/launch_scripts/slurm/ensemble_task.sbatch" "$SL/todo.txt" "${command[@]}") ||
+      die "sbatch refused the array job (its message is above; --slurm-args '$SLURM_ARGS')"
+    array=${out%%;*}
+    [[ $array =~ ^[0-9]+$ ]] || die "sbatch answered '$out', not a job id"
+    after=(--dependency="afterany:$array")
+  fi
+  out=$(sbatch --parsable "${after[@]}" --job-name="$name-gather" --ntasks=1 --chdir="$OUTPUT" \
+        --output="$SL/gather-%j.out" "${SLURM_EXTRA[@]}" "$SL/gather.sh") || {
+    [ -z "$array" ] || scancel "$array" 2> /dev/null
+    die "sbatch refused the gather job (its message is above)${array:+; array job $array cancelled}"
+  }
+  gather_job=${out%%;*}
+  [[ $gather_job =~ ^[0-9]+$ ]] || die "sbatch answered '$out', not a job id"
+  { [ -z "$array" ] || echo "array $array"; echo "gather $gather_job"; } > "$SL/jobs"
+  jobs=${array:+$array,}$gather_job
+  [ -z "$array" ] ||
+    echo "run_ensemble: array job $array: ${#todo[@]} runs (listed in $SL/todo.txt)$at_a_time; logs $OUTPUT/runs/<run>.log, $SL/task-${array}_<index>.out"
+  echo "run_ensemble: gather job $gather_job${array:+ (after array job $array)} writes $OUTPUT/ensemble.csv, runs.csv, figures/ and report.md; its output $SL/gather-$gather_job.out"
+  echo "run_ensemble: follow them with: squeue --jobs=$jobs; stop them with: scancel ${jobs//,/ }"
+  [ $WAIT = 1 ] || exit 0
+
+  # Until the gather job has ended: its state every half second for a minute, then every 2 s.
+  # A job that can never start (e.g. its time limit over the partition's) is named, and the
+  # wait given up.
+  interrupted=0
+  trap 'interrupted=1' INT TERM HUP
+  pending=("${todo[@]}"); polls=0; misses=0; info=""; st=""
+  while :; do
+    info=$(scontrol show job -o "$gather_job" 2> /dev/null) || info=""
+    st=$(sed -n 's/.* JobState=\([A-Z_]*\).*/\1/p' <<< "$info")
+    if [ -n "$st" ]; then
+      misses=0
+    else
+      misses=$((misses + 1))
+      [ $misses -lt 30 ] || die "lost track of gather job $gather_job (scontrol show job $gather_job answers nothing); see $SL/gather-$gather_job.out" 2
+    fi
+    case "$st" in COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|PREEMPTED|BOOT_FAIL|DEADLINE|OUT_OF_MEMORY) break ;; esac
+    stuck=$(squeue -h --jobs="$jobs" -o '%i %r' 2> /dev/null | awk '$2 ~ /^(PartitionTimeLimit|PartitionNodeLimit|PartitionConfig|BadConstraints|DependencyNeverSatisfied|InvalidAccount|InvalidQOS|AssocMaxWallDurationPerJobLimit|QOSMaxWallDurationPerJobLimit)$/ { print; exit }')
+    [ -z "$stuck" ] ||
+      die "job ${stuck% *} cannot start (${stuck#* }): scancel ${jobs//,/ }, then submit again with other --slurm-args (e.g. -p PARTITION -t MINUTES)" 2
+    rest=()
+    for id in "${pending[@]}"; do completed "$OUTPUT/runs/$id" || rest+=("$id"); done
+    if [ ${#rest[@]} != ${#pending[@]} ]; then
+      pending=("${rest[@]}")
+      echo "run_ensemble: [$((${#ids[@]} - ${#pending[@]}))/${#ids[@]}] runs completed"
+    fi
+    [ $interrupted = 0 ] ||
+      die "stopped waiting; the jobs go on (squeue --jobs=$jobs; scancel ${jobs//,/ } stops them)" 130
+    polls=$((polls + 1))
+    if [ $polls -lt 120 ]; then sleep 0.5; else sleep 2; fi
+  done
+  trap - INT TERM HUP
+  code=$(sed -n 's/.* ExitCode=\([0-9]*\):.*/\1/p' <<< "$info")
+  cat "$SL/gather-$gather_job.out" 2> /dev/null
+  case "$st:$code" in
+    COMPLETED:0) exit 0 ;;
+    FAILED:2) exit 2 ;;  # the failed runs are listed in the gather job's output, above
+    FAILED:1) die "gather job $gather_job failed (exit code 1): see $SL/gather-$gather_job.out" 1 ;;
+  esac
+  die "gather job $gather_job ended $st (exit code ${code:-unknown}): see $SL/gather-$gather_job.out" 2
+fi
+
+echo "run_ensemble: ${#ids[@]} runs ($COURSES courses x ${#terrains[@]} terrains, $CONVOY); $skipped finished before, ${#todo[@]} to run, $JOBS at a time"
 declare -A running=()   # pid -> run id
 interrupted=0
 trap 'interrupted=1' INT TERM HUP
@@ -155,53 +376,4 @@ if [ $interrupted = 1 ]; then
 fi
 trap - EXIT
 
-python3 - "$OUTPUT" "$CONVOY" "${POLICY:-classical}" "${ids[@]}" <<'EOF'
-import csv, json, pathlib, sys
-out, convoy, controller, ids = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4:]
-metrics = ["m_p_avg", "m_p_max", "m_as_avg", "m_as_max", "m_rs_avg", "m_rs_max"]
-def cell(v):
-    return "" if v is None else f"{v:.9g}" if isinstance(v, float) else str(v)
-with open(out / "ensemble.csv", "w", newline="") as f, \
-     open(out / "runs.csv", "w", newline="") as g:
-    e, r = csv.writer(f, lineterminator="\n"), csv.writer(g, lineterminator="\n")
-    e.writerow(["seed", "terrain", "convoy", "controller", "status", "follower", "position", "leader",
-                *metrics, "obstacles_hit", "samples", "segment_length_m",
-                "leader_max_speed_mps", "leader_mean_speed_mps"])
-    r.writerow(["seed", "terrain", "status", "sim_time_s", "wall_time_s", "real_time_factor"])
-    for run_id in ids:
-        seed, terrain = run_id.split("_", 1)
-        run = out / "runs" / run_id
-        try:
-            s = json.loads((run / "summary.json").read_text())
-            status = s.get("status", "unknown")
-        except (OSError, ValueError):
-            s, status = {}, "no summary"
-        r.writerow([seed, terrain, status, cell(s.get("sim_time_s")), cell(s.get("wall_time_s")),
-                    cell(s.get("real_time_factor"))])
-        try:
-            j = json.loads((run / "metrics.json").read_text())
-            followers, leaders = j["followers"], {l["id"]: l for l in j["leaders"]}
-        except (OSError, ValueError, KeyError, TypeError):
-            followers, leaders = [], {}
-        if status != "completed" or not followers:
-            e.writerow([seed, terrain, convoy, controller, status] + [""] * (3 + len(metrics) + 5))
-            continue
-        for m in sorted(followers, key=lambda m: m["position"]):
-            head = leaders.get(m["leader"], {})
-            e.writerow([seed, terrain, convoy, controller, status, m["id"], m["position"], m["leader"],
-                        *[cell(m[k]) for k in metrics], m["obstacles_hit"], m["samples"],
-                        cell(m["segment_length_m"]), cell(head.get("max_speed_mps")),
-                        cell(head.get("mean_moving_speed_mps"))])
-EOF
-[ $? = 0 ] || die "could not write $OUTPUT/ensemble.csv" 2
-echo "run_ensemble: $OUTPUT/ensemble.csv (metrics per run and follower), $OUTPUT/runs.csv (times)"
-# Figures and report.md need Debian's matplotlib, which lives with the system's Python.
-if /usr/bin/python3 -c "import matplotlib, numpy" 2> /dev/null; then
-  /usr/bin/python3 "$ROOT/tools/ensemble_figures.py" "$OUTPUT" || die "could not draw the figures" 2
-else
-  echo "run_ensemble: no figures: install python3-matplotlib python3-numpy (launch_scripts/setup.sh does)" >&2
-fi
-if [ ${#failed[@]} -gt 0 ]; then
-  echo "run_ensemble: ${#failed[@]} runs failed: ${failed[*]}" >&2
-  exit 2
-fi
+gather "${failed[@]}"
