@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 #include <optional>
 
 #include "common/service_cli.hpp"
@@ -44,6 +45,10 @@ int main(int argc, char** argv) {
     }
     o.debug_exit_notice_delay_s = exit_notice_delay_ms / 1000.0;
     o.run_dir = common.run_dir;
+    if (!common.run_dir.empty()) {
+      // Beside the launcher's files: it is the run's operational state, not a result.
+      o.status_file = (std::filesystem::path(common.run_dir) / "logs" / "run_status.json").string();
+    }
     o.barrier.checkpoint_every = s.checkpoint.every_frames;
     o.checkpoint_keep_last = s.checkpoint.keep_last;
     if (s.checkpoint.enabled() && common.run_dir.empty()) {

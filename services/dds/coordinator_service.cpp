@@ -8,10 +8,14 @@
 #include <fstream>
 #include <thread>
 
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
 #include "core/build_identity.hpp"
 #include "dds/convert.hpp"
 #include "dds/member_runtime.hpp"
 #include "record/checkpoint.hpp"
+#include "record/run_files.hpp"
 
 namespace syndds::dds {
 namespace {
@@ -382,8 +386,12 @@ void CoordinatorService::advance_locked() {
       for (const auto& j : action.grant.joiners) {
         spdlog::info("coordinator: {} joins the run at frame {}", j, action.grant.frame + 1);
       }
+      granted_frame_ = action.grant.frame;
       if (action.grant.frame == options_.barrier.first_frame) {
         spdlog::info("coordinator: all members joined after {:.2f} s; starting", now());
+        write_status_locked("running");
+      } else if (action.grant.rollback) {
+        write_status_locked("running");
       } else if (action.grant.frame % progress_every_ == 0) {
         spdlog::info("coordinator: frame {}/{}", action.grant.frame, options_.barrier.final_frame);
       }
@@ -425,6 +433,7 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
 
   bool interrupted = false;
   std::unique_lock lock(mutex_);
+  write_status_locked("joining");
   advance_locked();
   while (!end_) {
     // Deadlines, real-time pacing and signals; everything else happens in the DDS callbacks.
@@ -453,6 +462,10 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   const int code = end.kind == proto::Barrier::Action::Kind::stop ? kExitCompleted
                    : interrupted                                  ? kExitInterrupted
                                                                   : kExitAborted;
+  const char* state = end.kind == proto::Barrier::Action::Kind::stop ? "completed"
+                      : interrupted                                  ? "interrupted"
+                                                                     : "aborted";
+  write_status_locked(state, code);
   if (options_.on_verdict) options_.on_verdict(code);
   wait_for_finished(lock);
   lock.unlock();
@@ -465,8 +478,35 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
     for (const auto& [member, why] : failed_after_end_) {
       spdlog::error("coordinator: {} failed after the run completed: {}", member, why);
     }
+    lock.unlock();
+  }
+  {
+    std::lock_guard guard(mutex_);
+    write_status_locked(state, code, true);
   }
   return code;
+}
+
+void CoordinatorService::write_status_locked(const std::string& state, int exit_code, bool final) {
+  if (options_.status_file.empty()) return;
+  nlohmann::json j;
+  j["run_id"] = options_.dds.run_id;
+  j["scenario"] = options_.scenario_name;
+  j["pid"] = static_cast<long>(::getpid());
+  j["state"] = state;
+  j["frame"] = granted_frame_;
+  j["final_frame"] = options_.barrier.final_frame;
+  j["recoveries"] = barrier_ ? barrier_->recoveries().size() : 0;
+  j["reason"] = result_.reason;
+  j["exit_code"] = exit_code;
+  j["failed_after_end"] = failed_after_end_;
+  j["final"] = final;
+  try {
+    std::filesystem::create_directories(std::filesystem::path(options_.status_file).parent_path());
+    record::write_file_atomically(options_.status_file, j.dump(2) + "\n");
+  } catch (const std::exception& e) {
+    spdlog::error("coordinator: {}: {}", options_.status_file, e.what());
+  }
 }
 
 }  // namespace syndds::dds

@@ -39,6 +39,12 @@ struct CoordinatorOptions {
   /// Under recover: how long a second claim of a live member is held (a restart announcing
   /// itself before its old process's loss is seen) before it is refused.
   double claim_hold_s = 12.0;
+  /// The run's state for launchers (syndds_launch), replaced atomically at each change (empty:
+  /// none). JSON: run_id, scenario, pid, state (joining, running, completed, aborted, interrupted),
+  /// frame (the newest granted), final_frame, recoveries, reason, exit_code (once decided),
+  /// failed_after_end (member -> why) and final (true in the last version this run writes).
+  /// docs/protocol.md, "Run status file".
+  std::string status_file;
 };
 
 class CoordinatorService {
@@ -85,6 +91,9 @@ class CoordinatorService {
   /// Declares a checkpoint every member reported written complete (complete.yaml).
   void declare_checkpoint(const proto::CheckpointReport& report);
   void wait_for_finished(std::unique_lock<std::mutex>& lock);
+  /// Replaces options_.status_file (if any) with the run's current state; a failure to write
+  /// is logged, not fatal (the run does not depend on its launcher).
+  void write_status_locked(const std::string& state, int exit_code = -1, bool final = false);
 
   CoordinatorOptions options_;
   std::unique_ptr<Participant> participant_;
@@ -113,6 +122,7 @@ class CoordinatorService {
   int lost_callback_ = -1;
   proto::RunControlMsg result_;
   std::map<std::string, std::string> failed_after_end_;
+  std::int64_t granted_frame_ = -1;  // the newest frame granted (for the status file)
 
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
   std::unique_ptr<Writer<msg::FrameGrant>> grant_writer_;
