@@ -316,6 +316,38 @@ TEST(Checkpoint, EveryKindOfMemberKilledIsRecoveredByteIdentical) {
   }
 }
 
+// The launcher decides nothing on log text: with --log-level error (no info line of the
+// coordinator's is written) a run completes without anything stopped, and a vehicle killed
+// mid-run under recover is restarted and the run ends byte-identical.
+TEST(Checkpoint, QuietLogsStillRecoverAndComplete) {
+  TestRun run;
+  const fs::path want = reference(run);
+  const fs::path out = run.dir / "out";
+  {
+    auto launcher = start_launcher(run, kScenario, "--log-level error --duration 2");
+    ASSERT_EQ(launcher->wait(120), std::optional<int>(0)) << launcher->log();
+    EXPECT_EQ(launcher->log().find("stopping"), std::string::npos) << launcher->log();
+    EXPECT_EQ(read_file(out / "logs" / "coordinator.log").find("all members joined"),
+              std::string::npos);
+  }
+  fs::remove_all(out);
+  auto launcher = start_launcher(run, kScenario, "--log-level error");
+  const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
+  ASSERT_TRUE(wait_until(
+      [&] { return (any_complete(out) && rows() > 2u * 200) || launcher->poll(); }, 120))
+      << launcher->log();
+  ASSERT_FALSE(launcher->poll()) << launcher->log();
+  const int pid = launched_pid(out, "vehicle/b");
+  ASSERT_GT(pid, 0);
+  ::kill(pid, SIGKILL);
+  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  EXPECT_NE(launcher->log().find("vehicle/b was killed by signal 9; restarting it"),
+            std::string::npos)
+      << launcher->log();
+  EXPECT_EQ(launcher->log().find("stopping"), std::string::npos) << launcher->log();
+  expect_same_run(want, out);
+}
+
 // Two vehicles in contact (a rear-end, the rear one pushing from frame 533 on): vehicle/b is
 // killed while they touch, after the checkpoint of frame 550; the run rolls back into the
 // contact (its contact bodies come from the members' checkpoints) and ends byte-identical.
