@@ -582,9 +582,15 @@ int main(int argc, char** argv) {
 
   if (!coordinator_here) {
     // Another host decides the run's verdict; this one reports on its own processes.
-    for (const auto& note : notes) say("note: " + note);
     if (r.interrupted) return 130;
-    return r.early.empty() ? 0 : 2;
+    if (!r.early.empty()) {
+      const std::string why = launch::last_line(r.early_log);
+      say("FAILED: " + r.early + (why.empty() ? "" : ": " + why) + " (logs: " +
+          (out / "logs").string() + ")");
+      return 2;
+    }
+    for (const auto& note : notes) say("note: " + note);
+    return 0;
   }
   const int coordinator_code = coordinator != nullptr ? coordinator->status : -1;
   const auto& status = r.status;

@@ -38,6 +38,7 @@
 #                          /dev/shm), in the background, output to LOG; stopped at exit
 #   run_job NAME ARGS...   sbatch --parsable -t 5 -o WORK/job/NAME.out ARGS... from node 1, then
 #                          polls the job until it has ended (at most SLURM_JOB_WAIT_S)
+#   submit_job NAME ARGS...   the submission alone (sets job); wait_job: the waiting alone
 #   slurm_cluster_cleanup  stops every daemon and whatever the nodes still run, deletes the
 #                          namespaces and WORK; the EXIT trap. A test that needs an EXIT trap of
 #                          its own sets it after slurm_cluster_start and calls this from it.
@@ -171,9 +172,16 @@ EOF
 }
 
 run_job() {  # name sbatch-arguments...: submit, wait until the job has ended, set state etc.
-  local name=$1 info=""; shift
+  submit_job "$@"
+  wait_job
+}
+submit_job() {  # name sbatch-arguments...: submit, set job
+  local name=$1; shift
   job=$(in_n1 sbatch --parsable -t 5 -o "$WORK/job/$name.out" "$@")
   job=${job%%;*}
+}
+wait_job() {  # waits until job has ended (at most SLURM_JOB_WAIT_S), sets state etc.
+  local info=""
   for _ in $(seq $((SLURM_JOB_WAIT_S * 4))); do  # every 0.25 s
     info=$(in_n1 scontrol show job -o "$job" 2> /dev/null) || true
     state=$(sed -n 's/.* JobState=\([A-Z_]*\).*/\1/p' <<< "$info")
