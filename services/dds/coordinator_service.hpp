@@ -43,7 +43,7 @@ struct CoordinatorOptions {
   /// none). JSON: run_id, scenario, pid, state (joining, running, completed, aborted, interrupted),
   /// frame (the newest granted), final_frame, recoveries, reason, exit_code (once decided),
   /// failed_after_end (member -> why) and final (true in the last version this run writes).
-  /// docs/protocol.md, "Run status file".
+  /// docs/deployment.md, "The launcher".
   std::string status_file;
 };
 

@@ -484,11 +484,11 @@ int main(int argc, char** argv) {
   fs::create_directories(out / "logs", ec);
   if (ec) die("cannot create " + (out / "logs").string());
   const fs::path status_file = out / "logs" / "run_status.json";
-  if (hosts.empty()) {
-    // A status left by an earlier attempt (a resumed run) must not be taken for this one's.
-    fs::remove(status_file, ec);
-    std::ofstream(out / "logs" / "pids", std::ios::trunc);
-  }
+  // A status left by an earlier attempt (a resumed run) must not be taken for this one's; with
+  // --hosts the other hosts may read it before this one starts, so whoever starts the hosts'
+  // launchers removes it first (run_scenario.sbatch does).
+  if (coordinator_here) fs::remove(status_file, ec);
+  if (hosts.empty()) std::ofstream(out / "logs" / "pids", std::ios::trunc);
 
   // The viewer is not a member: the launcher neither waits for it nor cares how it ends.
   pid_t viewer = -1;
