@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs under launch_scripts/slurm/run_scenario.sbatch on the two-node test cluster
 # (tests/multiprocess/slurm_cluster.sh) that need more than starting processes:
-#   recover   on_member_loss: recover with checkpoints; vehicle/a, placed on the node without
+#   recover   on_member_loss: recover with checkpoints, and the viewer (--view) on the first
+#             node answering while the run goes on; vehicle/a, placed on the node without
 #             the coordinator, is killed with SIGKILL mid-run: its node's launcher restarts it
 #             (it learns that the run goes on from the coordinator's status file on the shared
 #             folder) and the run completes byte-identical to the single-process run.
@@ -56,7 +57,8 @@ if [ "$MODE" = recover ]; then
   echo "checkpoint: {every_s: 1.0}" >> "$SCENARIO"
   grep -q "on_member_loss: recover" "$SCENARIO" || fail "could not make the recoverable scenario"
   # In real time (8 s): long enough to kill a member mid-run on a fast machine.
-  submit_job run -N 2 -n 8 "$SBATCH" "$SCENARIO" --output out --bin-dir "$BIN" --log-level warn --realtime
+  submit_job run -N 2 -n 8 "$SBATCH" "$SCENARIO" --output out --bin-dir "$BIN" --log-level warn --realtime \
+    --view --view-port 0
   # Killed once a checkpoint is complete and the run is past it (frame 250 of 800 recorded).
   victim=""
   for _ in $(seq 600); do  # up to 120 s
@@ -70,6 +72,12 @@ if [ "$MODE" = recover ]; then
     sleep 0.2
   done
   [ -n "$victim" ] || fail "the run did not reach a checkpoint and frame 250 in time"
+  # The viewer (--view) runs beside the coordinator on n1 and answers there.
+  url=$(sed -n 's/.*viewer at \(http[^ ]*\).*/\1/p' run.out | head -n 1)
+  [ -n "$url" ] || fail "the job's output names no viewer URL"
+  hostport=${url#http://}; hostport=${hostport%%/*}
+  reply=$(in_n1 timeout 10 bash -c 'exec 3<>"/dev/tcp/${1%:*}/${1##*:}" && printf "GET / HTTP/1.0\r\nHost: %s\r\n\r\n" "$1" >&3 && head -c 12 <&3' _ "$hostport") || true
+  [[ $reply == "HTTP/1."?" 200" ]] || fail "the viewer at $url (on n1) does not answer: '$reply'"
   read -r node pid <<< "$victim"
   [ "$node" = n2 ] || fail "vehicle/a ran on $node: expected the node without the coordinator (n2)"
   kill -KILL "$pid"
