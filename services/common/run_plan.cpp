@@ -66,7 +66,9 @@ std::vector<int> place_processes(const std::vector<PlannedProcess>& processes,
 std::vector<PlannedProcess> plan_run(const CommonArgs& common, const scenario::Scenario& s,
                                      const PlanOptions& options) {
   const std::string run_id = dds_options(common, s).run_id;  // validated
-  const auto program = [&](const char* name) { return (fs::path(options.bin_dir) / name).string(); };
+  const auto program = [&](const char* name) {
+    return (fs::path(options.bin_dir) / name).string();
+  };
   // Everything that must agree across processes is passed to every one of them.
   std::vector<std::string> shared = {fs::absolute(common.scenario_file).string(),
                                      "--run-id",
@@ -96,8 +98,8 @@ std::vector<PlannedProcess> plan_run(const CommonArgs& common, const scenario::S
   if (!options.layout.empty()) {
     const auto l = scenario::ProcessLayout::parse(options.layout);
     if (!l) {
-      throw ConfigError("--processes '" + options.layout + "': " +
-                        scenario::ProcessLayout::kExpected);
+      throw ConfigError("--processes '" + options.layout +
+                        "': " + scenario::ProcessLayout::kExpected);
     }
     layout = *l;
   }

@@ -14,8 +14,8 @@
 #include <cctype>
 #include <csignal>
 #include <cstdio>
-#include <cstring>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -27,7 +27,9 @@
 #include "common/run_plan.hpp"
 #include "common/service_cli.hpp"
 #include "core/error.hpp"
+#include "launch/launch_args.hpp"
 #include "launch/supervisor.hpp"
+#include "launch/verdict.hpp"
 
 namespace fs = std::filesystem;
 namespace service = syndds::service;
@@ -37,7 +39,8 @@ extern char** environ;
 
 namespace {
 
-constexpr const char* kUsage = R"(Runs a scenario: one process per vehicle, controller, sensor and recorder plus the
+constexpr const char* kUsage =
+    R"(Runs a scenario: one process per vehicle, controller, sensor and recorder plus the
 coordinator, watched until the run ends; prints a short summary, or a one-line reason.
 
   run_scenario.sh SCENARIO.yaml [--output DIR] [--duration S] [--realtime]
@@ -79,75 +82,6 @@ std::string g_me = "syndds_launch";
 }
 void say(const std::string& what) { std::cerr << g_me << ": " << what << std::endl; }
 
-// The options that make the run what it is (scenario overrides, DDS setup, process layout, run
-// id), in the order first given: RUN_DIR/launch.args records them, --resume reads them back.
-struct RunOptions {
-  std::vector<std::string> keys;
-  std::map<std::string, std::string> values;
-  bool defaults = false;  // while the recorded options are read: typed ones are kept
-  void set(const std::string& key, const std::string& value) {
-    if (values.count(key)) {
-      if (defaults) return;
-    } else {
-      keys.push_back(key);
-    }
-    values[key] = value;
-  }
-  std::string get(const std::string& key) const {
-    const auto it = values.find(key);
-    return it == values.end() ? "" : it->second;
-  }
-};
-
-struct Args {
-  std::string scenario, output, resume, from = "latest";
-  bool single = false, print = false, view = false, print_tasks = false;
-  std::string view_port = "8080", view_bind = "127.0.0.1";
-  std::string bin_dir, hosts, slots, host;
-  RunOptions run;
-};
-
-bool is_run_option(const std::string& o) {
-  static const char* k[] = {"--run-id",  "--duration",   "--domain",       "--transport",
-                            "--discovery-server",        "--log-level",    "--dds-profiles",
-                            "--config-dir", "--security-dir", "--processes"};
-  for (const char* x : k) {
-    if (o == x) return true;
-  }
-  return false;
-}
-
-void parse(Args& a, const std::vector<std::string>& argv) {
-  for (std::size_t i = 0; i < argv.size(); ++i) {
-    const std::string& o = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argv.size()) die(o + " needs a value");
-      return argv[++i];
-    };
-    if (o == "--output") a.output = value();
-    else if (o == "--resume") a.resume = value();
-    else if (o == "--from-frame") a.from = value();
-    else if (is_run_option(o)) a.run.set(o, value());
-    else if (o == "--realtime") a.run.set(o, "");
-    else if (o == "--single-process") a.single = true;
-    else if (o == "--print-commands") a.print = true;
-    else if (o == "--view") a.view = true;
-    else if (o == "--view-port") a.view_port = value();
-    else if (o == "--view-bind") a.view_bind = value();
-    else if (o == "--bin-dir") a.bin_dir = value();
-    else if (o == "--hosts") a.hosts = value();
-    else if (o == "--slots") a.slots = value();
-    else if (o == "--host") a.host = value();
-    else if (o == "--print-tasks") a.print_tasks = true;
-    else if (o == "-h" || o == "--help") {
-      std::cout << kUsage;
-      std::exit(0);
-    } else {
-      die("unknown option: " + o + " (see --help)");
-    }
-  }
-}
-
 std::vector<std::string> split(const std::string& s, char sep) {
   std::vector<std::string> out;
   std::stringstream ss(s);
@@ -155,8 +89,6 @@ std::vector<std::string> split(const std::string& s, char sep) {
   while (std::getline(ss, item, sep)) out.push_back(item);
   return out;
 }
-
-std::string absolute(const std::string& p) { return fs::absolute(p).lexically_normal().string(); }
 
 std::string stamp() {
   const std::time_t t = std::time(nullptr);
@@ -215,29 +147,12 @@ int run_program(const std::vector<std::string>& argv, bool quiet) {
   die("cannot run " + argv[0] + ": " + std::strerror(errno));
 }
 
-void write_launch_args(const Args& a, const std::string& output) {
-  std::vector<std::string> lines{fs::absolute(a.scenario).string()};
-  for (const auto& k : a.run.keys) {
-    std::string v = a.run.get(k);
-    if (k == "--config-dir" || k == "--dds-profiles" || k == "--security-dir") v = absolute(v);
-    lines.push_back(k);
-    if (k != "--realtime") lines.push_back(v);
+void record_launch(const launch::LaunchArgs& a) {
+  try {
+    launch::write_launch_args(a, a.output);
+  } catch (const launch::LaunchError& e) {
+    die(e.what());
   }
-  for (const auto& l : lines) {
-    if (l.find('\n') != std::string::npos) {
-      die("cannot record an argument with a line break for --resume: " + l);
-    }
-  }
-  std::error_code ec;
-  fs::create_directories(output, ec);
-  const fs::path file = fs::path(output) / "launch.args";
-  {
-    std::ofstream out(file.string() + ".tmp");
-    for (const auto& l : lines) out << l << '\n';
-    if (!out) die("cannot write " + file.string());
-  }
-  fs::rename(file.string() + ".tmp", file, ec);
-  if (ec) die("cannot write " + file.string() + ": " + ec.message());
 }
 
 std::string read_text(const fs::path& p) {
@@ -252,21 +167,21 @@ std::string read_text(const fs::path& p) {
 int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::warn);  // the scenario loader's notes are for the services
   if (const char* me = std::getenv("SYNDDS_LAUNCH_NAME"); me != nullptr && *me != '\0') g_me = me;
-  std::vector<std::string> rest(argv + 1, argv + argc);
-  if (rest.empty()) {
+  const std::vector<std::string> line(argv + 1, argv + argc);
+  if (line.empty()) {
     std::cerr << kUsage;
     return 1;
   }
-  Args a;
-  if (rest[0] == "-h" || rest[0] == "--help") {
+  launch::LaunchArgs a;
+  try {
+    a = launch::parse_launch_args(line);
+  } catch (const launch::LaunchError& e) {
+    die(e.what());
+  }
+  if (a.help) {
     std::cout << kUsage;
     return 0;
   }
-  if (rest[0] != "--resume") {
-    a.scenario = rest[0];
-    rest.erase(rest.begin());
-  }
-  parse(a, rest);
   // The programs of the run are beside this one as it was called (a folder of links to them
   // counts as theirs), unless --bin-dir says otherwise.
   const std::string self = argv[0];
@@ -282,24 +197,11 @@ int main(int argc, char** argv) {
     }
   }
 
-  // RUN_DIR/launch.args: the scenario, then the options of the run, one argument per line.
-  if (!a.resume.empty()) {
-    const fs::path recorded = fs::path(a.resume) / "launch.args";
-    if (fs::exists(recorded)) {
-      const auto lines = split(read_text(recorded), '\n');
-      if (lines.empty() || lines[0].empty()) die("--resume " + a.resume + ": " + recorded.string() + " is empty");
-      if (a.scenario.empty()) a.scenario = lines[0];
-      a.run.defaults = true;
-      Args recorded_args;
-      recorded_args.run = a.run;
-      parse(recorded_args, std::vector<std::string>(lines.begin() + 1, lines.end()));
-      a.run = recorded_args.run;
-      a.run.defaults = false;
-    } else if (a.scenario.empty()) {
-      die("--resume " + a.resume + ": no launch.args there (the run was not started by this "
-          "launcher, or by an older one): name the scenario and its overrides again: "
-          "run_scenario.sh SCENARIO.yaml --resume " + a.resume + " [options]");
-    }
+  // RUN_DIR/launch.args: the scenario and the options of the run's first start.
+  try {
+    launch::merge_recorded(a);
+  } catch (const launch::LaunchError& e) {
+    die(e.what());
   }
   if (a.scenario.empty()) die("no scenario file given (see --help)");
   if (!fs::is_regular_file(a.scenario)) die("scenario file not found: " + a.scenario);
@@ -310,25 +212,15 @@ int main(int argc, char** argv) {
   }
   const std::string when = stamp();
   const std::string pid = std::to_string(getpid());
-  std::vector<std::string> pass;  // options for the run's processes
   std::string layout;
-  for (const auto& k : a.run.keys) {
-    if (k == "--run-id") continue;
-    if (k == "--processes") {
-      layout = a.run.get(k);
-    } else if (k == "--realtime") {
-      pass.push_back(k);
-    } else {
-      pass.push_back(k);
-      pass.push_back(a.run.get(k));
-    }
-  }
+  std::vector<std::string> pass = launch::process_options(a, layout);
   if (!a.resume.empty()) {
     if (!a.output.empty() && a.output != a.resume) {
       die("--resume continues RUN_DIR in place: no --output");
     }
     if (!fs::is_directory(fs::path(a.resume) / "checkpoints")) {
-      die("--resume " + a.resume + ": no checkpoints there (the scenario needs checkpoint: every_s)");
+      die("--resume " + a.resume +
+          ": no checkpoints there (the scenario needs checkpoint: every_s)");
     }
     a.output = a.resume;
     pass.push_back("--resume-from");
@@ -336,7 +228,8 @@ int main(int argc, char** argv) {
     // The logs of the interrupted attempt stay beside the new ones.
     if (fs::is_directory(fs::path(a.output) / "logs") && a.hosts.empty()) {
       std::error_code ec;
-      fs::rename(fs::path(a.output) / "logs", fs::path(a.output) / ("logs.before-resume-" + when), ec);
+      fs::rename(fs::path(a.output) / "logs", fs::path(a.output) / ("logs.before-resume-" + when),
+                 ec);
     }
   }
   // The pid keeps two launches of one scenario in the same second apart; the stem is cut so that
@@ -351,21 +244,27 @@ int main(int argc, char** argv) {
       die("--view watches a distributed run; view a --single-process run afterwards with "
           "launch_scripts/view.sh OUTPUT");
     }
-    std::vector<std::string> cmd{(bin / "syndds_sim").string(), a.scenario, "--output", a.output,
-                                 "--run-id", run_id};
+    std::vector<std::string> cmd{
+        (bin / "syndds_sim").string(), a.scenario, "--output", a.output, "--run-id", run_id};
     cmd.insert(cmd.end(), pass.begin(), pass.end());
     if (a.print) {
       std::cout << service::shell_command(cmd) << std::endl;
       return 0;
     }
-    if (a.resume.empty()) write_launch_args(a, a.output);
+    if (a.resume.empty()) record_launch(a);
     const int rc = run_program(cmd, false);
     if (rc == 0) std::cout << "output: " << a.output << std::endl;
     return rc;
   }
   if (a.print) {
-    std::vector<std::string> cmd{(bin / "syndds_plan").string(), a.scenario, "--output", a.output,
-                                 "--run-id", run_id, "--bin-dir", bin.string()};
+    std::vector<std::string> cmd{(bin / "syndds_plan").string(),
+                                 a.scenario,
+                                 "--output",
+                                 a.output,
+                                 "--run-id",
+                                 run_id,
+                                 "--bin-dir",
+                                 bin.string()};
     if (!layout.empty()) {
       cmd.push_back("--processes");
       cmd.push_back(layout);
@@ -401,8 +300,8 @@ int main(int argc, char** argv) {
   }
 
   // This host's share: all of it, or under --hosts what the placement gives this host.
-  std::vector<std::string> hosts = a.hosts.empty() ? std::vector<std::string>{}
-                                                   : split(a.hosts, ',');
+  std::vector<std::string> hosts =
+      a.hosts.empty() ? std::vector<std::string>{} : split(a.hosts, ',');
   std::vector<int> host_of(plan.size(), 0);
   int me = 0;
   if (!hosts.empty()) {
@@ -465,7 +364,7 @@ int main(int argc, char** argv) {
     long running = 0;
     const std::string uid = std::to_string(getuid());
     for (const auto& e : fs::directory_iterator("/proc")) {
-      struct stat st{};
+      struct stat st {};
       if (std::isdigit(static_cast<unsigned char>(e.path().filename().string()[0])) &&
           stat(e.path().c_str(), &st) == 0 && st.st_uid == getuid()) {
         ++running;
@@ -479,7 +378,7 @@ int main(int argc, char** argv) {
   }
 
   const fs::path out(a.output);
-  if (a.resume.empty() && hosts.empty()) write_launch_args(a, a.output);
+  if (a.resume.empty() && hosts.empty()) record_launch(a);
   std::error_code ec;
   fs::create_directories(out / "logs", ec);
   if (ec) die("cannot create " + (out / "logs").string());
@@ -495,11 +394,19 @@ int main(int argc, char** argv) {
   if (a.view && coordinator_here) {
     const fs::path url = out / "logs" / "viewer.url";
     fs::remove(url, ec);
-    std::vector<std::string> cmd{(bin / "syndds_viewer").string(), a.scenario, "--run-id", run_id,
-                                 "--port", a.view_port, "--bind", a.view_bind, "--url-file",
+    std::vector<std::string> cmd{(bin / "syndds_viewer").string(),
+                                 a.scenario,
+                                 "--run-id",
+                                 run_id,
+                                 "--port",
+                                 a.view_port,
+                                 "--bind",
+                                 a.view_bind,
+                                 "--url-file",
                                  url.string()};
     for (const auto& x : pass) cmd.push_back(x);
-    if (access(cmd[0].c_str(), X_OK) != 0) die(cmd[0] + " is missing: run launch_scripts/setup.sh first");
+    if (access(cmd[0].c_str(), X_OK) != 0)
+      die(cmd[0] + " is missing: run launch_scripts/setup.sh first");
     std::vector<char*> args;
     for (const auto& x : cmd) args.push_back(const_cast<char*>(x.c_str()));
     args.push_back(nullptr);
@@ -567,80 +474,12 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::vector<std::string> notes;
-  std::string failed;
-  for (const auto& p : r.processes) {
-    if (p.status > 0) {
-      notes.push_back(describe_exit(p));
-      if (failed.empty()) failed = notes.back();
-    }
-  }
-  if (!r.early.empty()) failed = r.early;
-  const auto* coordinator = r.find("coordinator");
-  const auto* recorder = r.find("recorder");
-  const int recorder_code = recorder != nullptr ? recorder->status : 0;
-
-  if (!coordinator_here) {
-    // Another host decides the run's verdict; this one reports on its own processes.
-    if (r.interrupted) return 130;
-    if (!r.early.empty()) {
-      const std::string why = launch::last_line(r.early_log);
-      say("FAILED: " + r.early + (why.empty() ? "" : ": " + why) + " (logs: " +
-          (out / "logs").string() + ")");
-      return 2;
-    }
-    for (const auto& note : notes) say("note: " + note);
-    return 0;
-  }
-  const int coordinator_code = coordinator != nullptr ? coordinator->status : -1;
-  const auto& status = r.status;
-  if (!r.interrupted && coordinator_code == 0 && recorder_code == 0) {
-    const fs::path summary = out / "summary.txt";
-    if (fs::exists(summary)) std::cout << read_text(summary);
-    std::cout.flush();
-    for (const auto& p : r.processes) {
-      if (p.status <= 0) continue;
-      // A member that failed once the run had completed took nothing from the results; the
-      // coordinator names it as such (docs/protocol.md, "Failure handling").
-      if (status && status->failed_after_end.count(p.name)) {
-        say("note: " + p.name + " failed after the run completed: " +
-            status->failed_after_end.at(p.name) + " (the results are complete)");
-      } else {
-        say("note: " + describe_exit(p) + "; the run went on without it (on_member_loss: continue)");
-      }
-    }
-    std::cout << "output: " << a.output << std::endl;
-    if (a.view) std::cout << "replay: launch_scripts/view.sh " << a.output << std::endl;
-    return 0;
-  }
-  if (failed.empty()) failed = "interrupted";
-
-  // One line saying why: the coordinator's verdict, else who failed first.
-  std::string reason;
-  if (!r.early.empty()) {
-    reason = r.early;
-    const std::string why = launch::last_line(r.early_log);
-    if (!why.empty()) reason += ": " + why;
-  } else if (coordinator_code == 0 && recorder_code != 0) {
-    // The coordinator completed the run; what is missing is the record of it.
-    reason = "the run completed but the recording is incomplete: " + describe_exit(*recorder);
-    try {
-      const auto j = nlohmann::json::parse(read_text(out / "summary.json"));
-      if (j.contains("recorded_up_to_frame")) {
-        reason += " (frames 0 to " + std::to_string(j.at("recorded_up_to_frame").get<long long>()) +
-                  " are in " + a.output + ")";
-      }
-    } catch (const std::exception&) {
-    }
-  } else if (status && status->ended() && status->state != "completed") {
-    reason = "run '" + status->scenario + "' aborted" +
-             (status->reason.empty() ? "" : ": " + status->reason);
-  }
-  if (reason.empty()) reason = failed;
-  if (r.interrupted) {
-    say("interrupted: " + reason + " (logs: " + (out / "logs").string() + ")");
-    return 130;
-  }
-  say("FAILED: " + reason + " [first exit: " + failed + "] (logs: " + (out / "logs").string() + ")");
-  return 2;
+  launch::VerdictInput vin;
+  vin.run_dir = a.output;
+  vin.decides = coordinator_here;
+  vin.view = a.view;
+  const launch::Verdict v = launch::verdict(r, vin);
+  std::cout << v.out << std::flush;
+  for (const auto& m : v.messages) say(m);
+  return v.exit_code;
 }

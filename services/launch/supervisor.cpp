@@ -10,8 +10,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -72,8 +72,8 @@ class Loop {
       // Start one process a turn, so that events (the coordinator's exit, a signal) are seen
       // between two starts: with hundreds of processes starting takes long.
       if (next < c_.processes.size() && !stopped_starting) {
-        if (result_.interrupted || ended_ || (has_coordinator() && next > 0 &&
-                                              !children_[0].running)) {
+        if (result_.interrupted || ended_ ||
+            (has_coordinator() && next > 0 && !children_[0].running)) {
           say("the run ended while processes were starting; " + c_.processes[next].name +
               " and the rest were not started");
           stopped_starting = true;
@@ -262,9 +262,8 @@ class Loop {
     out.status = out.signaled ? 128 + WTERMSIG(wstatus) : WEXITSTATUS(wstatus);
     const std::string& name = c_.processes[i].name;
     read_status();  // the newest word on the run before deciding
-    const bool run_going_on =
-        status_ && status_->started() && !status_->ended() &&
-        (!has_coordinator() || children_[0].running);
+    const bool run_going_on = status_ && status_->started() && !status_->ended() &&
+                              (!has_coordinator() || children_[0].running);
     // Only a process that died (killed by a signal) is restarted: one that ended by itself
     // (aborted run, own failure, interrupt) was told to or would fail again.
     if (c_.recover && name != "coordinator" && out.signaled && WTERMSIG(wstatus) != SIGINT &&
@@ -293,8 +292,8 @@ class Loop {
     // and waiting out the join timeout would only hide why.
     if (name != "coordinator" && result_.early.empty() && !(status_ && status_->started()) &&
         !result_.interrupted && stop_level_ == 0 && !ended_) {
-      result_.early = name + " exited (status " + std::to_string(out.status) +
-                      ") before the run started";
+      result_.early =
+          name + " exited (status " + std::to_string(out.status) + ") before the run started";
       result_.early_log = out.log;
       say(result_.early + "; stopping every process");
       stop_all(SIGTERM, 1);

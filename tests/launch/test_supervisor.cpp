@@ -29,8 +29,7 @@ struct Dir {
 };
 
 // A shell command writing the status file with `state`.
-std::string write_status(const Dir& d, const std::string& state,
-                         const std::string& extra = "") {
+std::string write_status(const Dir& d, const std::string& state, const std::string& extra = "") {
   return "printf '{\"run_id\": \"r\", \"scenario\": \"s\", \"state\": \"" + state + "\"" + extra +
          "}' > " + d.status() + ".tmp && mv " + d.status() + ".tmp " + d.status();
 }
@@ -65,8 +64,9 @@ TEST(Supervisor, ACompletedRunEndsWithEveryStatus) {
   // The member waits for the status to say completed: it learns the end from the file too.
   const std::string wait_end = "for i in $(seq 200); do grep -q completed " + d.status() +
                                " 2>/dev/null && exit 0; sleep 0.05; done; exit 9";
-  auto c = config(d, {sh(d, "coordinator", write_status(d, "running") + " && sleep 0.3 && " +
-                                               write_status(d, "completed", ", \"final\": true")),
+  auto c = config(d, {sh(d, "coordinator",
+                         write_status(d, "running") + " && sleep 0.3 && " +
+                             write_status(d, "completed", ", \"final\": true")),
                       sh(d, "vehicle/a", wait_end)});
   const auto r = Supervisor(c).run();
   ASSERT_EQ(r.processes.size(), 2u);
@@ -104,8 +104,12 @@ TEST(Supervisor, AMemberKilledWhileTheRunGoesOnIsRestartedUnderRecover) {
   // The first start kills itself; the restart (given --rejoin) waits for the end.
   const std::string member =
       "case \" $* \" in *' --rejoin '*) "
-      "for i in $(seq 200); do grep -q completed " + d.status() + " && exit 0; sleep 0.05; done; "
-      "exit 9;; esac; until grep -q running " + d.status() + " 2>/dev/null; do sleep 0.05; done; "
+      "for i in $(seq 200); do grep -q completed " +
+      d.status() +
+      " && exit 0; sleep 0.05; done; "
+      "exit 9;; esac; until grep -q running " +
+      d.status() +
+      " 2>/dev/null; do sleep 0.05; done; "
       "kill -KILL $$";
   // The coordinator learns of the restart as the real one does not, from the pids file (a
   // second vehicle/a line), and then completes the run.
@@ -131,10 +135,12 @@ TEST(Supervisor, AMemberKilledWhileTheRunGoesOnIsRestartedUnderRecover) {
 
 TEST(Supervisor, WithoutRecoverAKilledMemberStaysDead) {
   Dir d;
-  auto c = config(d, {sh(d, "coordinator", write_status(d, "running") + " && sleep 1 && " +
-                                               write_status(d, "aborted", ", \"reason\": \"lost\"")),
-                      sh(d, "vehicle/a", "until grep -q running " + d.status() +
-                                             " 2>/dev/null; do sleep 0.05; done; kill -KILL $$")});
+  auto c = config(d, {sh(d, "coordinator",
+                         write_status(d, "running") + " && sleep 1 && " +
+                             write_status(d, "aborted", ", \"reason\": \"lost\"")),
+                      sh(d, "vehicle/a",
+                         "until grep -q running " + d.status() +
+                             " 2>/dev/null; do sleep 0.05; done; kill -KILL $$")});
   const auto r = Supervisor(c).run();
   EXPECT_EQ(r.processes[1].status, 128 + SIGKILL);
   EXPECT_TRUE(r.processes[1].signaled);
@@ -145,9 +151,10 @@ TEST(Supervisor, WithoutRecoverAKilledMemberStaysDead) {
 
 TEST(Supervisor, ProcessesOutlivingTheRunAreStoppedAfterTheGrace) {
   Dir d;
-  auto c = config(d, {sh(d, "coordinator", write_status(d, "running") + " && sleep 0.2 && " +
-                                               write_status(d, "completed")),
-                      sh(d, "vehicle/a", "trap '' TERM; exec sleep 60")});
+  auto c = config(
+      d, {sh(d, "coordinator",
+             write_status(d, "running") + " && sleep 0.2 && " + write_status(d, "completed")),
+          sh(d, "vehicle/a", "trap '' TERM; exec sleep 60")});
   c.grace_s = 0.3;
   c.stop_s = 0.3;
   std::vector<std::string> said;
@@ -165,8 +172,9 @@ TEST(Supervisor, AHostWithoutTheCoordinatorFollowsTheStatusFile) {
   Dir d;
   // Another host's coordinator: the status file is written from outside this supervisor.
   auto c = config(d, {sh(d, "vehicle/b", "exec sleep 60"),
-                      sh(d, "writer", write_status(d, "running") + " && sleep 0.3 && " +
-                                          write_status(d, "completed") + "; exec sleep 60")});
+                      sh(d, "writer",
+                         write_status(d, "running") + " && sleep 0.3 && " +
+                             write_status(d, "completed") + "; exec sleep 60")});
   c.status_remote = true;
   c.grace_s = 0.2;
   const auto r = Supervisor(c).run();
@@ -192,7 +200,8 @@ TEST(Supervisor, ASignalToTheLauncherStopsEveryProcess) {
 
 TEST(Supervisor, AProgramThatCannotStartIsReportedAs127) {
   Dir d;
-  auto c = config(d, {{"coordinator", {"/nonexistent/syndds_coordinator"},
+  auto c = config(d, {{"coordinator",
+                       {"/nonexistent/syndds_coordinator"},
                        (d.path / "logs" / "coordinator.log").string()}});
   const auto r = Supervisor(c).run();
   EXPECT_EQ(r.processes[0].status, 127);

@@ -3,6 +3,7 @@
 // on_member_loss: recover a run in which one member is killed goes on; both end with exactly
 // the files of an undisturbed run.
 #include <csignal>
+#include <functional>
 #include <opencv2/videoio.hpp>
 
 #include "harness.hpp"
@@ -146,6 +147,21 @@ void kill_everything_after(Process& launcher, const fs::path& out, int frame) {
   ASSERT_FALSE(fs::exists(out / "summary.json") &&
                read_file(out / "summary.json").find("\"completed\"") != std::string::npos)
       << "the run completed before it was killed";
+}
+
+// Kills `victim` with SIGKILL once `ready()` holds while the run goes on, then expects the
+// launcher to restart it (on_member_loss: recover) and the run to complete.
+void kill_member_when(Process& launcher, const fs::path& out, const std::string& victim,
+                      const std::function<bool()>& ready) {
+  ASSERT_TRUE(wait_until([&] { return ready() || launcher.poll(); }, 120)) << launcher.log();
+  ASSERT_FALSE(launcher.poll()) << "the run ended before it could be killed\n" << launcher.log();
+  const int pid = launched_pid(out, victim);
+  ASSERT_GT(pid, 0);
+  ::kill(pid, SIGKILL);
+  ASSERT_EQ(launcher.wait(180), std::optional<int>(0)) << launcher.log();
+  EXPECT_NE(launcher.log().find(victim + " was killed by signal 9; restarting it"),
+            std::string::npos)
+      << launcher.log();
 }
 
 }  // namespace
@@ -298,14 +314,9 @@ TEST(Checkpoint, EveryKindOfMemberKilledIsRecoveredByteIdentical) {
     auto launcher = start_launcher(run, kScenario);
     // Killed once the run passed `frame` (the recorder has written it), after a checkpoint.
     const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
-    ASSERT_TRUE(wait_until(
-        [&] { return (any_complete(out) && rows() > 2u * frame) || launcher->poll(); }, 120))
-        << launcher->log();
-    ASSERT_FALSE(launcher->poll()) << launcher->log();
-    const int pid = launched_pid(out, victim);
-    ASSERT_GT(pid, 0);
-    ::kill(pid, SIGKILL);
-    ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+    kill_member_when(*launcher, out, victim,
+                     [&] { return any_complete(out) && rows() > 2u * frame; });
+    if (HasFatalFailure()) return;
     EXPECT_NE(launcher->log().find(victim + " was killed by signal 9; restarting it"),
               std::string::npos)
         << launcher->log();
@@ -327,20 +338,14 @@ TEST(Checkpoint, QuietLogsStillRecoverAndComplete) {
     auto launcher = start_launcher(run, kScenario, "--log-level error --duration 2");
     ASSERT_EQ(launcher->wait(120), std::optional<int>(0)) << launcher->log();
     EXPECT_EQ(launcher->log().find("stopping"), std::string::npos) << launcher->log();
-    EXPECT_EQ(read_file(out / "logs" / "coordinator.log").find("[info]"),
-              std::string::npos);
+    EXPECT_EQ(read_file(out / "logs" / "coordinator.log").find("[info]"), std::string::npos);
   }
   fs::remove_all(out);
   auto launcher = start_launcher(run, kScenario, "--log-level error");
   const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
-  ASSERT_TRUE(wait_until(
-      [&] { return (any_complete(out) && rows() > 2u * 200) || launcher->poll(); }, 120))
-      << launcher->log();
-  ASSERT_FALSE(launcher->poll()) << launcher->log();
-  const int pid = launched_pid(out, "vehicle/b");
-  ASSERT_GT(pid, 0);
-  ::kill(pid, SIGKILL);
-  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  kill_member_when(*launcher, out, "vehicle/b",
+                   [&] { return any_complete(out) && rows() > 2u * 200; });
+  if (HasFatalFailure()) return;
   EXPECT_NE(launcher->log().find("vehicle/b was killed by signal 9; restarting it"),
             std::string::npos)
       << launcher->log();
@@ -359,14 +364,9 @@ TEST(Checkpoint, VehicleKilledWhileTouchingIsRecovered) {
   const fs::path out = run.dir / "out";
   auto launcher = start_launcher(run, scenario);
   const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
-  ASSERT_TRUE(wait_until(
-      [&] { return (complete(out, 550) && rows() > 2u * 580) || launcher->poll(); }, 120))
-      << launcher->log();
-  ASSERT_FALSE(launcher->poll()) << launcher->log();
-  const int pid = launched_pid(out, "vehicle/b");
-  ASSERT_GT(pid, 0);
-  ::kill(pid, SIGKILL);
-  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  kill_member_when(*launcher, out, "vehicle/b",
+                   [&] { return complete(out, 550) && rows() > 2u * 580; });
+  if (HasFatalFailure()) return;
   EXPECT_NE(read_file(out / "recoveries.csv").find(",vehicle/b,"), std::string::npos);
   EXPECT_NE(read_file(out / "events.csv").find(",collision,b,vehicle=a "), std::string::npos);
   // vehicles, commands, events, wheels, scenario: no sensors, no soil.
@@ -386,14 +386,9 @@ TEST(Checkpoint, ConvoyChaseCameraKilledIsRecoveredByteIdentical) {
   const fs::path out = run.dir / "out";
   auto launcher = start_launcher(run, scenario, duration);
   const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
-  ASSERT_TRUE(wait_until(
-      [&] { return (complete(out, 400) && rows() > 4u * 550u) || launcher->poll(); }, 120))
-      << launcher->log();
-  ASSERT_FALSE(launcher->poll()) << launcher->log();
-  const int pid = launched_pid(out, "sensor/f3");
-  ASSERT_GT(pid, 0);
-  ::kill(pid, SIGKILL);
-  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  kill_member_when(*launcher, out, "sensor/f3",
+                   [&] { return complete(out, 400) && rows() > 4u * 550u; });
+  if (HasFatalFailure()) return;
   EXPECT_NE(launcher->log().find("sensor/f3 was killed by signal 9; restarting it"),
             std::string::npos)
       << launcher->log();
@@ -414,14 +409,9 @@ TEST(Checkpoint, RadarKilledIsRecoveredByteIdentical) {
   const fs::path out = run.dir / "out";
   auto launcher = start_launcher(run, scenario);
   const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
-  ASSERT_TRUE(wait_until(
-      [&] { return (complete(out, 200) && rows() > 3u * 330u) || launcher->poll(); }, 120))
-      << launcher->log();
-  ASSERT_FALSE(launcher->poll()) << launcher->log();
-  const int pid = launched_pid(out, "sensor/r");
-  ASSERT_GT(pid, 0);
-  ::kill(pid, SIGKILL);
-  ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
+  kill_member_when(*launcher, out, "sensor/r",
+                   [&] { return complete(out, 200) && rows() > 3u * 330u; });
+  if (HasFatalFailure()) return;
   EXPECT_NE(read_file(out / "recoveries.csv").find(",sensor/r,\"its process exited\""),
             std::string::npos);
   // vehicles, commands, events, wheels, scenario, gps, imu, compass, wheel speeds, radar.
