@@ -161,6 +161,8 @@ class Loop {
       std::ofstream(log, std::ios::app)
           << argv[0] << ": cannot start: " << std::strerror(rc) << "\n";
       out.status = 127;
+      read_status();
+      note_end(i);
       return;
     }
     Child& ch = children_[i];
@@ -284,14 +286,22 @@ class Loop {
       spawn(i, argv, log);
       return;
     }
+    note_end(i);
+  }
+
+  // Process i has ended for good (exited, or could not be started).
+  void note_end(std::size_t i) {
+    const std::string& name = c_.processes[i].name;
+    const ProcessOutcome& out = result_.processes[i];
     if (name == "coordinator") {
       ended_ = true;
       if (!deadline_) deadline_ = Clock::now() + seconds(c_.grace_s);
+      return;
     }
     // Until the run has started, a member that exits can never join: the run cannot start,
     // and waiting out the join timeout would only hide why.
-    if (name != "coordinator" && result_.early.empty() && !(status_ && status_->started()) &&
-        !result_.interrupted && stop_level_ == 0 && !ended_) {
+    if (result_.early.empty() && !(status_ && status_->started()) && !result_.interrupted &&
+        stop_level_ == 0 && !ended_) {
       result_.early =
           name + " exited (status " + std::to_string(out.status) + ") before the run started";
       result_.early_log = out.log;

@@ -208,6 +208,18 @@ TEST(Supervisor, AProgramThatCannotStartIsReportedAs127) {
   EXPECT_NE(read(d.path / "logs" / "coordinator.log").find("cannot start"), std::string::npos);
 }
 
+TEST(Supervisor, AMemberThatCannotStartEndsTheRunBeforeItStarted) {
+  Dir d;
+  auto c = config(d, {sh(d, "coordinator", write_status(d, "joining") + " && exec sleep 60"),
+                      {"vehicle/a",
+                       {"/nonexistent/syndds_vehicle"},
+                       (d.path / "logs" / "vehicle_a.log").string()}});
+  const auto r = Supervisor(c).run();
+  EXPECT_EQ(r.processes[1].status, 127);
+  EXPECT_EQ(r.early, "vehicle/a exited (status 127) before the run started");
+  EXPECT_EQ(r.processes[0].status, 128 + SIGTERM);
+}
+
 TEST(Supervisor, StatusFilesThatAreNotOneAreIgnored) {
   Dir d;
   std::ofstream(d.status()) << "{\"state\": \"runn";
