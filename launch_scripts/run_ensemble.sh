@@ -4,9 +4,12 @@
 #
 #   launch_scripts/run_ensemble.sh --courses N --output DIR [--terrains rigid,scm_hard,scm_soft]
 #       [--convoy 1L3F|2L2F|3L1F] [--follower-policy FILE] [--jobs J] [--distributed]
-#       [--first-seed S] [--duration S]
+#       [--first-seed S] [--duration S] [--videos]
 #       [--slurm [--slurm-args "SBATCH OPTIONS"] [--wait]] [--gather-only]
 #
+# --videos keeps each course's chase camera and video behind the last vehicle (syndds_course's
+# default): rendering and encoding it takes 4-6 times as long as the rest of a run and changes
+# no metric, so a study leaves it out unless asked (docs/ensemble.md, "Throughput").
 # --follower-policy drives the followers with a learned policy (e.g.
 # policies/convoy_follow_lowdim.pt; docs/learning.md) instead of the classical follower.
 # Course k has seed first-seed + k (default 1). Each run goes to DIR/runs/<seed>_<terrain>/, its
@@ -39,6 +42,7 @@ die() { echo "run_ensemble: $1" >&2; exit "${2:-1}"; }  # message [exit status, 
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
 JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
+VIDEOS=0
 SLURM=0; SLURM_ARGS=""; SLURM_ARGS_SET=0; SLURM_EXTRA=(); WAIT=0; GATHER_ONLY=0; RUN_ONE=""
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -51,6 +55,7 @@ while [ $# -gt 0 ]; do
     --duration) [ $# -ge 2 ] || die "--duration needs seconds"; DURATION=(--duration "$2"); shift ;;
     --follower-policy) [ $# -ge 2 ] || die "--follower-policy needs a file"; POLICY=$2; shift ;;
     --distributed) DISTRIBUTED=1 ;;
+    --videos) VIDEOS=1 ;;
     --slurm) SLURM=1 ;;
     --slurm-args) [ $# -ge 2 ] || die "--slurm-args needs sbatch options in one argument"
       SLURM_ARGS=$2; SLURM_ARGS_SET=1; shift ;;
@@ -135,7 +140,9 @@ run_one() {
   local scenario="$OUTPUT/courses/$id.yaml" dir="$OUTPUT/runs/$id" log="$OUTPUT/runs/$id.log"
   rm -rf "$dir"
   if [ ! -s "$scenario" ]; then
-    "$BIN/syndds_course" --seed "$seed" --terrain "$terrain" --convoy "$CONVOY" \
+    local video=(--no-chase-video)
+    [ "$VIDEOS" = 0 ] || video=()
+    "$BIN/syndds_course" --seed "$seed" --terrain "$terrain" --convoy "$CONVOY" "${video[@]}" \
         ${POLICY:+--follower-policy "$POLICY"} --output "$scenario.tmp" > "$log" 2>&1 &&
       mv "$scenario.tmp" "$scenario" || return 1
   fi
@@ -252,6 +259,7 @@ if [ $SLURM = 1 ]; then
            --output "$OUTPUT" --terrains "$TERRAINS" --convoy "$CONVOY" --first-seed "$FIRST"
            "${DURATION[@]}")
   [ -z "$POLICY" ] || command+=(--follower-policy "$POLICY")
+  [ "$VIDEOS" = 0 ] || command+=(--videos)
   {
     echo '#!/usr/bin/env bash'
     echo '# The gather job of this ensemble (written by run_ensemble.sh --slurm).'

@@ -129,6 +129,10 @@ struct CourseOptions {
   // The followers' controller: empty for the classical follower, else a learned policy file
   // (`controller: {type: policy, model: ...}`, docs/learning.md).
   std::string follower_policy;
+  /// The last vehicle carries a third-person chase camera and writes a video (rig
+  /// convoy_chase). Rendering and encoding it takes most of a run's time (4-6x the rest,
+  /// docs/performance.md): a study leaves it out; it changes nothing the metrics measure.
+  bool chase_video = true;
 };
 
 struct Course {

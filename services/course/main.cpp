@@ -32,6 +32,10 @@ int main(int argc, char** argv) {
                  "Followers driven by this learned policy (e.g. "
                  "policies/convoy_follow_lowdim.pt, under config/ or next to the scenario) "
                  "instead of the classical follower");
+  bool no_chase_video = false;
+  app.add_flag("--no-chase-video", no_chase_video,
+               "No chase camera and video behind the last vehicle (a study's runs need none: "
+               "it takes most of a run's time and changes no metric)");
   app.add_option("--output", output, "Scenario file to write (.yaml)")->required();
   CLI11_PARSE(app, argc, argv);
   try {
@@ -42,6 +46,7 @@ int main(int argc, char** argv) {
     options.convoy = convoy;
     options.target_speed_mps = target_mps;
     options.follower_policy = follower_policy;
+    options.chase_video = !no_chase_video;
     const std::string text = course::scenario_yaml(c, options);
     std::ofstream out(output, std::ios::binary);
     if (!out || !(out << text) || !out.flush()) {

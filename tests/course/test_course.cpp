@@ -231,6 +231,26 @@ TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
   }
 }
 
+// The chase camera behind the last vehicle is the course's default; a study leaves it out and
+// every vehicle carries the plain convoy rig.
+TEST(CourseScenario, TheChaseVideoCanBeLeftOut) {
+  const Course c = make_course(5);
+  CourseOptions o;
+  o.seed = 5;
+  const std::string with = scenario_yaml(c, o);
+  EXPECT_NE(with.find("    sensors: {rig: convoy_chase, video: true}\n"), std::string::npos);
+  o.chase_video = false;
+  const std::string without = scenario_yaml(c, o);
+  EXPECT_EQ(without.find("convoy_chase"), std::string::npos);
+  std::size_t plain = 0;
+  for (std::size_t at = 0; (at = without.find("    sensors: convoy\n", at)) != std::string::npos;
+       ++at) {
+    ++plain;
+  }
+  EXPECT_EQ(plain, 4u);
+  EXPECT_EQ(load_text(without).vehicles.size(), 4u);
+}
+
 TEST(CourseScenario, BadOptionsNameThemselves) {
   const Course c = make_course(5);
   CourseOptions o;
