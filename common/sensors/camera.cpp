@@ -33,18 +33,6 @@ double undistort_radius(double rd, double k1, double k2) {
   return r;
 }
 
-struct Frame3f {
-  float m[9];  // row-major rotation camera -> world
-  float o[3];
-  explicit Frame3f(const Pose& pose) {
-    const Eigen::Matrix3d r = pose.orientation.toRotationMatrix();
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) m[3 * i + j] = static_cast<float>(r(i, j));
-      o[i] = static_cast<float>(pose.position[i]);
-    }
-  }
-};
-
 }  // namespace
 
 CameraModel::CameraModel(const CameraIntrinsics& intrinsics) : intrinsics_(intrinsics) {
@@ -99,7 +87,7 @@ void CameraRenderer::render(const Scene& scene, const Pose& pose, std::span<floa
   if (radiance.size() != static_cast<std::size_t>(width) * height * 3) {
     throw std::invalid_argument("camera render: radiance buffer has the wrong size");
   }
-  const Frame3f frame(pose);
+  const RayFrame frame(pose);
   const SceneConfig& sc = scene.config();
   const Vec3 sun_d = sc.sun_direction();
   const float sun[3] = {static_cast<float>(sun_d.x()), static_cast<float>(sun_d.y()),

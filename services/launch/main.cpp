@@ -155,13 +155,6 @@ void record_launch(const launch::LaunchArgs& a) {
   }
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -427,7 +420,7 @@ int main(int argc, char** argv) {
       usleep(100000);
     }
     if (fs::file_size(url, ec) > 0 && !ec) {
-      std::string u = read_text(url);
+      std::string u = launch::read_text(url.string());
       while (!u.empty() && (u.back() == '\n' || u.back() == '\r')) u.pop_back();
       say("viewer at " + u);
     } else {

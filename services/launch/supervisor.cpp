@@ -349,12 +349,9 @@ class Loop {
 }  // namespace
 
 std::optional<RunStatus> read_run_status(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return std::nullopt;
-  std::stringstream ss;
-  ss << in.rdbuf();
+  if (!std::filesystem::exists(path)) return std::nullopt;
   try {
-    const auto j = nlohmann::json::parse(ss.str());
+    const auto j = nlohmann::json::parse(read_text(path));
     RunStatus s;
     s.run_id = j.value("run_id", "");
     s.scenario = j.value("scenario", "");
@@ -393,6 +390,13 @@ std::string describe_exit(const ProcessOutcome& p) {
   if (p.signaled) return p.name + " was killed by signal " + std::to_string(p.status - 128);
   if (p.status == 130) return p.name + " was interrupted";
   return p.name + " exited with status " + std::to_string(p.status);
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 std::string last_line(const std::string& path) {

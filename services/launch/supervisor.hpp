@@ -98,6 +98,8 @@ class Supervisor {
 
 /// "killed by signal 9", "was interrupted", "exited with status 3".
 std::string describe_exit(const ProcessOutcome& p);
+/// A file's whole text ("" if it cannot be read).
+std::string read_text(const std::string& path);
 /// The last non-empty line of a text file ("" if none).
 std::string last_line(const std::string& path);
 

@@ -6,18 +6,7 @@
 #include <sstream>
 
 namespace syndds::launch {
-namespace {
-
 namespace fs = std::filesystem;
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-}  // namespace
 
 Verdict verdict(const SupervisorResult& r, const VerdictInput& in) {
   Verdict v;
@@ -57,7 +46,7 @@ Verdict verdict(const SupervisorResult& r, const VerdictInput& in) {
   const int recorder_code = recorder != nullptr ? recorder->status : 0;
   const auto& status = r.status;
   if (!r.interrupted && coordinator_code == 0 && recorder_code == 0) {
-    if (fs::exists(dir / "summary.txt")) v.out += read_text(dir / "summary.txt");
+    if (fs::exists(dir / "summary.txt")) v.out += read_text((dir / "summary.txt").string());
     for (const auto& p : r.processes) {
       if (p.status <= 0) continue;
       // A member that failed once the run had completed took nothing from the results; the
@@ -84,7 +73,7 @@ Verdict verdict(const SupervisorResult& r, const VerdictInput& in) {
   } else if (coordinator_code == 0 && recorder_code != 0) {
     reason = "the run completed but the recording is incomplete: " + describe_exit(*recorder);
     try {
-      const auto j = nlohmann::json::parse(read_text(dir / "summary.json"));
+      const auto j = nlohmann::json::parse(read_text((dir / "summary.json").string()));
       if (j.contains("recorded_up_to_frame")) {
         reason += " (frames 0 to " + std::to_string(j.at("recorded_up_to_frame").get<long long>()) +
                   " are in " + in.run_dir + ")";
