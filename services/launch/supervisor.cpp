@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -60,7 +61,12 @@ class Loop {
     if (inotify_ >= 0) ::close(inotify_);
     if (signal_fd_ >= 0) ::close(signal_fd_);
     if (epoll_ >= 0) ::close(epoll_);
-    if (signals_blocked_) ::sigprocmask(SIG_SETMASK, &old_mask_, nullptr);
+    if (signals_blocked_) {
+      ::sigprocmask(SIG_SETMASK, &old_mask_, nullptr);
+      for (std::size_t k = 0; k < kSignals.size(); ++k) {
+        ::sigaction(kSignals[k], &old_actions_[k], nullptr);
+      }
+    }
   }
 
   SupervisorResult run() {
@@ -105,8 +111,16 @@ class Loop {
     if (epoll_ < 0) fail("epoll_create1");
     sigset_t mask;
     sigemptyset(&mask);
-    for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&mask, s);
+    for (int s : kSignals) sigaddset(&mask, s);
     if (::sigprocmask(SIG_BLOCK, &mask, &old_mask_) != 0) fail("sigprocmask");
+    // An ignored signal is discarded, never queued for the signalfd, and a launcher may have
+    // been started with INT ignored (a background job of a non-interactive shell, e.g. under
+    // srun): while blocked, the default disposition only makes the signal pending.
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    for (std::size_t k = 0; k < kSignals.size(); ++k) {
+      ::sigaction(kSignals[k], &dfl, &old_actions_[k]);
+    }
     signals_blocked_ = true;
     signal_fd_ = ::signalfd(-1, &mask, SFD_CLOEXEC | SFD_NONBLOCK);
     if (signal_fd_ < 0) fail("signalfd");
@@ -342,7 +356,9 @@ class Loop {
   int epoll_ = -1;
   int signal_fd_ = -1;
   int inotify_ = -1;
+  static constexpr std::array<int, 3> kSignals{SIGINT, SIGTERM, SIGHUP};
   sigset_t old_mask_{};
+  std::array<struct sigaction, 3> old_actions_{};
   bool signals_blocked_ = false;
 };
 

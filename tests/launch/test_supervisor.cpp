@@ -198,6 +198,24 @@ TEST(Supervisor, ASignalToTheLauncherStopsEveryProcess) {
   EXPECT_FALSE(sigismember(&mask, SIGTERM));
 }
 
+// A launcher started with SIGINT ignored (a background job of a non-interactive shell) still
+// hears Ctrl-C, and leaves the disposition as it found it.
+TEST(Supervisor, AnIgnoredInterruptStillReachesTheLauncher) {
+  Dir d;
+  struct sigaction ignore {
+  }, before{};
+  ignore.sa_handler = SIG_IGN;
+  sigaction(SIGINT, &ignore, &before);
+  auto c = config(d, {sh(d, "coordinator", write_status(d, "running") + " && exec sleep 60"),
+                      sh(d, "vehicle/a", "sleep 0.2; kill -INT $PPID; exec sleep 60")});
+  const auto r = Supervisor(c).run();
+  struct sigaction after {};
+  sigaction(SIGINT, &before, &after);
+  EXPECT_TRUE(r.interrupted);
+  EXPECT_EQ(r.processes[0].status, 128 + SIGTERM);
+  EXPECT_EQ(after.sa_handler, SIG_IGN);
+}
+
 TEST(Supervisor, AProgramThatCannotStartIsReportedAs127) {
   Dir d;
   auto c = config(d, {{"coordinator",
