@@ -257,7 +257,7 @@ def metrics_samples(out, runs, cache):
 
 def deviation_at_turns(out, runs, tracks, cache, inner=False):
     """For each follower run: is the leader's path curvature where the follower's path deviation
-    is largest (metrics_samples.csv) at or above the TIGHT_PERCENTILE of the curvature over the
+    is largest (metrics_samples.csv) above the TIGHT_PERCENTILE of the curvature over the
     common segment? inner: both only over the segment less SPEED_SKIP_M at either end."""
     k = n = at_ends = 0
     at_max, overall = [], []
@@ -287,7 +287,7 @@ def deviation_at_turns(out, runs, tracks, cache, inner=False):
                 continue
             here = float(np.interp(where, grid, kappa))
             n += 1
-            k += here >= np.percentile(inside, TIGHT_PERCENTILE)
+            k += here > np.percentile(inside, TIGHT_PERCENTILE)
             at_ends += where - arcs.min() < SPEED_SKIP_M or arcs.max() - where < SPEED_SKIP_M
             at_max.append(here)
             overall.append(float(np.median(inside)))
@@ -531,7 +531,7 @@ def statements(out, rows, runs, tracks):
               "Fig. 19)", "always",
               f"per follower run: the leader's driven-path curvature ({CURVATURE_WINDOW_M:g} m "
               f"average, largest within {TURN_REACH_M:g} m; vehicles.csv) at the arc of the "
-              "largest path_m (metrics_samples.csv) >= the "
+              "largest path_m (metrics_samples.csv) above the "
               f"{TIGHT_PERCENTILE}th percentile of the same over the common segment; holds if in >= "
               f"{100 * ALWAYS:.0f} % of the runs, differs if <= {100 - TIGHT_PERCENTILE} % "
               "(chance)", lambda: deviation_at_turns(out, runs, tracks, cache)))
