@@ -9,6 +9,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/math.hpp"
@@ -121,11 +122,23 @@ enum class Terrain { rigid, scm_hard, scm_soft };
 Terrain parse_terrain(const std::string& name);  // throws std::invalid_argument naming it
 std::string terrain_name(Terrain terrain);
 
+/// How a course is made from its seed (docs/ensemble.md, "Protocols"):
+///  - current: the field is redrawn until a path keeps 2 m from the full-size circles; the
+///    leader's speed ramp is capped (CourseOptions::target_speed_mps);
+///  - paper: the first field of the seed is always used; the path only has to avoid the
+///    circles, and every obstacle is then shrunk until it leaves 2 m to the path (the paper
+///    scales its obstacle meshes so); the ramp is not capped before the path's end.
+enum class Protocol { current, paper };
+Protocol parse_protocol(const std::string& name);  // throws std::invalid_argument naming it
+std::string protocol_name(Protocol protocol);
+
 struct CourseOptions {
   std::uint64_t seed = 0;
   Terrain terrain = Terrain::rigid;
   std::string convoy = "1L3F";  // 1L3F, 2L2F or 3L1F
-  double target_speed_mps = 5.0;  // cap of the leader's 0.47 m/s2 ramp
+  // Cap of the leader's 0.47 m/s2 ramp (current protocol; the paper protocol's ramp is capped
+  // only by the speed it could reach at the path's end, and this is ignored).
+  double target_speed_mps = 5.0;
   // The followers' controller: empty for the classical follower, else a learned policy file
   // (`controller: {type: policy, model: ...}`, docs/learning.md).
   std::string follower_policy;
@@ -136,14 +149,40 @@ struct CourseOptions {
 };
 
 struct Course {
+  Protocol protocol = Protocol::current;
   Field field;
   PlannedPath path;
   int draw = 0;  // how many fields were redrawn before a path was found
+  /// The obstacles as the scenario places them, one per field obstacle in the same order: the
+  /// field's circles (current protocol), or each shrunk to leave 2 m to the planned path
+  /// (paper protocol; radius 0: shrunk to nothing, left out).
+  std::vector<Circle> placed;
+  /// Paper protocol: the factor every circle was shrunk by for planning, 1 when the field as
+  /// drawn has a way through; less when its circles close every way (docs/ensemble.md).
+  double planning_scale = 1.0;
 };
 
-/// The field and path of options.seed: redraws the field (up to `max_draws`) while no path is
-/// found. Throws CourseError otherwise.
+/// The field and path of `seed` under the current protocol: redraws the field (up to
+/// `max_draws`) while no path keeps 2 m from the circles. Throws CourseError otherwise.
 Course make_course(std::uint64_t seed, int max_draws = 20);
+
+/// The paper protocol's course of `seed`: field draw 0, a path avoiding the circles (planned
+/// with them shrunk by the largest factor of 1, 0.9, ..., 0.1 that opens a way), then every
+/// obstacle shrunk to leave kPaperClearanceM to the path (the polyline and the spline the
+/// leader drives). Never redraws. Throws CourseError only if even 0.1 leaves no way.
+Course make_paper_course(std::uint64_t seed);
+Course make_course(std::uint64_t seed, Protocol protocol);
+/// How many placed obstacles are smaller than drawn (first) and left out (second).
+std::pair<int, int> count_scaled(const Course& course);
+
+constexpr double kPaperClearanceM = 2.0;   // the vehicle's width (paper)
+constexpr double kPaperMinRadiusM = 0.25;  // a shrunk obstacle smaller than this is left out
+
+/// The paper's obstacle scaling: each circle keeps its radius or shrinks to leave
+/// kPaperClearanceM to both the polyline `waypoints` and the spline the leader drives through
+/// them, whichever is nearer; one smaller than kPaperMinRadiusM gets radius 0 (left out).
+std::vector<Circle> shrink_to_clearance(const std::vector<Circle>& circles,
+                                        const std::vector<Vec2>& waypoints);
 
 /// The complete scenario YAML of a course (docs/ensemble.md). Throws std::invalid_argument
 /// for an unknown convoy mix.

@@ -17,6 +17,13 @@ int main(int argc, char** argv) {
   std::string convoy = "1L3F";
   std::string output;
   double target_mps = course::CourseOptions{}.target_speed_mps;
+  std::string protocol = "current";
+  app.add_option("--protocol", protocol,
+                 "current: fields redrawn until a path keeps 2 m from the full-size obstacles, "
+                 "ramp capped by --target-speed; paper: every field used, obstacles shrunk to "
+                 "leave 2 m to the path, ramp not capped (docs/ensemble.md, \"Protocols\")")
+      ->check(CLI::IsMember({"current", "paper"}))
+      ->capture_default_str();
   app.add_option("--seed", seed, "Seed of the field and of the path planner")->required();
   app.add_option("--terrain", terrain, "Ground")
       ->check(CLI::IsMember({"rigid", "scm_hard", "scm_soft"}))
@@ -24,9 +31,10 @@ int main(int argc, char** argv) {
   app.add_option("--convoy", convoy, "Leaders and followers")
       ->check(CLI::IsMember({"1L3F", "2L2F", "3L1F"}))
       ->capture_default_str();
-  app.add_option("--target-speed", target_mps, "Cap of the leaders' speed ramp (m/s)")
-      ->check(CLI::Range(0.5, 20.0))
-      ->capture_default_str();
+  auto* target = app.add_option("--target-speed", target_mps,
+                                "Cap of the leaders' speed ramp (m/s; current protocol)")
+                     ->check(CLI::Range(0.5, 20.0))
+                     ->capture_default_str();
   std::string follower_policy;
   app.add_option("--follower-policy", follower_policy,
                  "Followers driven by this learned policy (e.g. "
@@ -38,8 +46,13 @@ int main(int argc, char** argv) {
                "it takes most of a run's time and changes no metric)");
   app.add_option("--output", output, "Scenario file to write (.yaml)")->required();
   CLI11_PARSE(app, argc, argv);
+  if (protocol == "paper" && target->count() > 0) {
+    std::cerr << "syndds_course: --target-speed with --protocol paper: the paper's ramp has no "
+                 "cap (use --protocol current for a capped ramp)\n";
+    return 1;
+  }
   try {
-    const course::Course c = course::make_course(seed);
+    const course::Course c = course::make_course(seed, course::parse_protocol(protocol));
     course::CourseOptions options;
     options.seed = seed;
     options.terrain = course::parse_terrain(terrain);
@@ -53,8 +66,16 @@ int main(int argc, char** argv) {
       std::cerr << "syndds_course: cannot write --output " << output << "\n";
       return 1;
     }
-    std::printf("%s: field draw %d, path %.1f m, clearance %.2f m\n", output.c_str(), c.draw,
-                c.path.length_m, c.path.clearance_m);
+    if (c.protocol == course::Protocol::paper) {
+      const auto [shrunk, left_out] = course::count_scaled(c);
+      std::printf(
+          "%s: paper protocol, path %.1f m planned among the obstacles at %.1f of their "
+          "radius, %d obstacles shrunk and %d left out to leave 2 m\n",
+          output.c_str(), c.path.length_m, c.planning_scale, shrunk, left_out);
+    } else {
+      std::printf("%s: field draw %d, path %.1f m, clearance %.2f m\n", output.c_str(), c.draw,
+                  c.path.length_m, c.path.clearance_m);
+    }
   } catch (const std::exception& e) {
     std::cerr << "syndds_course: " << e.what() << "\n";
     return 1;

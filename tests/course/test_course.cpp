@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "control/path.hpp"
 #include "core/yaml.hpp"
 #include "course/course.hpp"
 #include "scenario/scenario.hpp"
@@ -263,6 +264,106 @@ TEST(CourseScenario, BadOptionsNameThemselves) {
   }
   EXPECT_THROW(parse_terrain("mud"), std::invalid_argument);
   EXPECT_EQ(parse_terrain("scm_soft"), Terrain::scm_soft);
+}
+
+// ---- the paper protocol ----
+
+// Distance from a point to the nearer of the polyline and the spline the leader drives.
+double path_distance(const std::vector<Vec2>& waypoints, const Vec2& p) {
+  const std::vector<Circle> point{{p, 0.0}};
+  return std::min(polyline_clearance(waypoints, point),
+                  polyline_clearance(control::Path(waypoints, false).samples(), point));
+}
+
+// The paper's scaling on a straight path along y = 0: a circle is kept, shrunk to leave 2 m,
+// or left out when less than kPaperMinRadiusM would remain.
+TEST(CoursePaperProtocol, ObstaclesShrinkToLeaveTwoMetresToThePath) {
+  const std::vector<Vec2> path{Vec2(0, 0), Vec2(100, 0)};
+  const std::vector<Circle> in{{Vec2(50, 20), 6.0},   // 20 m away: kept
+                               {Vec2(30, -5), 4.0},   // 5 m away: 3 m left
+                               {Vec2(70, 2.1), 1.0},  // 0.1 m would be left: out
+                               {Vec2(90, 8), 6.0}};   // exactly 6 + 2: kept
+  const std::vector<Circle> out = shrink_to_clearance(in, path);
+  ASSERT_EQ(out.size(), in.size());
+  EXPECT_DOUBLE_EQ(out[0].radius, 6.0);
+  EXPECT_NEAR(out[1].radius, 3.0, 1e-9);
+  EXPECT_EQ(out[2].radius, 0.0);
+  EXPECT_NEAR(out[3].radius, 6.0, 1e-9);
+  for (std::size_t i = 0; i < in.size(); ++i) EXPECT_EQ(out[i].centre, in[i].centre);
+}
+
+// Every seed's first field is used; the path avoids the circles it was planned among; every
+// placed obstacle leaves >= 2 m to the path the leader drives, and one is smaller than drawn
+// only where that 2 m required it.
+TEST(CoursePaperProtocol, EveryFieldIsUsedAndEveryObstacleLeavesTwoMetres) {
+  int shrunk_fields = 0;
+  for (std::uint64_t seed = 1; seed <= 30; ++seed) {
+    const Course c = make_paper_course(seed);
+    EXPECT_EQ(c.protocol, Protocol::paper);
+    EXPECT_EQ(c.draw, 0);
+    const Field drawn = generate_field(seed, 0);
+    ASSERT_EQ(c.field.obstacles.size(), drawn.obstacles.size());
+    ASSERT_EQ(c.placed.size(), drawn.obstacles.size());
+    EXPECT_TRUE(polyline_in_square(c.path.waypoints, 100.0)) << "seed " << seed;
+    std::vector<Circle> planning = drawn.obstacles;
+    for (Circle& o : planning) o.radius *= c.planning_scale;
+    EXPECT_GE(polyline_clearance(c.path.waypoints, planning), 0.0) << "seed " << seed;
+    shrunk_fields += c.planning_scale < 1.0;
+    for (std::size_t i = 0; i < c.placed.size(); ++i) {
+      const Circle& o = drawn.obstacles[i];
+      const Circle& p = c.placed[i];
+      EXPECT_EQ(p.centre, o.centre);
+      EXPECT_LE(p.radius, o.radius);
+      const double d = path_distance(c.path.waypoints, o.centre);
+      if (p.radius > 0.0) {
+        EXPECT_GE(d - p.radius, kPaperClearanceM - 1e-9) << "seed " << seed;
+      }
+      if (p.radius > 0.0 && p.radius < o.radius) {
+        EXPECT_NEAR(d - p.radius, kPaperClearanceM, 1e-9) << "seed " << seed;
+      }
+    }
+  }
+  // Seeds 1..30 cover both cases: fields with a way through as drawn, and fields whose
+  // circles had to be shrunk to plan (4 of these 30).
+  EXPECT_GT(shrunk_fields, 0);
+  EXPECT_LT(shrunk_fields, 30);
+}
+
+TEST(CoursePaperProtocol, ScenarioHasTheUncappedRampAndThePlacedObstacles) {
+  const Course c = make_course(5, Protocol::paper);
+  CourseOptions o;
+  o.seed = 5;
+  o.terrain = Terrain::scm_hard;
+  const std::string text = scenario_yaml(c, o);
+  EXPECT_EQ(text, scenario_yaml(make_paper_course(5), o));  // deterministic
+  const scenario::Scenario s = load_text(text);
+  EXPECT_EQ(s.name, "convoy_course_paper_5_scm_hard");
+  std::size_t kept = 0;
+  for (const Circle& p : c.placed) kept += p.radius > 0.0;
+  ASSERT_EQ(s.obstacles.size(), kept);
+  for (const auto& ob : s.obstacles) {
+    bool found = false;
+    for (const Circle& p : c.placed) {
+      found |= std::abs(p.centre.x() - ob.pose.position.x()) < 1e-3 &&
+               std::abs(p.centre.y() - ob.pose.position.y()) < 1e-3 &&
+               std::abs(p.radius - ob.size.x()) < 1e-3;
+    }
+    EXPECT_TRUE(found) << ob.id;
+  }
+  // The ramp's cap is the speed it would reach at the path's end: never reached before it.
+  const auto& speed = s.vehicles[0].controller.follower.speed_profile;
+  EXPECT_GE(speed.target_mps, std::sqrt(2.0 * 0.47 * c.path.length_m));
+  EXPECT_LT(speed.target_mps, std::sqrt(2.0 * 0.47 * c.path.length_m) + 0.1);
+  // The end time is the current protocol's for the same path (the faster ramp only arrives
+  // sooner).
+  Course capped = c;
+  capped.protocol = Protocol::current;
+  EXPECT_EQ(s.time.end_time_s, load_text(scenario_yaml(capped, o)).time.end_time_s);
+  EXPECT_EQ(parse_protocol("paper"), Protocol::paper);
+  EXPECT_THROW(parse_protocol("chrono"), std::invalid_argument);
+  Course broken = c;
+  broken.placed.pop_back();
+  EXPECT_THROW(scenario_yaml(broken, o), std::invalid_argument);
 }
 
 }  // namespace
