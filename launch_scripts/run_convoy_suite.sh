@@ -98,4 +98,11 @@ table = "\n".join(rows) + "\n"
 print(table)
 EOF
 echo "table: $OUTPUT/convoy_suite.md"
+# The paper's Table 1 (top-down trajectories) needs Debian's matplotlib, with the system's Python.
+if /usr/bin/python3 -c "import matplotlib, numpy" 2> /dev/null; then
+  /usr/bin/python3 "$ROOT/tools/convoy_suite_figures.py" "$OUTPUT" \
+    || echo "run_convoy_suite: no trajectories figure (tools/convoy_suite_figures.py failed)" >&2
+else
+  echo "run_convoy_suite: no trajectories figure: install python3-matplotlib python3-numpy (launch_scripts/setup.sh does)" >&2
+fi
 [ "$failed" = 0 ] || exit 2
