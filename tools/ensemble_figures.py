@@ -355,12 +355,22 @@ def planned_paths(out, runs, figures):
         terrain = terrains_of([r for r in runs if r["seed"] == seed])[0]
         scenarios.append(course_scenario(out, seed, terrain))
     paths = [p for p in map(planned_path, scenarios) if p]
-    fixed = set.intersection(*[set(obstacles_of(s)) for s in scenarios if s]) if paths else set()
+    fields = [obstacles_of(s) for s in scenarios if s]
+    # The fixed obstacles: at the same place in every course (drawn at their largest radius:
+    # the paper's protocol shrinks each course's obstacles to the path).
+    common = set.intersection(*[{(x, y) for x, y, _ in f} for f in fields]) if fields else set()
+    radius = defaultdict(float)
+    for field in fields:
+        for x, y, r in field:
+            if (x, y) in common:
+                radius[(x, y)] = max(radius[(x, y)], r)
     fig, ax = plt.subplots(figsize=(5.5, 5.5))
-    for x, y, r in sorted(fixed):
+    for (x, y), r in sorted(radius.items()):
         ax.add_patch(plt.Circle((x, y), r, color="0.85", zorder=0))
     from matplotlib.collections import LineCollection
-    ax.add_collection(LineCollection(paths, linewidths=0.6, colors="C0", alpha=0.35))
+    crowd = max(1, len(paths))  # fainter lines the more there are
+    ax.add_collection(LineCollection(paths, linewidths=0.6 if crowd > 20 else 1.0, colors="C0",
+                                     alpha=float(np.clip(45 / crowd, 0.35, 0.9))))
     if paths:
         ax.plot(*paths[0][0], "ko", ms=4)
         ax.plot(*paths[0][-1], "k*", ms=8)
