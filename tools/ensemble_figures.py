@@ -18,6 +18,7 @@ import json
 import pathlib
 import re
 import sys
+import traceback
 from collections import defaultdict
 
 import matplotlib
@@ -642,7 +643,13 @@ def main():
     stills = chase_stills(out, runs, figures)
     sys.dont_write_bytecode = True  # no __pycache__ in tools/
     import paper_comparison  # tools/ beside this file; imports this module's helpers
-    paper_comparison.write(out, rows, runs, tracks)
+    try:
+        paper_comparison.write(out, rows, runs, tracks)
+    except Exception:  # the figures and report.md still count: say why, report without it
+        traceback.print_exc()
+        print("ensemble_figures: no paper_comparison.md (tools/paper_comparison.py failed)",
+              file=sys.stderr)
+        (out / "paper_comparison.md").unlink(missing_ok=True)
     report(out, rows, runs, stills)
     print(f"ensemble_figures: {out / 'report.md'} and {figures}/")
 

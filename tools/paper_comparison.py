@@ -61,7 +61,7 @@ def verdict(k, n):
 
 
 def number(value):
-    return f"{value:#.3g}" if abs(value) < 100 else f"{value:.1f}"
+    return f"{value:#.3g}".rstrip(".") if abs(value) < 100 else f"{value:.1f}"
 
 
 def metric_values(rows, terrain, position, key, scale=1.0):
