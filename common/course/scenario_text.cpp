@@ -231,8 +231,12 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
     const bool is_fixed = static_cast<int>(i) < fixed;
     const char* label = is_fixed ? "rock" : (i % 2 == 0 ? "tree" : "bush");
     const double height = is_fixed ? 3.0 : (i % 2 == 0 ? 6.0 : 1.5);
+    // A shrunk radius is written rounded down to the millimetre, less 2 mm: the text's rounding
+    // of the positions and of the path's points (0.5 mm each) then still leaves the 2 m.
+    const bool shrunk = c.radius < course.field.obstacles[i].radius;
+    const double radius = shrunk ? std::floor(c.radius * 1000.0) / 1000.0 - 0.002 : c.radius;
     y << "  - {id: " << label << i + 1 << ", label: " << label << ", shape: cylinder, position: ["
-      << num(c.centre.x()) << ", " << num(c.centre.y()) << "], radius_m: " << num(c.radius)
+      << num(c.centre.x()) << ", " << num(c.centre.y()) << "], radius_m: " << num(radius)
       << ", height_m: " << num(height) << "}\n";
   }
   y << "vehicles:\n";

@@ -341,14 +341,19 @@ TEST(CoursePaperProtocol, ScenarioHasTheUncappedRampAndThePlacedObstacles) {
   std::size_t kept = 0;
   for (const Circle& p : c.placed) kept += p.radius > 0.0;
   ASSERT_EQ(s.obstacles.size(), kept);
+  // Each written obstacle is its placed circle (a shrunk one 2-3 mm smaller, for the text's
+  // rounding), and the written path keeps >= 2 m from each as written.
+  const std::vector<Vec2>& written = s.vehicles[0].controller.waypoints;
   for (const auto& ob : s.obstacles) {
     bool found = false;
     for (const Circle& p : c.placed) {
       found |= std::abs(p.centre.x() - ob.pose.position.x()) < 1e-3 &&
                std::abs(p.centre.y() - ob.pose.position.y()) < 1e-3 &&
-               std::abs(p.radius - ob.size.x()) < 1e-3;
+               ob.size.x() <= p.radius + 1e-3 && ob.size.x() > p.radius - 3.5e-3;
     }
     EXPECT_TRUE(found) << ob.id;
+    const Vec2 centre(ob.pose.position.x(), ob.pose.position.y());
+    EXPECT_GE(path_distance(written, centre) - ob.size.x(), kPaperClearanceM) << ob.id;
   }
   // The ramp's cap is the speed it would reach at the path's end: never reached before it.
   const auto& speed = s.vehicles[0].controller.follower.speed_profile;
