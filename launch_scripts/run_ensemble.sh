@@ -3,10 +3,17 @@
 # course on each terrain, the six deviation metrics of every follower, one CSV at the end.
 #
 #   launch_scripts/run_ensemble.sh --courses N --output DIR [--terrains rigid,scm_hard,scm_soft]
-#       [--convoy 1L3F|2L2F|3L1F] [--follower-policy FILE] [--jobs J] [--distributed]
-#       [--first-seed S] [--duration S] [--videos]
+#       [--convoy 1L3F|2L2F|3L1F] [--protocol current|paper] [--follower-policy FILE] [--jobs J]
+#       [--distributed] [--first-seed S] [--duration S] [--videos]
 #       [--slurm [--slurm-args "SBATCH OPTIONS"] [--wait]] [--gather-only]
+#   launch_scripts/run_ensemble.sh --paper --output DIR [...]
 #
+# --protocol paper makes the courses as the paper does (syndds_course --protocol paper: every
+# field used, obstacles shrunk to leave 2 m to the leader's path, the speed ramp not capped);
+# current (the default) redraws fields until a path keeps 2 m from the full-size obstacles and
+# caps the ramp at 5 m/s (docs/ensemble.md, "Protocols"). --paper is the paper's study:
+# --protocol paper, 128 courses unless --courses, 1L3F; its first course keeps the chase video
+# (one still per terrain in the figures).
 # --videos keeps each course's chase camera and video behind the last vehicle (syndds_course's
 # default): rendering and encoding it takes 4-6 times as long as the rest of a run and changes
 # no metric, so a study leaves it out unless asked (docs/ensemble.md, "Throughput").
@@ -42,14 +49,16 @@ die() { echo "run_ensemble: $1" >&2; exit "${2:-1}"; }  # message [exit status, 
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
 JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
-VIDEOS=0
+VIDEOS=0; PROTOCOL=current; PROTOCOL_SET=0; PAPER=0; CONVOY_SET=0
 SLURM=0; SLURM_ARGS=""; SLURM_ARGS_SET=0; SLURM_EXTRA=(); WAIT=0; GATHER_ONLY=0; RUN_ONE=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --courses) [ $# -ge 2 ] || die "--courses needs a number"; COURSES=$2; shift ;;
     --output) [ $# -ge 2 ] || die "--output needs a directory"; OUTPUT=$2; shift ;;
     --terrains) [ $# -ge 2 ] || die "--terrains needs a list"; TERRAINS=$2; shift ;;
-    --convoy) [ $# -ge 2 ] || die "--convoy needs a value"; CONVOY=$2; shift ;;
+    --convoy) [ $# -ge 2 ] || die "--convoy needs a value"; CONVOY=$2; CONVOY_SET=1; shift ;;
+    --protocol) [ $# -ge 2 ] || die "--protocol needs a value (current or paper)"; PROTOCOL=$2; PROTOCOL_SET=1; shift ;;
+    --paper) PAPER=1 ;;
     --jobs) [ $# -ge 2 ] || die "--jobs needs a number"; JOBS=$2; JOBS_SET=1; shift ;;
     --first-seed) [ $# -ge 2 ] || die "--first-seed needs a number"; FIRST=$2; shift ;;
     --duration) [ $# -ge 2 ] || die "--duration needs seconds"; DURATION=(--duration "$2"); shift ;;
@@ -67,6 +76,13 @@ while [ $# -gt 0 ]; do
   esac
   shift
 done
+if [ $PAPER = 1 ]; then
+  [ $PROTOCOL_SET = 0 ] || [ "$PROTOCOL" = paper ] || die "--paper runs the paper's protocol: leave --protocol $PROTOCOL out"
+  PROTOCOL=paper
+  [ $CONVOY_SET = 0 ] || [ "$CONVOY" = 1L3F ] || die "--paper is the paper's 1L3F study: leave --convoy out (or use --protocol paper with --convoy $CONVOY)"
+  [ -n "$COURSES" ] || COURSES=128
+fi
+case "$PROTOCOL" in current|paper) ;; *) die "--protocol must be current or paper, got '$PROTOCOL'" ;; esac
 [[ "$COURSES" =~ ^[1-9][0-9]{0,3}$ ]] || die "--courses must be 1..9999, got '$COURSES'"
 [[ "$JOBS" =~ ^[1-9][0-9]{0,2}$ ]] || die "--jobs must be 1..999, got '$JOBS'"
 [[ "$FIRST" =~ ^[0-9]{1,9}$ ]] || die "--first-seed must be 0..999999999, got '$FIRST'"
@@ -112,6 +128,7 @@ mkdir -p "$OUTPUT/courses" "$OUTPUT/runs" || die "cannot create $OUTPUT"
 [ $SLURM = 0 ] || OUTPUT=$(cd "$OUTPUT" && pwd)
 # The courses are generated once: an ensemble folder belongs to one convoy and one follower.
 setup="convoy=$CONVOY follower_policy=${POLICY:-classical}"
+[ "$PROTOCOL" = current ] || setup+=" protocol=$PROTOCOL"
 if [ -f "$OUTPUT/ensemble.setup" ]; then
   [ "$(cat "$OUTPUT/ensemble.setup")" = "$setup" ] ||
     die "$OUTPUT was made with $(cat "$OUTPUT/ensemble.setup"), not $setup: use another --output"
@@ -133,6 +150,14 @@ for ((k = 0; k < COURSES; ++k)); do
   done
 done
 skipped=$((${#ids[@]} - ${#todo[@]}))
+# A full-length run writes about 30 MB (the paper's 384-run study: 11 GB); a full disk fails the
+# runs that are writing. Warn, with the numbers, when the runs to do may not fit.
+if [ ${#todo[@]} -gt 0 ] && [ ${#DURATION[@]} = 0 ]; then
+  free_mb=$(df -Pm "$OUTPUT" 2> /dev/null | awk 'NR == 2 { print $4 }')
+  need_mb=$((30 * ${#todo[@]}))
+  [ -z "$free_mb" ] || [ "$free_mb" -ge "$need_mb" ] ||
+    echo "run_ensemble: warning: ${#todo[@]} runs need about $need_mb MB, $OUTPUT has $free_mb MB free: runs that find the disk full fail (the same command resumes them)" >&2
+fi
 
 # One run: the course's scenario (generated once), then the run itself; its log beside its folder.
 run_one() {
@@ -141,8 +166,10 @@ run_one() {
   rm -rf "$dir"
   if [ ! -s "$scenario" ]; then
     local video=(--no-chase-video)
-    [ "$VIDEOS" = 0 ] || video=()
+    # The paper's study keeps its first course's chase video: a still per terrain.
+    [ "$VIDEOS" = 0 ] && { [ "$PROTOCOL" = current ] || [ "$seed" != "$FIRST" ]; } || video=()
     "$BIN/syndds_course" --seed "$seed" --terrain "$terrain" --convoy "$CONVOY" "${video[@]}" \
+        --protocol "$PROTOCOL" \
         ${POLICY:+--follower-policy "$POLICY"} --output "$scenario.tmp" > "$log" 2>&1 &&
       mv "$scenario.tmp" "$scenario" || return 1
   fi
@@ -256,7 +283,8 @@ if [ $SLURM = 1 ]; then
   # any node (the same paths everywhere).
   build=$(cd "$BIN/.." && pwd)
   command=(env "SYNDDS_BUILD_DIR=$build" "$ROOT/launch_scripts/run_ensemble.sh" --courses "$COURSES"
-           --output "$OUTPUT" --terrains "$TERRAINS" --convoy "$CONVOY" --first-seed "$FIRST"
+           --output "$OUTPUT" --terrains "$TERRAINS" --convoy "$CONVOY" --protocol "$PROTOCOL"
+           --first-seed "$FIRST"
            "${DURATION[@]}")
   [ -z "$POLICY" ] || command+=(--follower-policy "$POLICY")
   [ "$VIDEOS" = 0 ] || command+=(--videos)

@@ -2,7 +2,8 @@
 # launch_scripts/run_ensemble.sh end to end: two courses on two terrains give every CSV column
 # and row, the six figures and report.md; an ensemble interrupted after its first run resumes
 # (finished runs skipped) and ends with the same ensemble.csv as the uninterrupted one; a run
-# that fails is listed and the others go on.
+# that fails is listed and the others go on; --paper makes its courses on the paper's protocol,
+# keeps its first course's chase video and writes paper_comparison.md.
 #   tests/ensemble/test_ensemble.sh BUILD_DIR
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
@@ -72,4 +73,22 @@ code=0
     --follower-policy policies/convoy_follow_lowdim.pt > "$work/c2.log" 2>&1 || code=$?
 [ "$code" = 1 ] || fail "a changed follower on an existing ensemble exited $code, not 1"
 grep -q "was made with convoy=1L3F follower_policy=classical" "$work/c2.log" || fail "no reason given: $(cat "$work/c2.log")"
+# The paper's study: its protocol is recorded with the folder and in each course, the first
+# course carries the chase video (a still per terrain), and the comparison with the paper is
+# written. Contradictory options are refused.
+"$E" --paper --courses 1 --terrains rigid --duration 8 --output "$work/p" > "$work/p.log" 2>&1 ||
+  fail "paper study failed"
+[ "$(cat "$work/p/ensemble.setup")" = "convoy=1L3F follower_policy=classical protocol=paper" ] ||
+  fail "ensemble.setup: $(cat "$work/p/ensemble.setup")"
+grep -q "^name: convoy_course_paper_1_rigid$" "$work/p/courses/1_rigid.yaml" || fail "not a paper course"
+grep -q "target_mps: 1[0-9]" "$work/p/courses/1_rigid.yaml" || fail "the paper's ramp is capped: $(grep target_mps "$work/p/courses/1_rigid.yaml")"
+[ -s "$work/p/runs/1_rigid/sensors/f3/chase_camera.avi" ] || fail "no chase video on the first course"
+[ -s "$work/p/paper_comparison.md" ] || fail "no paper_comparison.md"
+code=0
+"$E" --paper --protocol current --output "$work/q" > "$work/q.log" 2>&1 || code=$?
+[ "$code" = 1 ] && grep -q "leave --protocol current out" "$work/q.log" || fail "--paper --protocol current: $code $(cat "$work/q.log")"
+code=0
+"$E" --protocol paper --courses 1 --terrains rigid --duration 8 --output "$work/c" > "$work/c3.log" 2>&1 || code=$?
+[ "$code" = 1 ] && grep -q "not convoy=1L3F follower_policy=classical protocol=paper" "$work/c3.log" ||
+  fail "another protocol on an existing ensemble: $code $(cat "$work/c3.log")"
 echo "ok"
