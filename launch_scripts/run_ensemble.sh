@@ -12,8 +12,8 @@
 # field used, obstacles shrunk to leave 2 m to the leader's path, the speed ramp not capped);
 # current (the default) redraws fields until a path keeps 2 m from the full-size obstacles and
 # caps the ramp at 5 m/s (docs/ensemble.md, "Protocols"). --paper is the paper's study:
-# --protocol paper, 128 courses unless --courses, 1L3F; its first course keeps the chase video
-# (one still per terrain in the figures).
+# --protocol paper, 128 courses unless --courses, 1L3F. On the paper's protocol the first course
+# keeps the chase video (one still per terrain in the figures).
 # --videos keeps each course's chase camera and video behind the last vehicle (syndds_course's
 # default): rendering and encoding it takes 4-6 times as long as the rest of a run and changes
 # no metric, so a study leaves it out unless asked (docs/ensemble.md, "Throughput").
