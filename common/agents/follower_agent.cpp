@@ -13,8 +13,8 @@ double antenna_x(const scenario::VehicleConfig& v) {
   return v.sensors->rig.gps.front().mount.pose.position.x();
 }
 
-// What the follower knows of its own vehicle and, from the scenario, of the one it follows:
-// dimensions, not states.
+}  // namespace
+
 convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
                                          const scenario::VehicleConfig* leader) {
   const vehicle::VehicleParams& p = own.params;
@@ -38,13 +38,10 @@ convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
   return v;
 }
 
-// The follower converts latitude / longitude with its own GPS's origin and model.
-sensors::GeodeticConverter converter(const scenario::VehicleConfig& v) {
+sensors::GeodeticConverter follower_converter(const scenario::VehicleConfig& v) {
   const auto& rig = v.sensors->rig;
   return sensors::GeodeticConverter(rig.geodetic_origin, rig.gps.front().model);
 }
-
-}  // namespace
 
 FollowerAgent::FollowerAgent(const scenario::Scenario& scenario,
                              const scenario::VehicleConfig& vehicle)
@@ -53,7 +50,7 @@ FollowerAgent::FollowerAgent(const scenario::Scenario& scenario,
       member_id_(scenario::controller_member(vehicle.id)),
       follower_(vehicle.controller.convoy,
                 follower_vehicle(vehicle, scenario.find_vehicle(vehicle.controller.convoy.leader)),
-                converter(vehicle)),
+                follower_converter(vehicle)),
       radar_(!vehicle.controller.convoy.radar_sensor.empty()) {}
 
 std::vector<proto::Subscription> FollowerAgent::subscriptions() const {

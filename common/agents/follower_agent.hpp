@@ -9,6 +9,13 @@
 
 namespace syndds::agents {
 
+/// What a convoy follower knows of its own vehicle and, from the scenario, of the one it
+/// follows (may be null): dimensions, not states.
+convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
+                                         const scenario::VehicleConfig* leader);
+/// The follower converts latitude / longitude with its own (first) GPS's origin and model.
+sensors::GeodeticConverter follower_converter(const scenario::VehicleConfig& v);
+
 class FollowerAgent final : public proto::Agent {
  public:
   FollowerAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& vehicle);

@@ -192,13 +192,13 @@ void ConvoyFollower::extend_trail() {
   trail_s_.push_back(trail_s_.back() + d);
 }
 
-double ConvoyFollower::project_on_trail(const Vec2& p) {
+ConvoyFollower::Projection ConvoyFollower::projection(const Vec2& p) const {
   // Search forward from the last segment: progress is monotone, so a trail that loops back
   // near itself is never taken by its later part too early.
   double best_d2 = std::numeric_limits<double>::infinity();
-  double best_s = trail_s_.empty() ? 0.0 : trail_s_[trail_index_];
-  std::size_t best_i = trail_index_;
-  double best_cross = 0.0;
+  Projection best;
+  best.s = trail_s_.empty() ? 0.0 : trail_s_[trail_index_];
+  best.index = trail_index_;
   for (std::size_t i = trail_index_; i + 1 < trail_.size(); ++i) {
     const Vec2 a = trail_[i];
     const Vec2 ab = trail_[i + 1] - a;
@@ -207,17 +207,47 @@ double ConvoyFollower::project_on_trail(const Vec2& p) {
     const double d2 = (a + u * ab - p).squaredNorm();
     if (d2 < best_d2) {
       best_d2 = d2;
-      best_i = i;
-      best_s = trail_s_[i] + u * std::sqrt(len2);
+      best.index = i;
+      best.s = trail_s_[i] + u * std::sqrt(len2);
       // Signed: > 0 when the follower is left of the trail.
       const Vec2 ap = p - a;
-      best_cross = len2 > 0.0 ? (ab.x() * ap.y() - ab.y() * ap.x()) / std::sqrt(len2) : 0.0;
+      best.cross_track_m = len2 > 0.0 ? (ab.x() * ap.y() - ab.y() * ap.x()) / std::sqrt(len2) : 0.0;
     }
-    if (trail_s_[i] > best_s + 30.0) break;  // far enough past the best: stop looking
+    if (trail_s_[i] > best.s + 30.0) break;  // far enough past the best: stop looking
   }
-  trail_index_ = best_i;
-  cross_track_m_ = std::isfinite(best_d2) ? best_cross : 0.0;
-  return best_s;
+  if (!std::isfinite(best_d2)) best.cross_track_m = 0.0;
+  return best;
+}
+
+double ConvoyFollower::project_on_trail(const Vec2& p) {
+  const Projection pr = projection(p);
+  trail_index_ = pr.index;
+  cross_track_m_ = pr.cross_track_m;
+  return pr.s;
+}
+
+TrailFeatures ConvoyFollower::trail_features() const {
+  TrailFeatures f;
+  if (!own_ || !leader_ || trail_.empty()) return f;
+  f.valid = true;
+  const Projection pr = projection(own_->position);
+  f.cross_track_m = pr.cross_track_m;
+  f.heading_error_rad = wrap_angle(trail_yaw(pr.s) - own_->yaw);
+  for (std::size_t i = 0; i < f.curvature_per_m.size(); ++i) {
+    f.curvature_per_m[i] =
+        trail_curvature(pr.s + TrailFeatures::kCurvatureAheadM[i], kCurvatureWindowM);
+  }
+  f.own_speed_mps = own_->speed;
+  f.leader_speed_mps = leader_->speed;
+  f.leader_accel_mps2 = leader_accel_;
+  const double beyond = (leader_->position - trail_.back()).dot(direction(leader_->yaw));
+  f.gap_m = std::max(0.0, trail_length() - pr.s) + beyond - vehicle_.front_m - vehicle_.leader_rear_m;
+  const Vec2 rel = leader_->position - own_->position;
+  const Vec2 d = direction(own_->yaw);
+  f.leader_forward_m = rel.dot(d);
+  f.leader_left_m = d.x() * rel.y() - d.y() * rel.x();
+  f.leader_lost = lost_;
+  return f;
 }
 
 Vec2 ConvoyFollower::trail_point(double s) const {

@@ -29,6 +29,7 @@
 //   such detection: the leader in a bend, out of the field of view, occluded) the V2V gap.
 // - Leader lost: no V2V message measured within `leader_lost_after_s` -> brake to a stop and
 //   report `leader_lost` once; a fresh message reports `leader_found` and following resumes.
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -90,6 +91,24 @@ struct OwnReadings {
   std::vector<proto::WheelSpeedsMsg> wheel_speeds;
 };
 
+/// What the follower knows after an update(), as numbers for a learned controller (the trail
+/// observation of learn::ConvoyObservationBuilder): its estimates, never a true state.
+struct TrailFeatures {
+  /// Where along the trail, from the follower's projection on it, the curvatures are read.
+  static constexpr std::array<double, 3> kCurvatureAheadM = {0.0, 5.0, 10.0};
+  bool valid = false;               // own and leader estimates and a trail exist
+  double cross_track_m = 0.0;       // > 0: the follower is left of the trail
+  double heading_error_rad = 0.0;   // the trail's yaw at the projection less the own yaw
+  std::array<double, 3> curvature_per_m{};  // the trail's (> 0: turning left), 2 m windows
+  double own_speed_mps = 0.0;
+  double leader_speed_mps = 0.0;
+  double leader_accel_mps2 = 0.0;
+  double gap_m = 0.0;               // bumper to bumper along the trail
+  double leader_forward_m = 0.0;    // the leader's estimate in the follower's frame
+  double leader_left_m = 0.0;
+  bool leader_lost = false;
+};
+
 struct FollowerEvent {
   std::string kind;    // leader_lost | leader_found
   std::string detail;
@@ -124,6 +143,8 @@ class ConvoyFollower {
   double cross_track_m() const { return cross_track_m_; }
   double understeer_rad_per_mps2() const { return understeer_; }
   const std::vector<Vec2>& trail() const { return trail_; }
+  /// The follower's estimates as of the last update (valid == false before it has any).
+  TrailFeatures trail_features() const;
 
   /// Checkpoints: estimates, the trail of crumbs, the speed controller, the leader watch.
   void save_state(core::StateWriter& w) const;
@@ -142,7 +163,14 @@ class ConvoyFollower {
   /// Returns true when a new message was fused (a crumb may be laid).
   bool update_leader(double time_s, double dt, const std::vector<proto::V2VMessageMsg>& msgs);
   void extend_trail();
-  /// Arc position of the follower's projection on the trail (monotone).
+  struct Projection {
+    std::size_t index = 0;       // trail segment
+    double s = 0.0;              // arc length
+    double cross_track_m = 0.0;  // > 0: left of the trail
+  };
+  /// The projection of `p` on the trail, searched forward from the last segment.
+  Projection projection(const Vec2& p) const;
+  /// Arc position of the follower's projection on the trail (monotone); keeps it.
   double project_on_trail(const Vec2& p);
   Vec2 trail_point(double s) const;
   double trail_yaw(double s) const;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 
 #include "agents/agent_factory.hpp"
@@ -32,15 +33,20 @@ double convoy_reward(double distance_m, double heading_diff_rad, const ConvoyRew
   return 1.0 / (1.0 + std::abs(distance_m - p.optimal_gap_m) / p.width_m);
 }
 
+double convoy_track_reward(double distance_m, double path_error_m, const ConvoyRewardParams& p) {
+  return 1.0 / (1.0 + std::abs(distance_m - p.optimal_gap_m) / p.width_m) /
+         (1.0 + std::abs(path_error_m) / p.track_width_m);
+}
+
 // ---- ConvoyDriverAgent ----------------------------------------------------------------------
 
-ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario&,
+ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario& scenario,
                                      const scenario::VehicleConfig& follower,
-                                     const std::string& leader_id)
+                                     const std::string& leader_id, ConvoyObservationKind kind)
     : vehicle_id_(follower.id),
       leader_id_(leader_id),
       member_id_(scenario::external_member(follower.id)),
-      builder_(convoy_observation_config(follower, leader_id)) {}
+      builder_(convoy_observation_config(scenario, follower, leader_id, kind)) {}
 
 ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, std::uint64_t seed) {
   ConvoyScenarioOptions so;
@@ -48,6 +54,13 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
   so.dynamics = options.dynamics;
   so.camera = options.camera;
   so.target_speed_mps = options.target_speed_mps;
+  if (options.target_speed_max_mps > options.target_speed_mps) {
+    // A stream of its own, so that the episode's other draws stay those of make_convoy_episode.
+    std::mt19937_64 rng(seed ^ 0x5eed5eed5eed5eedULL);
+    const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    so.target_speed_mps = options.target_speed_mps +
+                          u * (options.target_speed_max_mps - options.target_speed_mps);
+  }
   so.end_time_s = 0.01 * options.frames_per_step * (options.max_steps + 100);
   so.seed = seed;
   return so;
@@ -89,7 +102,7 @@ std::vector<proto::Subscription> ConvoyDriverAgent::subscriptions() const {
 
 void ConvoyDriverAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
                              proto::FrameSamples& outputs) {
-  builder_.consume(inputs);
+  builder_.consume(ctx, inputs);
   outputs.driver_commands.push_back(agents::command_message(
       vehicle_id_, member_id_, ctx.frame, convoy_driver_inputs(steering_, throttle_brake_)));
 }
@@ -111,7 +124,7 @@ ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
 ConvoyEnv::~ConvoyEnv() = default;
 
 ObservationSpace ConvoyEnv::observation_space() const {
-  ObservationSpace s{ConvoyObservationBuilder::vector_space(), std::nullopt};
+  ObservationSpace s{ConvoyObservationBuilder::vector_space(options_.observation), std::nullopt};
   if (options_.camera) s.image = ImageSpec{80, 45, 3};
   return s;
 }
@@ -156,7 +169,7 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
   for (const auto& m : s.member_ids()) {
     if (m == scenario::external_member(kConvoyFollowerId)) {
       auto d = std::make_unique<ConvoyDriverAgent>(s, *s.find_vehicle(kConvoyFollowerId),
-                                                   kConvoyLeaderId);
+                                                   kConvoyLeaderId, options_.observation);
       driver_ = d.get();
       agents.push_back(std::move(d));
     } else if (m == scenario::sensor_member(kConvoyFollowerId)) {
@@ -213,6 +226,8 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
                  leader_state_.pose.position.y() - end.y()) < 3.0 &&
       leader_speed < 0.1;
   const bool lost = distance > options_.lost_distance_m;
+  const Vec2 here(follower_state_.pose.position.x(), follower_state_.pose.position.y());
+  const double path_error = distance_to_path(episode_.path, here);
   if (collided_) {
     r.reward = options_.reward.collision;
     r.terminated = true;
@@ -220,13 +235,16 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
     r.reward = options_.reward.lost;
     r.terminated = true;
   } else {
-    r.reward = convoy_reward(distance, heading_diff, options_.reward);
+    r.reward = options_.reward_kind == ConvoyRewardKind::track
+                   ? convoy_track_reward(distance, path_error, options_.reward)
+                   : convoy_reward(distance, heading_diff, options_.reward);
     r.truncated = leader_done || steps_ >= options_.max_steps;
   }
   r.info = {{"distance_m", distance},
             {"heading_diff_rad", heading_diff},
             {"speed_mps", speed},
             {"leader_speed_mps", leader_speed},
+            {"path_error_m", path_error},
             {"collided", collided_ ? 1.0 : 0.0},
             {"leader_contact", leader_contact_ ? 1.0 : 0.0},
             {"leader_lost", lost ? 1.0 : 0.0},

@@ -28,17 +28,32 @@ struct ConvoyRewardParams {
   double outside = -0.1;
   double collision = -10.0;
   double lost = -10.0;
+  double track_width_m = 0.5;  // the track reward's: 0.5 at this distance from the path
 };
 
 /// The reward of a step at centre distance `distance_m` with the leader `heading_diff_rad`
 /// off the follower's nose (neither a collision nor a lost leader).
 double convoy_reward(double distance_m, double heading_diff_rad, const ConvoyRewardParams& p);
 
+/// Which reward the environment gives (docs/learning.md, "Reward"): `paper`, the gap in the
+/// leader-in-view window above; `track`, the same gap term times 1 / (1 + e / track_width_m),
+/// e the follower's distance from the leader's path (ground truth): a follower is paid for
+/// driving where the leader drove, not for keeping the gap on any line.
+enum class ConvoyRewardKind { paper, track };
+
+/// The track reward of a step: the gap term (no view window) times the track term.
+double convoy_track_reward(double distance_m, double path_error_m, const ConvoyRewardParams& p);
+
 struct ConvoyEnvOptions {
   ConvoyTerrain terrain = ConvoyTerrain::rigid;
   ConvoyDynamics dynamics = ConvoyDynamics::reduced;
   bool camera = false;             // the 80 x 45 front-bumper camera in the observation
+  ConvoyObservationKind observation = ConvoyObservationKind::paper;
+  ConvoyRewardKind reward_kind = ConvoyRewardKind::paper;
   double target_speed_mps = 5.0;   // the leader's ramp cap
+  /// Above target_speed_mps: each episode's cap is drawn uniformly in [target_speed_mps,
+  /// target_speed_max_mps] from its seed (else every episode has target_speed_mps).
+  double target_speed_max_mps = 0.0;
   int frames_per_step = 10;        // control period: 10 frames of 0.01 s
   int max_steps = 500;             // truncated after this many steps (50 s)
   double lost_distance_m = 40.0;   // terminated when the leader is farther than this
@@ -70,7 +85,8 @@ std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& 
 class ConvoyDriverAgent final : public proto::Agent {
  public:
   ConvoyDriverAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& follower,
-                    const std::string& leader_id);
+                    const std::string& leader_id,
+                    ConvoyObservationKind kind = ConvoyObservationKind::paper);
 
   const std::string& member_id() const override { return member_id_; }
   std::string vehicle_key() const override { return vehicle_id_; }

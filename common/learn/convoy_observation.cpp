@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "agents/follower_agent.hpp"
 #include "protocol/sample_state.hpp"
 
 namespace syndds::learn {
@@ -37,13 +38,26 @@ void held_io(Archive& a, std::optional<Msg>& held) {
 
 }  // namespace
 
-ConvoyObservationConfig convoy_observation_config(const scenario::VehicleConfig& follower,
-                                                  const std::string& leader_id) {
+ConvoyObservationKind parse_observation_kind(const std::string& name) {
+  if (name == "paper") return ConvoyObservationKind::paper;
+  if (name == "trail") return ConvoyObservationKind::trail;
+  throw std::invalid_argument("observation '" + name + "' is not one of paper, trail");
+}
+
+const char* observation_kind_name(ConvoyObservationKind kind) {
+  return kind == ConvoyObservationKind::trail ? "trail" : "paper";
+}
+
+ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scenario,
+                                                  const scenario::VehicleConfig& follower,
+                                                  const std::string& leader_id,
+                                                  ConvoyObservationKind kind) {
   if (!follower.sensors || follower.sensors->rig.gps.empty()) {
     throw std::invalid_argument("convoy follower '" + follower.id + "' has no GPS");
   }
   const auto& rig = follower.sensors->rig;
   ConvoyObservationConfig c;
+  c.kind = kind;
   c.follower_id = follower.id;
   c.leader_id = leader_id;
   c.geodetic_origin = rig.geodetic_origin;
@@ -53,19 +67,41 @@ ConvoyObservationConfig convoy_observation_config(const scenario::VehicleConfig&
     c.image = ImageSpec{rig.cameras.front().intrinsics.width,
                         rig.cameras.front().intrinsics.height, 3};
   }
+  c.estimator.leader = leader_id;
+  c.vehicle = agents::follower_vehicle(follower, scenario.find_vehicle(leader_id));
   return c;
 }
 
 ConvoyObservationBuilder::ConvoyObservationBuilder(ConvoyObservationConfig config)
-    : config_(std::move(config)), converter_(config_.geodetic_origin, config_.geodetic_model) {}
+    : config_(std::move(config)), converter_(config_.geodetic_origin, config_.geodetic_model) {
+  if (config_.kind == ConvoyObservationKind::trail) {
+    estimator_.emplace(config_.estimator, config_.vehicle, converter_);
+  }
+}
 
-Box ConvoyObservationBuilder::vector_space() {
+Box ConvoyObservationBuilder::vector_space(ConvoyObservationKind kind) {
+  if (kind == ConvoyObservationKind::trail) {
+    return Box{{-50.0f, -1.0f, -1.0f, -1.0f, -1.0f, -1.0f, -5.0f, -5.0f, -20.0f, -200.0f,
+                -200.0f, -200.0f},
+               {50.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 30.0f, 30.0f, 20.0f, 200.0f, 200.0f, 200.0f},
+               {"cross_track_m", "heading_error_sin", "heading_error_cos", "curvature_0m_per_m",
+                "curvature_5m_per_m", "curvature_10m_per_m", "speed_mps", "leader_speed_mps",
+                "leader_accel_mps2", "gap_m", "leader_forward_m", "leader_left_m"}};
+  }
   return Box{{-200.0f, -200.0f, 0.0f, -30.0f},
              {200.0f, 200.0f, 6.2832f, 30.0f},
              {"leader_north_m", "leader_east_m", "heading_rad", "closing_speed_mps"}};
 }
 
-void ConvoyObservationBuilder::consume(const proto::FrameSamples& s) {
+void ConvoyObservationBuilder::consume(const proto::FrameContext& ctx,
+                                       const proto::FrameSamples& s) {
+  if (estimator_ && ctx.frame > 0) {
+    // As the classical follower's member does: the inputs describe the end of frame k-1.
+    const convoy::OwnReadings own{s.gps_fixes, s.magnetometers, s.wheel_speeds};
+    std::vector<convoy::FollowerEvent> events;  // leader lost shows in the features
+    estimator_->update(ctx.sim_time_s - ctx.heartbeat_s, ctx.heartbeat_s, own, s.v2v_messages,
+                       events);
+  }
   take_newest(s.gps_fixes, config_.follower_id, fix_);
   take_newest(s.magnetometers, config_.follower_id, compass_);
   take_newest(s.wheel_speeds, config_.follower_id, wheels_);
@@ -77,7 +113,8 @@ void ConvoyObservationBuilder::consume(const proto::FrameSamples& s) {
 }
 
 bool ConvoyObservationBuilder::ready() const {
-  return fix_ && compass_ && wheels_ && v2v_ && (!config_.image || image_);
+  return fix_ && compass_ && wheels_ && v2v_ && (!config_.image || image_) &&
+         (!estimator_ || estimator_->trail_features().valid);
 }
 
 Observation ConvoyObservationBuilder::observation() const {
@@ -105,8 +142,24 @@ Observation ConvoyObservationBuilder::observation() const {
               v2v_->speed_mps * (std::cos(h_lead) * un + std::sin(h_lead) * ue);
   }
   Observation o;
-  o.vector = {static_cast<float>(north), static_cast<float>(east),
-              static_cast<float>(compass_->heading_rad), static_cast<float>(closing)};
+  if (estimator_) {
+    const convoy::TrailFeatures f = estimator_->trail_features();
+    o.vector = {static_cast<float>(f.cross_track_m),
+                static_cast<float>(std::sin(f.heading_error_rad)),
+                static_cast<float>(std::cos(f.heading_error_rad)),
+                static_cast<float>(f.curvature_per_m[0]),
+                static_cast<float>(f.curvature_per_m[1]),
+                static_cast<float>(f.curvature_per_m[2]),
+                static_cast<float>(f.own_speed_mps),
+                static_cast<float>(f.leader_speed_mps),
+                static_cast<float>(f.leader_accel_mps2),
+                static_cast<float>(f.gap_m),
+                static_cast<float>(f.leader_forward_m),
+                static_cast<float>(f.leader_left_m)};
+  } else {
+    o.vector = {static_cast<float>(north), static_cast<float>(east),
+                static_cast<float>(compass_->heading_rad), static_cast<float>(closing)};
+  }
   if (config_.image) {
     if (image_->width != config_.image->width || image_->height != config_.image->height ||
         image_->data.size() != config_.image->bytes()) {
@@ -129,6 +182,13 @@ void ConvoyObservationBuilder::state_io(Archive& a) {
   held_io(a, wheels_);
   held_io(a, v2v_);
   held_io(a, image_);
+  if (estimator_) {  // the trail kind's estimator (both sides have the same configuration)
+    if constexpr (std::is_same_v<Archive, core::StateWriter>) {
+      estimator_->save_state(a);
+    } else {
+      estimator_->load_state(a);
+    }
+  }
   a.end();
 }
 

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "convoy/follower.hpp"
 #include "core/state_io.hpp"
 #include "learn/env.hpp"
 #include "protocol/agent.hpp"
@@ -17,32 +18,52 @@
 
 namespace syndds::learn {
 
+/// Which numbers the observation's vector holds (docs/learning.md, "Observation"):
+/// - paper: the paper's four, [north_m, east_m, heading_rad, closing_mps] of the leader
+///   relative to the follower, straight from the newest readings;
+/// - trail: the classical follower's estimator (convoy::ConvoyFollower: filtered own and
+///   leader positions, the leader's breadcrumb trail) run on the same readings, and its
+///   estimates in the follower's frame: distance and heading to the trail, the trail's
+///   curvature ahead, speeds, the gap along the trail, the leader's relative place.
+enum class ConvoyObservationKind { paper, trail };
+ConvoyObservationKind parse_observation_kind(const std::string& name);
+const char* observation_kind_name(ConvoyObservationKind kind);
+
 struct ConvoyObservationConfig {
+  ConvoyObservationKind kind = ConvoyObservationKind::paper;
   std::string follower_id;
   std::string leader_id;
   sensors::Geodetic geodetic_origin;  // of the follower's GPS (its rig)
   sensors::GeodeticModel geodetic_model = sensors::GeodeticModel::wgs84;
   double wheel_radius_m = 0.0;        // the tachometer's spin times this is the own speed
   std::optional<ImageSpec> image;     // the camera's frame size; absent: no image
+  // The trail kind's estimator: its configuration (leader, filter gains; the control gains
+  // are unused) and the vehicles' dimensions.
+  convoy::FollowerConfig estimator;
+  convoy::FollowerVehicle vehicle;
 };
 
-/// The observation's configuration for `follower` of a scenario following `leader_id`: its
-/// GPS's origin and model, its wheel radius, its first camera's frame size (if any). Throws
-/// std::invalid_argument if the follower has no GPS.
-ConvoyObservationConfig convoy_observation_config(const scenario::VehicleConfig& follower,
-                                                  const std::string& leader_id);
+/// The observation's configuration for `follower` of `scenario` following `leader_id`: its
+/// GPS's origin and model, its wheel radius, its first camera's frame size (if any), and for
+/// the trail kind the estimator's dimensions of both vehicles. Throws std::invalid_argument if
+/// the follower has no GPS.
+ConvoyObservationConfig convoy_observation_config(
+    const scenario::Scenario& scenario, const scenario::VehicleConfig& follower,
+    const std::string& leader_id, ConvoyObservationKind kind = ConvoyObservationKind::paper);
 
 class ConvoyObservationBuilder {
  public:
   explicit ConvoyObservationBuilder(ConvoyObservationConfig config);
 
-  /// [north_m, east_m, heading_rad, closing_mps], with bounds (observations are not clipped).
-  static Box vector_space();
-  ObservationSpace space() const { return {vector_space(), config_.image}; }
+  /// The vector's names and bounds of a kind (observations are not clipped).
+  static Box vector_space(ConvoyObservationKind kind = ConvoyObservationKind::paper);
+  ObservationSpace space() const { return {vector_space(config_.kind), config_.image}; }
+  ConvoyObservationKind kind() const { return config_.kind; }
 
   /// Takes the newest reading of each kind among `samples` (other vehicles' samples and other
-  /// topics are ignored; a sample older than the one held is ignored).
-  void consume(const proto::FrameSamples& samples);
+  /// topics are ignored; a sample older than the one held is ignored), the inputs of frame
+  /// `ctx.frame` (stamped k-1); the trail kind's estimator updates for the end of frame k-1.
+  void consume(const proto::FrameContext& ctx, const proto::FrameSamples& samples);
   /// Every input has arrived at least once (own fix, heading, speed, the leader's V2V, the
   /// image if there is a camera).
   bool ready() const;
@@ -64,6 +85,7 @@ class ConvoyObservationBuilder {
   std::optional<proto::WheelSpeedsMsg> wheels_;
   std::optional<proto::V2VMessageMsg> v2v_;
   std::optional<proto::ImageMsg> image_;
+  std::optional<convoy::ConvoyFollower> estimator_;  // the trail kind's
 };
 
 }  // namespace syndds::learn

@@ -9,6 +9,7 @@
 #include "agents/controller_agent.hpp"
 #include "core/error.hpp"
 #include "learn/convoy_env.hpp"
+#include "learn/registry.hpp"
 
 namespace syndds::learn {
 namespace {
@@ -38,9 +39,30 @@ Policy load_policy(const std::string& file, const std::string& where) {
   return p;
 }
 
+// The observation the policy was trained on: its file's env_options (a file without
+// metadata is a convoy_follow policy on the paper observation).
+ConvoyObservationKind policy_observation(const Policy& policy, const std::string& where) {
+  const auto& meta = policy.metadata();
+  const auto env = meta.find("env");
+  if (env != meta.end() && env->second != "convoy_follow") {
+    throw ConfigError(where + "a policy of environment " + env->second +
+                      ", not of convoy_follow: it cannot drive a convoy follower");
+  }
+  const auto options = meta.find("env_options");
+  if (options == meta.end()) return ConvoyObservationKind::paper;
+  try {
+    return convoy_env_options(parse_env_options_line(options->second)).observation;
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(where + "its env_options '" + options->second + "': " + e.what());
+  }
+}
+
 // The vehicle's observation, with the camera only if the policy looks at one.
-ConvoyObservationConfig observation_for(const scenario::VehicleConfig& v, const Policy& policy) {
-  ConvoyObservationConfig c = convoy_observation_config(v, v.controller.convoy.leader);
+ConvoyObservationConfig observation_for(const scenario::Scenario& s,
+                                        const scenario::VehicleConfig& v, const Policy& policy,
+                                        const std::string& where) {
+  ConvoyObservationConfig c = convoy_observation_config(s, v, v.controller.convoy.leader,
+                                                        policy_observation(policy, where));
   if (!policy.observation_space().image) c.image.reset();
   return c;
 }
@@ -55,7 +77,7 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
       where_(s.file + ": vehicle " + v.id + ": controller.model " + v.controller.policy_file +
              ": "),
       policy_(load_policy(v.controller.policy_file, where_)),
-      builder_(observation_for(v, policy_)) {
+      builder_(observation_for(s, v, policy_, where_)) {
   const ObservationSpace expected = builder_.space();
   const ObservationSpace& got = policy_.observation_space();
   const bool same_image = expected.image.has_value() == got.image.has_value() &&
@@ -88,7 +110,7 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
     since_action_ = 0;
     ++actions_;
   }
-  builder_.consume(inputs);
+  builder_.consume(ctx, inputs);
   outputs.driver_commands.push_back(agents::command_message(
       vehicle_id_, member_id_, ctx.frame, convoy_driver_inputs(steering_, throttle_brake_)));
   ++since_action_;

@@ -77,7 +77,9 @@ class OptionReader {
   std::set<std::string> read_;
 };
 
-ConvoyEnvOptions convoy_options(const EnvOptions& options) {
+}  // namespace
+
+ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   OptionReader r("convoy_follow", options);
   ConvoyEnvOptions o;
   const std::string terrain = r.choice("terrain", "rigid", {"rigid", "scm_hard", "scm_soft"});
@@ -88,13 +90,38 @@ ConvoyEnvOptions convoy_options(const EnvOptions& options) {
                    ? ConvoyDynamics::full
                    : ConvoyDynamics::reduced;
   o.camera = r.flag("camera", false);
+  o.observation = parse_observation_kind(r.choice("observation", "paper", {"paper", "trail"}));
+  o.reward_kind = r.choice("reward", "paper", {"paper", "track"}) == "track"
+                      ? ConvoyRewardKind::track
+                      : ConvoyRewardKind::paper;
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
+  o.target_speed_max_mps = r.number("target_speed_max", 0.0, 0.0, 20.0);
+  if (o.target_speed_max_mps > 0.0 && o.target_speed_max_mps < o.target_speed_mps) {
+    throw std::invalid_argument("environment convoy_follow, option target_speed_max: below "
+                                "target_speed");
+  }
   o.max_steps = static_cast<int>(r.number("max_steps", o.max_steps, 1, 100000));
   r.finish();
   return o;
 }
 
-}  // namespace
+std::string env_options_line(const EnvOptions& options) {
+  std::string out;
+  for (const auto& [k, v] : options) out += (out.empty() ? "" : " ") + k + "=" + v;
+  return out;
+}
+
+EnvOptions parse_env_options_line(const std::string& line) {
+  std::vector<std::string> parts;
+  std::size_t at = 0;
+  while (at < line.size()) {
+    const std::size_t end = line.find(' ', at);
+    const std::string part = line.substr(at, end - at);
+    if (!part.empty()) parts.push_back(part);
+    at = end == std::string::npos ? line.size() : end + 1;
+  }
+  return parse_env_options(parts);
+}
 
 EnvOptions parse_env_options(const std::vector<std::string>& key_values) {
   EnvOptions out;
@@ -114,7 +141,7 @@ std::vector<std::string> env_names() { return {"convoy_follow", "double_integrat
 
 EnvFactory env_factory(const std::string& name, const EnvOptions& options) {
   if (name == "convoy_follow") {
-    const ConvoyEnvOptions o = convoy_options(options);
+    const ConvoyEnvOptions o = convoy_env_options(options);
     return [o] { return make_convoy_env(o); };
   }
   if (name == "double_integrator") {

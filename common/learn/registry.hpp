@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "learn/convoy_env.hpp"
 #include "learn/env.hpp"
 
 namespace syndds::learn {
@@ -16,6 +17,14 @@ using EnvOptions = std::map<std::string, std::string>;
 /// Options from KEY=VALUE texts (`--env-option`); std::invalid_argument naming a text without
 /// '=' or a key given twice.
 EnvOptions parse_env_options(const std::vector<std::string>& key_values);
+
+/// Options as one line, "KEY=VALUE KEY=VALUE" sorted by key (a policy file's env_options),
+/// and back (std::invalid_argument as parse_env_options).
+std::string env_options_line(const EnvOptions& options);
+EnvOptions parse_env_options_line(const std::string& line);
+
+/// The convoy_follow environment's options from text (std::invalid_argument naming the option).
+ConvoyEnvOptions convoy_env_options(const EnvOptions& options);
 
 /// The names make_env knows, sorted.
 std::vector<std::string> env_names();

@@ -203,7 +203,18 @@ int main(int argc, char** argv) {
       return 1;
     }
     trainer.save_checkpoint(checkpoint.string());
-    trainer.save_policy((dir / "policy.pt").string());
+    learn::PolicyMetadata metadata{{"env", env_name},
+                                   {"env_options", learn::env_options_line(env_options)},
+                                   {"network", trainer.model().kind()},
+                                   {"seed", std::to_string(options.seed)},
+                                   {"updates", std::to_string(trainer.updates())},
+                                   {"interactions", std::to_string(trainer.interactions())}};
+    if (!init_from.empty()) metadata["init_from"] = fs::path(init_from).filename().string();
+    if (env_name == "convoy_follow") {
+      // The rig a vehicle driven by this policy needs (config/sensors/<rig>.yaml).
+      metadata["sensors"] = factory()->observation_space().image ? "convoy_camera" : "convoy";
+    }
+    trainer.save_policy((dir / "policy.pt").string(), metadata);
     std::printf("wrote %s, %s, %s\n", csv.string().c_str(), checkpoint.string().c_str(),
                 (dir / "policy.pt").string().c_str());
     const std::string script = std::string(SYNDDS_SOURCE_TOOLS_DIR) + "/training_curve.py";

@@ -30,7 +30,7 @@ std::vector<float> floats(const torch::Tensor& t) {
 
 void save_policy_file(const std::string& path, const ActorCritic& model,
                       const RunningNormalizer& normalizer, const ObservationSpace& observations,
-                      const Box& actions) {
+                      const Box& actions, const PolicyMetadata& metadata) {
   torch::serialize::OutputArchive archive, m, n;
   model.save(m);
   normalizer.save(n);
@@ -46,6 +46,14 @@ void save_policy_file(const std::string& path, const ActorCritic& model,
                                         static_cast<std::int64_t>(image.channels)}));
   archive.write("action_low", floats(actions.low));
   archive.write("action_high", floats(actions.high));
+  std::string lines;  // key=value per line
+  for (const auto& [k, v] : metadata) {
+    if (k.find_first_of("=\n") != std::string::npos || v.find('\n') != std::string::npos) {
+      throw std::invalid_argument("policy metadata: '" + k + "' has a newline or '=' in it");
+    }
+    lines += k + "=" + v + "\n";
+  }
+  if (!lines.empty()) archive.write("metadata", c10::IValue(lines));
   const std::string tmp = path + ".tmp";
   archive.save_to(tmp);
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
@@ -53,8 +61,8 @@ void save_policy_file(const std::string& path, const ActorCritic& model,
   }
 }
 
-void Trainer::save_policy(const std::string& path) const {
-  save_policy_file(path, *model_, normalizer_, observation_space_, action_space_);
+void Trainer::save_policy(const std::string& path, const PolicyMetadata& metadata) const {
+  save_policy_file(path, *model_, normalizer_, observation_space_, action_space_, metadata);
 }
 
 }  // namespace syndds::learn::ppo
@@ -78,6 +86,19 @@ void Policy::load(const std::string& path) {
   actions_.low = ppo::floats(ppo::read(archive, "action_low"));
   actions_.high = ppo::floats(ppo::read(archive, "action_high"));
   actions_.names.clear();
+  metadata_.clear();
+  c10::IValue meta;
+  if (archive.try_read("metadata", meta)) {
+    const std::string& text = meta.toStringRef();
+    std::size_t at = 0;
+    while (at < text.size()) {
+      const std::size_t end = text.find('\n', at);
+      const std::string line = text.substr(at, end - at);
+      const std::size_t eq = line.find('=');
+      if (eq != std::string::npos) metadata_[line.substr(0, eq)] = line.substr(eq + 1);
+      at = end == std::string::npos ? text.size() : end + 1;
+    }
+  }
   c10::IValue network;
   archive.read("network", network);
   model_ = ppo::make_actor_critic(network.toStringRef(), observations_, actions_);

@@ -5,6 +5,7 @@
 // mean (deterministic) or a sample, clamped to the action box either way.
 #include <torch/torch.h>
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -13,12 +14,23 @@
 #include "learn/ppo/networks.hpp"
 #include "learn/ppo/normalizer.hpp"
 
+namespace syndds::learn {
+
+/// What a policy file says about how it was made (docs/learning.md, "Policy files"): at
+/// least `env` (the environment's name) and `env_options` (its KEY=VALUE options, space
+/// separated, sorted), so that a controller builds the observation the policy was trained on
+/// and a scenario generator gives the vehicle the sensors it needs. Keys and values are one
+/// line each.
+using PolicyMetadata = std::map<std::string, std::string>;
+
+}  // namespace syndds::learn
+
 namespace syndds::learn::ppo {
 
 /// Writes the policy file of `model` (used by Trainer::save_policy).
 void save_policy_file(const std::string& path, const ActorCritic& model,
                       const RunningNormalizer& normalizer, const ObservationSpace& observations,
-                      const Box& actions);
+                      const Box& actions, const PolicyMetadata& metadata = {});
 
 }  // namespace syndds::learn::ppo
 
@@ -34,6 +46,9 @@ class Policy {
   void seed(std::uint64_t seed);
 
   const ObservationSpace& observation_space() const { return observations_; }
+  /// The file's metadata; empty for files written before metadata existed (they are
+  /// convoy_follow policies on the paper observation).
+  const PolicyMetadata& metadata() const { return metadata_; }
   const Box& action_space() const { return actions_; }
 
  private:
@@ -41,6 +56,7 @@ class Policy {
   ppo::RunningNormalizer normalizer_;
   ObservationSpace observations_;
   Box actions_;
+  PolicyMetadata metadata_;
   at::Generator generator_;
 };
 

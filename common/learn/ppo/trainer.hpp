@@ -24,6 +24,7 @@
 
 #include "learn/ppo/networks.hpp"
 #include "learn/ppo/normalizer.hpp"
+#include "learn/ppo/policy.hpp"
 #include "learn/vector_env.hpp"
 
 namespace syndds::learn::ppo {
@@ -106,8 +107,8 @@ class Trainer {
   /// Continues the run that wrote `path`; this trainer must have the same options (copies,
   /// steps, seed, network: checked) and environment.
   void load_checkpoint(const std::string& path);
-  /// The inference file Policy::load reads: network, normaliser, spaces.
-  void save_policy(const std::string& path) const;
+  /// The inference file Policy::load reads: network, normaliser, spaces, `metadata`.
+  void save_policy(const std::string& path, const PolicyMetadata& metadata = {}) const;
   /// Starts this (fresh) run from the network and observation normaliser of a policy file of
   /// an earlier stage (the curriculum: reduced model first, then the full one); the optimiser,
   /// counters and return statistics start anew. std::invalid_argument if the network kind or
