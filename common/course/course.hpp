@@ -142,6 +142,11 @@ struct CourseOptions {
   // The followers' controller: empty for the classical follower, else a learned policy file
   // (`controller: {type: policy, model: ...}`, docs/learning.md).
   std::string follower_policy;
+  /// The followers' sensor rig (config/sensors/<rig>.yaml): `convoy` (GPS, compass,
+  /// tachometer), or `convoy_camera` for a policy that also looks through the front camera.
+  /// The last vehicle's rig, when it films the chase video, is <rig>_chase (convoy_chase for
+  /// convoy): the same sensors first, the chase camera after them.
+  std::string follower_rig = "convoy";
   /// The last vehicle carries a third-person chase camera and writes a video (rig
   /// convoy_chase). Rendering and encoding it takes most of a run's time (4-6x the rest,
   /// docs/performance.md): a study leaves it out; it changes nothing the metrics measure.

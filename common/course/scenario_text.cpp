@@ -246,8 +246,12 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
     y << "  - id: " << id << "\n    model: hmmwv\n    dynamics: full\n";
     y << "    start: {x: " << num(start.x()) << ", y: " << num(start.y())
       << ", yaw_deg: " << num(yaw_deg) << "}\n";
-    y << (k == 3 && o.chase_video ? "    sensors: {rig: convoy_chase, video: true}\n"
-                                  : "    sensors: convoy\n");
+    const std::string rig = k < leaders ? "convoy" : o.follower_rig;
+    if (k == 3 && o.chase_video) {
+      y << "    sensors: {rig: " << rig << "_chase, video: true}\n";
+    } else {
+      y << "    sensors: " << rig << "\n";
+    }
     y << "    v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}\n    controller:\n";
     if (k < leaders) {
       // Each leader drives the planned path from its own start, stopping kSpacingM behind the

@@ -2,12 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <mutex>
 #include <numbers>
 #include <random>
 #include <sstream>
 #include <stdexcept>
 
 #include "core/text.hpp"
+#include "course/course.hpp"
 
 namespace syndds::learn {
 namespace {
@@ -111,13 +114,28 @@ double distance_to_path(const std::vector<Vec2>& path, const Vec2& p) {
   return best;
 }
 
-ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions& o) {
-  std::mt19937_64 rng(seed);
-  ConvoyEpisode e;
-  e.variant = static_cast<int>(unit(rng) * kConvoyPathVariants);
-  e.path = convoy_path(e.variant);
-  e.path_length_m = length(e.path);
-  e.follower_arc_m = unit(rng) * 0.5 * e.path_length_m;
+ConvoyEpisodeKind parse_episode_kind(const std::string& name) {
+  if (name == "paper") return ConvoyEpisodeKind::paper;
+  if (name == "courses") return ConvoyEpisodeKind::courses;
+  if (name == "mixed") return ConvoyEpisodeKind::mixed;
+  throw std::invalid_argument("episodes '" + name + "' is not one of paper, courses, mixed");
+}
+
+namespace {
+
+// Courses take about 0.2 s each to plan: every one is made once per process and shared by
+// the environment copies (a course is a pure function of its seed).
+const course::Course& training_course(std::uint64_t seed) {
+  static std::mutex mutex;
+  static std::map<std::uint64_t, course::Course> cache;
+  const std::lock_guard<std::mutex> lock(mutex);
+  auto it = cache.find(seed);
+  if (it == cache.end()) it = cache.emplace(seed, course::make_course(seed)).first;
+  return it->second;
+}
+
+// The leader's start (gap_m ahead of the follower) and its path from there to the end.
+void place_pair(ConvoyEpisode& e, const ConvoyEpisodeOptions& o) {
   e.leader_arc_m = e.follower_arc_m + o.gap_m;
   Vec2 t;
   at_arc(e.path, e.follower_arc_m, e.follower_start, t);
@@ -133,6 +151,49 @@ ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions
     if (acc > e.leader_arc_m + 0.5) e.leader_path.push_back(e.path[i]);
   }
   if (e.leader_path.size() < 2) throw std::logic_error("convoy episode: leader starts at the end");
+}
+
+// A random obstacle course of the study's generator (current protocol): its planned path and
+// its obstacles as the study's scenarios place them (fixed ones rocks, the others trees and
+// bushes in turn), the pair starting anywhere in the first 60 % of the path.
+ConvoyEpisode course_episode(std::uint64_t seed, const ConvoyEpisodeOptions& o) {
+  std::mt19937_64 rng(seed);
+  ConvoyEpisode e;
+  e.variant = -1;
+  e.course_seed = kTrainingCourseSeed + seed % kTrainingCourses;
+  const course::Course& c = training_course(e.course_seed);
+  e.path = resample(c.path.waypoints, 1.0);
+  e.path_length_m = length(e.path);
+  e.follower_arc_m = unit(rng) * 0.6 * e.path_length_m;
+  place_pair(e, o);
+  e.world_min = Vec2(-35.0, -35.0);
+  e.world_max = Vec2(135.0, 135.0);
+  const int fixed = c.field.params.fixed_count;
+  for (std::size_t i = 0; i < c.placed.size(); ++i) {
+    const course::Circle& ci = c.placed[i];
+    if (ci.radius == 0.0) continue;
+    const bool is_fixed = static_cast<int>(i) < fixed;
+    const char* label = is_fixed ? "rock" : (i % 2 == 0 ? "tree" : "bush");
+    const double height = is_fixed ? 3.0 : (i % 2 == 0 ? 6.0 : 1.5);
+    e.obstacles.push_back({std::string(label) + std::to_string(i + 1), label, ci.centre,
+                           ci.radius, height});
+  }
+  return e;
+}
+
+}  // namespace
+
+ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions& o) {
+  if (o.kind == ConvoyEpisodeKind::courses || (o.kind == ConvoyEpisodeKind::mixed && seed % 2 == 1)) {
+    return course_episode(seed, o);
+  }
+  std::mt19937_64 rng(seed);
+  ConvoyEpisode e;
+  e.variant = static_cast<int>(unit(rng) * kConvoyPathVariants);
+  e.path = convoy_path(e.variant);
+  e.path_length_m = length(e.path);
+  e.follower_arc_m = unit(rng) * 0.5 * e.path_length_m;
+  place_pair(e, o);
 
   // Obstacles: rocks, trees and bushes in turn (the kinds of the convoy scenarios), each
   // beside the stretch ahead of the follower, at a drawn side and offset, redrawn until it
@@ -181,13 +242,16 @@ std::string convoy_scenario_yaml(const ConvoyEpisode& e, const ConvoyScenarioOpt
   y << "seed: " << (o.seed % 4000000000000000ULL) << "\n";
   y << "time: {step_s: " << num(step_s) << ", heartbeat_s: 0.01, end_time_s: "
     << num(o.end_time_s) << "}\n";
-  y << "world: {x_min_m: -10, x_max_m: 100, y_min_m: -10, y_max_m: 100}\n";
+  y << "world: {x_min_m: " << num(e.world_min.x()) << ", x_max_m: " << num(e.world_max.x())
+    << ", y_min_m: " << num(e.world_min.y()) << ", y_max_m: " << num(e.world_max.y()) << "}\n";
   if (o.terrain == ConvoyTerrain::rigid) {
     y << "terrain: {type: rigid, friction: 0.8}\n";
   } else {
     y << "terrain:\n  type: scm\n  preset: "
       << (o.terrain == ConvoyTerrain::scm_soft ? "soft" : "hard") << "\n  spacing_m: "
-      << num(o.scm_spacing_m) << "\n  area: {x_min_m: -5, x_max_m: 95, y_min_m: -5, y_max_m: 95}\n";
+      << num(o.scm_spacing_m) << "\n  area: {x_min_m: " << num(e.world_min.x() + 5.0)
+      << ", x_max_m: " << num(e.world_max.x() - 5.0) << ", y_min_m: " << num(e.world_min.y() + 5.0)
+      << ", y_max_m: " << num(e.world_max.y() - 5.0) << "}\n";
   }
   y << "obstacles:\n";
   for (const auto& ob : e.obstacles) {

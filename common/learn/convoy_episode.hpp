@@ -40,7 +40,19 @@ struct ConvoyObstacle {
   double height_m = 0.0;
 };
 
+/// Which episodes reset() draws: the paper's S / C paths in the 90 m area, random obstacle
+/// courses (the statistical study's generator, common/course, on training seeds of their own),
+/// or both (even episode seeds paper, odd ones courses).
+enum class ConvoyEpisodeKind { paper, courses, mixed };
+ConvoyEpisodeKind parse_episode_kind(const std::string& name);
+
+/// Course seeds of training episodes: kTrainingCourseSeed + (episode seed mod
+/// kTrainingCourses), far from the study's seeds (1, 2, ...), which stay unseen.
+inline constexpr std::uint64_t kTrainingCourseSeed = 1000000;
+inline constexpr std::uint64_t kTrainingCourses = 1024;
+
 struct ConvoyEpisodeOptions {
+  ConvoyEpisodeKind kind = ConvoyEpisodeKind::paper;
   double gap_m = 15.0;            // the leader starts this far ahead along the path
   int obstacles = 8;
   double obstacle_offset_min_m = 4.0;  // obstacle centre to path, drawn in [min, max]
@@ -49,7 +61,10 @@ struct ConvoyEpisodeOptions {
 };
 
 struct ConvoyEpisode {
-  int variant = 0;
+  int variant = 0;                 // paper episodes: the path variant; course episodes: -1
+  std::uint64_t course_seed = 0;   // course episodes: the course's seed
+  Vec2 world_min = Vec2(-10.0, -10.0);  // the scenario's world box
+  Vec2 world_max = Vec2(100.0, 100.0);
   std::vector<Vec2> path;          // the whole path of the variant
   double path_length_m = 0.0;
   double follower_arc_m = 0.0;     // where the follower starts (arc length along the path)

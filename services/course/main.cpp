@@ -3,12 +3,16 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
 #include "course/course.hpp"
+#include "learn/policy_metadata.hpp"
+#include "scenario/scenario.hpp"
 
 using namespace syndds;
+namespace fs = std::filesystem;
 
 int main(int argc, char** argv) {
   CLI::App app{"syndds course: write the scenario of a random obstacle course (docs/ensemble.md)"};
@@ -40,6 +44,11 @@ int main(int argc, char** argv) {
                  "Followers driven by this learned policy (e.g. "
                  "policies/convoy_follow_lowdim.pt, under config/ or next to the scenario) "
                  "instead of the classical follower");
+  std::string follower_rig;
+  app.add_option("--follower-rig", follower_rig,
+                 "The followers' sensor rig (config/sensors/<rig>.yaml; the chase video's "
+                 "vehicle gets <rig>_chase). Default: with --follower-policy, the rig its "
+                 "metadata names (<policy>.json, key sensors), else convoy");
   bool no_chase_video = false;
   app.add_flag("--no-chase-video", no_chase_video,
                "No chase camera and video behind the last vehicle (a study's runs need none: "
@@ -60,6 +69,25 @@ int main(int argc, char** argv) {
     options.target_speed_mps = target_mps;
     options.follower_policy = follower_policy;
     options.chase_video = !no_chase_video;
+    options.follower_rig = follower_rig.empty() ? "convoy" : follower_rig;
+    const std::string config_dir = scenario::default_config_dir();
+    if (follower_rig.empty() && !follower_policy.empty()) {
+      // The policy's file: under config/ or as given (next to the scenario, when the scenario
+      // is written beside it).
+      std::string file = (fs::path(config_dir) / follower_policy).string();
+      if (!fs::exists(file)) file = follower_policy;
+      if (const auto meta = learn::read_policy_sidecar(file)) {
+        if (const auto it = meta->find("sensors"); it != meta->end()) options.follower_rig = it->second;
+      }
+    }
+    for (const std::string& rig :
+         {options.follower_rig, options.chase_video ? options.follower_rig + "_chase" : ""}) {
+      if (!rig.empty() && !fs::exists(fs::path(config_dir) / "sensors" / (rig + ".yaml"))) {
+        std::cerr << "syndds_course: --follower-rig " << options.follower_rig << ": no rig "
+                  << rig << " in " << config_dir << "/sensors\n";
+        return 1;
+      }
+    }
     const std::string text = course::scenario_yaml(c, options);
     std::ofstream out(output, std::ios::binary);
     if (!out || !(out << text) || !out.flush()) {

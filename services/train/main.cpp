@@ -215,8 +215,9 @@ int main(int argc, char** argv) {
       metadata["sensors"] = factory()->observation_space().image ? "convoy_camera" : "convoy";
     }
     trainer.save_policy((dir / "policy.pt").string(), metadata);
-    std::printf("wrote %s, %s, %s\n", csv.string().c_str(), checkpoint.string().c_str(),
-                (dir / "policy.pt").string().c_str());
+    learn::write_policy_sidecar((dir / "policy.pt").string(), metadata);
+    std::printf("wrote %s, %s, %s, %s\n", csv.string().c_str(), checkpoint.string().c_str(),
+                (dir / "policy.pt").string().c_str(), (dir / "policy.json").string().c_str());
     const std::string script = std::string(SYNDDS_SOURCE_TOOLS_DIR) + "/training_curve.py";
     if (std::system("/usr/bin/python3 -c 'import matplotlib' > /dev/null 2>&1") == 0) {
       const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir.string() + "'";

@@ -11,19 +11,9 @@
 #include <vector>
 
 #include "learn/env.hpp"
+#include "learn/policy_metadata.hpp"
 #include "learn/ppo/networks.hpp"
 #include "learn/ppo/normalizer.hpp"
-
-namespace syndds::learn {
-
-/// What a policy file says about how it was made (docs/learning.md, "Policy files"): at
-/// least `env` (the environment's name) and `env_options` (its KEY=VALUE options, space
-/// separated, sorted), so that a controller builds the observation the policy was trained on
-/// and a scenario generator gives the vehicle the sensors it needs. Keys and values are one
-/// line each.
-using PolicyMetadata = std::map<std::string, std::string>;
-
-}  // namespace syndds::learn
 
 namespace syndds::learn::ppo {
 
