@@ -199,7 +199,7 @@ with open(out / "ensemble.csv", "w", newline="") as f, \
     e, r = csv.writer(f, lineterminator="\n"), csv.writer(g, lineterminator="\n")
     e.writerow(["seed", "terrain", "convoy", "controller", "status", "follower", "position", "leader",
                 *metrics, "obstacles_hit", "samples", "segment_length_m",
-                "leader_max_speed_mps", "leader_mean_speed_mps"])
+                "leader_max_speed_mps", "leader_mean_speed_mps", "leader_lost_events", "stuck"])
     r.writerow(["seed", "terrain", "status", "sim_time_s", "wall_time_s", "real_time_factor"])
     for run_id in ids:
         seed, terrain = run_id.split("_", 1)
@@ -216,15 +216,21 @@ with open(out / "ensemble.csv", "w", newline="") as f, \
             followers, leaders = j["followers"], {l["id"]: l for l in j["leaders"]}
         except (OSError, ValueError, KeyError, TypeError):
             followers, leaders = [], {}
+        try:  # leader-lost events and stuck (docs/convoy.md) per follower, from the convoy report
+            convoy_report = {c["follower"]: c for c in json.loads((run / "convoy.json").read_text())}
+        except (OSError, ValueError, KeyError, TypeError):
+            convoy_report = {}
         if status != "completed" or not followers:
-            e.writerow([seed, terrain, convoy, controller, status] + [""] * (3 + len(metrics) + 5))
+            e.writerow([seed, terrain, convoy, controller, status] + [""] * (3 + len(metrics) + 7))
             continue
         for m in sorted(followers, key=lambda m: m["position"]):
             head = leaders.get(m["leader"], {})
             e.writerow([seed, terrain, convoy, controller, status, m["id"], m["position"], m["leader"],
                         *[cell(m[k]) for k in metrics], m["obstacles_hit"], m["samples"],
                         cell(m["segment_length_m"]), cell(head.get("max_speed_mps")),
-                        cell(head.get("mean_moving_speed_mps"))])
+                        cell(head.get("mean_moving_speed_mps")),
+                        convoy_report.get(m["id"], {}).get("leader_lost_events", ""),
+                        int(convoy_report[m["id"]]["stuck"]) if m["id"] in convoy_report else ""])
 EOF
 [ $? = 0 ] || die "could not write $OUTPUT/ensemble.csv" 2
 echo "run_ensemble: $OUTPUT/ensemble.csv (metrics per run and follower), $OUTPUT/runs.csv (times)"

@@ -560,8 +560,9 @@ def report(out, rows, runs, stills):
              f"{len(runs) - len(failed)} completed; followers: {', '.join(controllers) or '-'}. "
              "Definitions: docs/ensemble.md, docs/convoy.md.",
              "", "Median over the courses (terrain, follower position):", "",
-             "| terrain | follower | " + " | ".join(k for k, _ in METRICS) + " | obstacles hit |",
-             "|---|---|" + "---|" * (len(METRICS) + 1)]
+             "| terrain | follower | " + " | ".join(k for k, _ in METRICS)
+             + " | obstacles hit | runs stuck | leader lost |",
+             "|---|---|" + "---|" * (len(METRICS) + 3)]
     for terrain in terrains:
         for position in positions:
             sel = [r for r in rows if r["terrain"] == terrain and r["position"]
@@ -571,7 +572,13 @@ def report(out, rows, runs, stills):
                 values = [float(r[key]) for r in sel if r[key]]
                 cells.append(f"{np.median(values):.3f}" if values else "-")
             hits = sum(int(r["obstacles_hit"]) for r in sel)
-            lines.append(f"| {terrain} | {position} | " + " | ".join(cells) + f" | {hits} |")
+            # Columns of ensemble.csv since stuck was measured; "-" for older folders.
+            stuck = (str(sum(int(r["stuck"]) for r in sel if r["stuck"]))
+                     if sel and "stuck" in sel[0] else "-")
+            lost = (str(sum(int(r["leader_lost_events"]) for r in sel if r["leader_lost_events"]))
+                    if sel and "leader_lost_events" in sel[0] else "-")
+            lines.append(f"| {terrain} | {position} | " + " | ".join(cells)
+                         + f" | {hits} | {stuck} | {lost} |")
     lines += ["", "Leaders (median over the courses; target: the scenario's target speed):", "",
               "| terrain | runs | max speed (m/s) | mean speed while moving (m/s) | target (m/s) |",
               "|---|---|---|---|---|"]

@@ -89,7 +89,9 @@ nlohmann::json convoy_json(const std::vector<convoy::FollowerReport>& reports) {
                    {"time_below_standstill_s", r.time_below_standstill_s},
                    {"obstacles_hit", r.obstacles_hit},
                    {"vehicle_contacts", r.vehicle_contacts},
-                   {"leader_lost_events", r.leader_lost_events}});
+                   {"leader_lost_events", r.leader_lost_events},
+                   {"stuck", r.stuck},
+                   {"stuck_time_s", r.stuck_time_s}});
   }
   return out;
 }
@@ -181,11 +183,11 @@ std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
   // Gaps in metres and seconds, cross-track in metres (definitions: docs/convoy.md).
   // Bumper: the smallest box-to-box gap, and the time spent below the standstill gap.
   std::string text = fmt::format(
-      "  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>8} {:>11}\n", "follower", "follows",
-      "gap m mean/min/max", "gap s mean/min/max", "cross m mean/max", "bumper m min/<s",
-      "obstacles", "contacts", "leader_lost");
+      "  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>8} {:>11} {:>9}\n", "follower",
+      "follows", "gap m mean/min/max", "gap s mean/min/max", "cross m mean/max",
+      "bumper m min/<s", "obstacles", "contacts", "leader_lost", "stuck at");
   for (const auto& r : reports) {
-    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>8} {:>11}\n",
+    text += fmt::format("  {:<10} {:<8} {:>20} {:>20} {:>15} {:>15} {:>9} {:>8} {:>11} {:>9}\n",
                         r.follower,
                         r.leader,
                         fmt::format("{:.1f}/{:.1f}/{:.1f}", r.distance_gap_m.mean,
@@ -194,7 +196,8 @@ std::string convoy_table(const std::vector<convoy::FollowerReport>& reports) {
                                     r.time_gap_s.max),
                         fmt::format("{:.2f}/{:.2f}", r.cross_track_m.mean, r.cross_track_m.max),
                         fmt::format("{:.2f}/{:.2f}", r.bumper_gap_m.min, r.time_below_standstill_s),
-                        r.obstacles_hit, r.vehicle_contacts, r.leader_lost_events);
+                        r.obstacles_hit, r.vehicle_contacts, r.leader_lost_events,
+                        r.stuck ? fmt::format("{:.1f} s", r.stuck_time_s) : "-");
   }
   return text;
 }

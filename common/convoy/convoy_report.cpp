@@ -114,6 +114,37 @@ FollowerReport follower_report(const std::string& follower, const std::string& l
       time_gap.add(f.time_s - t_leader);
     }
   }
+  // Stuck: over some window of kStuckWindowS the follower's progress along the leader's track
+  // (its closest point's arc position; before the track's start, minus its distance to the
+  // start; off the track's ends, held) grew by less than kStuckProgressM while the leader drove
+  // more than kStuckLeaderM: the leader drives on and the follower does not come along.
+  if (track.size() >= 2 && n > 0) {
+    const std::size_t window =
+        static_cast<std::size_t>(std::llround(kStuckWindowS / std::max(heartbeat_s, 1e-6)));
+    std::vector<double> progress(n), driven(n);
+    double held = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+      double u = 0.0;
+      bool inside = false;
+      const double d = distance_to_track(track, arc, follower_track[k].position, u, inside);
+      if (inside) {
+        held = u;
+      } else if (u <= 0.0) {
+        held = -d;
+      }
+      progress[k] = held;
+      driven[k] = k == 0 ? 0.0
+                         : driven[k - 1] + (leader_track[k].position - leader_track[k - 1].position).norm();
+    }
+    for (std::size_t k = window; k < n; ++k) {
+      if (progress[k] - progress[k - window] < kStuckProgressM &&
+          driven[k] - driven[k - window] > kStuckLeaderM) {
+        r.stuck = true;
+        r.stuck_time_s = follower_track[k].time_s;
+        break;
+      }
+    }
+  }
   r.distance_gap_m = distance.stat();
   r.time_gap_s = time_gap.stat();
   r.cross_track_m = cross.stat();

@@ -11,7 +11,8 @@
 // - bumper gap: the smallest distance between the two vehicles' chassis boxes (placed by the
 //   recorded poses, metrics/box_gap.hpp), every frame; for a follower behind its leader, the
 //   bumper-to-bumper gap. With it the time the follower spent closer than its standstill gap;
-// - obstacles hit (collision events) and leader-lost events of the follower.
+// - obstacles hit (collision events) and leader-lost events of the follower;
+// - stuck: whether it stopped for good while its leader drove on (kStuckWindowS below).
 #include <map>
 #include <string>
 #include <vector>
@@ -62,7 +63,16 @@ struct FollowerReport {
   std::size_t obstacles_hit = 0;
   std::size_t vehicle_contacts = 0;    // collision episodes with other vehicles (set by the caller)
   std::size_t leader_lost_events = 0;
+  bool stuck = false;                  // stopped for good (below)
+  double stuck_time_s = -1.0;          // when it was first seen stuck (end of the window)
 };
+
+/// Stuck (FollowerReport::stuck): in some window of this length the follower's progress along
+/// the leader's track grew by less than kStuckProgressM while the leader drove more than
+/// kStuckLeaderM.
+inline constexpr double kStuckWindowS = 10.0;
+inline constexpr double kStuckProgressM = 0.5;
+inline constexpr double kStuckLeaderM = 5.0;
 
 /// Distance from `p` to a polyline track; `u` gets the arc position of the closest point and
 /// `inside` whether it lies strictly between the track's end points.

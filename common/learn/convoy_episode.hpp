@@ -47,9 +47,10 @@ enum class ConvoyEpisodeKind { paper, courses, mixed };
 ConvoyEpisodeKind parse_episode_kind(const std::string& name);
 
 /// Course seeds of training episodes: kTrainingCourseSeed + (episode seed mod
-/// kTrainingCourses), far from the study's seeds (1, 2, ...), which stay unseen.
+/// kTrainingCourses), far from the study's seeds (1, 2, ...), which stay unseen. (A seed
+/// whose fields give no path stands for seed + kTrainingCourses, and so on.)
 inline constexpr std::uint64_t kTrainingCourseSeed = 1000000;
-inline constexpr std::uint64_t kTrainingCourses = 1024;
+inline constexpr std::uint64_t kTrainingCourses = 512;
 
 struct ConvoyEpisodeOptions {
   ConvoyEpisodeKind kind = ConvoyEpisodeKind::paper;

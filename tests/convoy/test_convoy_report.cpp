@@ -84,3 +84,29 @@ TEST(ConvoyReport, BumperGapIsBoxToBoxAndCountsTheTimeBelowStandstill) {
       follower_report("f1", "l1", follower, leader, 0, 0, {hmmwv, hmmwv, 5.0}, 0.01);
   EXPECT_NEAR(turned.bumper_gap_m.min, 6.995 - 2.35 - 1.08, 1e-9);
 }
+
+// Stuck: the follower drives 3 m/s behind its leader on the same line, stops for good at
+// t = 12 s while the leader drives on: seen stuck once a whole window (10 s) has brought it
+// less than 0.5 m, i.e. 10 s less 0.5 m / (3 m/s) after it stopped. Not stuck: the same
+// follower stopping behind a leader that stopped too, or driving on.
+TEST(ConvoyReport, AFollowerStoppedForGoodWhileItsLeaderDrivesOnIsStuck) {
+  const auto run = [](double follower_stop_s, double leader_stop_s) {
+    Track leader, follower;
+    for (int k = 0; k <= 4000; ++k) {
+      const double t = k * 0.01;
+      const double tl = std::min(t, leader_stop_s), tf = std::min(t, follower_stop_s);
+      leader.push_back({t, Vec2(20.0 + 3.0 * tl, 0.0), t < leader_stop_s ? 3.0 : 0.0});
+      follower.push_back({t, Vec2(3.0 * tf, 0.0), t < follower_stop_s ? 3.0 : 0.0});
+    }
+    return follower_report("f1", "l1", follower, leader, 0, 0);
+  };
+  const auto stuck = run(12.0, 1e9);
+  EXPECT_TRUE(stuck.stuck);
+  EXPECT_NEAR(stuck.stuck_time_s, 12.0 + 10.0 - 0.5 / 3.0, 0.02);
+  const auto both_stopped = run(12.0, 12.0);
+  EXPECT_FALSE(both_stopped.stuck);
+  EXPECT_EQ(both_stopped.stuck_time_s, -1.0);
+  // Driving on: for its first 6.7 s the follower is behind the start of its leader's track,
+  // where progress is minus the distance still to go, so a follower still coming is not stuck.
+  EXPECT_FALSE(run(1e9, 1e9).stuck);
+}

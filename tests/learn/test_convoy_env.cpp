@@ -314,3 +314,105 @@ TEST(ConvoyEnv, FullDynamicsOnSoftSoilFollows) {
   std::printf("gear %d, engine %.0f rpm, z %.3f m\n", env.follower_state().gear,
               env.follower_state().engine_speed_rpm, env.follower_state().pose.position.z());
 }
+
+// Course episodes: the study's generator on training seeds (never the study's own), the path
+// planned 2 m clear of every obstacle, both vehicles on it 15 m apart; `mixed` alternates paper
+// (even seeds) and course (odd seeds) episodes.
+TEST(ConvoyEpisode, CourseEpisodesUseTheStudysGeneratorOnTrainingSeeds) {
+  ConvoyEpisodeOptions o;
+  o.kind = ConvoyEpisodeKind::courses;
+  for (std::uint64_t seed : {3u, 4u, 515u}) {
+    const ConvoyEpisode e = make_convoy_episode(seed, o);
+    EXPECT_EQ(e.variant, -1);
+    EXPECT_EQ(e.course_seed, kTrainingCourseSeed + seed % kTrainingCourses);
+    EXPECT_GT(e.obstacles.size(), 10u);
+    EXPECT_GT(e.path_length_m, 120.0);
+    for (const auto& ob : e.obstacles) {
+      // The planner keeps 2 m from the circles; the path is resampled at 1 m (chords of a
+      // smoothed polyline: a few centimetres).
+      EXPECT_GE(distance_to_path(e.path, ob.centre) - ob.radius_m, 1.9) << "seed " << seed << " " << ob.id;
+    }
+    EXPECT_LE(e.follower_arc_m, 0.6 * e.path_length_m);
+    EXPECT_DOUBLE_EQ(e.leader_arc_m, e.follower_arc_m + 15.0);
+    EXPECT_LT(distance_to_path(e.path, e.follower_start), 1e-9);
+    EXPECT_LT(distance_to_path(e.path, e.leader_start), 1e-9);
+  }
+  // Seed 515 and seed 3 share a course (515 mod 512 = 3), not their starts.
+  EXPECT_EQ(make_convoy_episode(3, o).path, make_convoy_episode(515, o).path);
+  EXPECT_NE(make_convoy_episode(3, o).follower_arc_m, make_convoy_episode(515, o).follower_arc_m);
+  o.kind = ConvoyEpisodeKind::mixed;
+  EXPECT_GE(make_convoy_episode(10, o).variant, 0);
+  EXPECT_EQ(make_convoy_episode(11, o).variant, -1);
+  EXPECT_EQ(make_convoy_episode(10, o).path, make_convoy_episode(10).path);
+}
+
+// The track reward: the gap term times 1 / (1 + e / 0.5 m): 1 at the optimal gap on the path,
+// one half 0.5 m off it or a gap width away, a quarter both; no view window.
+TEST(ConvoyReward, TrackRewardPaysForDrivingWhereTheLeaderDrove) {
+  const ConvoyRewardParams p;
+  EXPECT_DOUBLE_EQ(convoy_track_reward(p.optimal_gap_m, 0.0, p), 1.0);
+  EXPECT_DOUBLE_EQ(convoy_track_reward(p.optimal_gap_m, 0.5, p), 0.5);
+  EXPECT_DOUBLE_EQ(convoy_track_reward(p.optimal_gap_m, -0.5, p), 0.5);
+  EXPECT_DOUBLE_EQ(convoy_track_reward(p.optimal_gap_m + p.width_m, 0.0, p), 0.5);
+  EXPECT_DOUBLE_EQ(convoy_track_reward(p.optimal_gap_m + p.width_m, 0.5, p), 0.25);
+  EXPECT_LT(convoy_track_reward(p.optimal_gap_m, 1.0, p), convoy_track_reward(p.optimal_gap_m, 0.9, p));
+}
+
+// The trail observation: 12 named numbers from the classical follower's estimator; at the
+// start (both vehicles on a straight stretch of the path, 15 m apart, the follower braked) the
+// follower is on the trail, heading along it, the leader about 15 m ahead and 15 m less the two
+// half lengths (4.7 m) away bumper to bumper along the trail.
+TEST(ConvoyEnv, TrailObservationIsTheEstimatorsViewOfTheTrail) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail;
+  ConvoyEnv env(o);
+  const Box space = env.observation_space().vector;
+  ASSERT_EQ(space.size(), 12u);
+  EXPECT_EQ(space.names.front(), "cross_track_m");
+  EXPECT_EQ(space.names.back(), "leader_left_m");
+  // Seed 2: an S path, the follower starting on its straight lead-in (checked below).
+  const Observation first = env.reset(2);
+  ASSERT_EQ(first.vector.size(), 12u);
+  ASSERT_LT(std::abs(wrap_angle(env.episode().leader_yaw_rad - env.episode().follower_yaw_rad)), 0.05)
+      << "pick a seed whose start is on a straight";
+  EXPECT_LT(std::abs(first.vector[0]), 1.0);         // cross-track (GPS noise 0.5 m)
+  EXPECT_GT(first.vector[2], 0.98);                  // cos of the heading error
+  EXPECT_NEAR(first.vector[10], 15.0, 1.5);          // leader forward
+  EXPECT_LT(std::abs(first.vector[11]), 1.5);        // leader left
+  EXPECT_NEAR(first.vector[9], 15.0 - 4.7, 1.5);     // gap along the trail
+  // Driving behind the leader with the hand-written follower's pedal: the trail grows, speeds
+  // show, and the episode is the same with the same seed.
+  Observation obs = first;
+  StepResult r;
+  for (int k = 0; k < 60; ++k) {
+    r = env.step(std::vector<float>{0.0f, 0.3f});
+    obs = r.observation;
+    if (r.terminated || r.truncated) break;
+  }
+  EXPECT_GT(obs.vector[6], 1.0);   // own speed
+  EXPECT_GT(obs.vector[7], 1.0);   // the leader's
+  EXPECT_GT(r.info.at("path_error_m"), -1.0);
+  ConvoyEnv again(o);
+  EXPECT_EQ(again.reset(2).vector, first.vector);
+}
+
+// target_speed_max: each episode's leader cap drawn in [target_speed, target_speed_max] from
+// its seed, the same for the same seed, and the episode's other draws unchanged.
+TEST(ConvoyEnv, LeaderSpeedCapIsDrawnPerEpisode) {
+  ConvoyEnvOptions o = test_options();
+  o.target_speed_mps = 3.0;
+  o.target_speed_max_mps = 8.0;
+  double lo = 1e9, hi = 0.0;
+  for (std::uint64_t seed = 1; seed <= 50; ++seed) {
+    const double v = convoy_scenario_options(o, seed).target_speed_mps;
+    EXPECT_GE(v, 3.0);
+    EXPECT_LE(v, 8.0);
+    EXPECT_EQ(v, convoy_scenario_options(o, seed).target_speed_mps);
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  EXPECT_LT(lo, 4.0);
+  EXPECT_GT(hi, 7.0);
+  o.target_speed_max_mps = 0.0;
+  EXPECT_EQ(convoy_scenario_options(o, 5).target_speed_mps, 3.0);
+}

@@ -51,7 +51,10 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
     EXPECT_TRUE(found) << "no mean-head bias in the network";
   }
   const std::string path = (dir / "policy.pt").string();
-  trainer.save_policy(path);
+  // As syndds_train writes it: the environment and its options (the observation's kind).
+  PolicyMetadata meta{{"env", "convoy_follow"}, {"env_options", ""}};
+  if (options.observation == ConvoyObservationKind::trail) meta["env_options"] = "observation=trail";
+  trainer.save_policy(path, meta);
   return path;
 }
 
@@ -90,11 +93,10 @@ std::vector<proto::VehicleStateMsg> run_with_controller(const ConvoyEnvOptions& 
 
 }  // namespace
 
-TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
+static void drives_exactly_as_in_the_environment(const ConvoyEnvOptions& options) {
   register_policy_controller();
   at::set_num_threads(1);
   const fs::path dir = syndds::test::learn_test_dir();
-  ConvoyEnvOptions options;
   const std::string policy_file = write_policy(dir, options);
   Policy policy;
   policy.load(policy_file);
@@ -130,6 +132,18 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
   // The policy moved the follower (a track standing still would prove nothing).
   EXPECT_GT((track.back().pose.position - track.front().pose.position).norm(), 0.5);
   EXPECT_NE(first_action[0], 0.0f);
+}
+
+TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
+  drives_exactly_as_in_the_environment(ConvoyEnvOptions{});
+}
+
+// The trail observation: the estimator inside the observation builder runs the same in the
+// environment's driver agent and in the controller member.
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailObservation) {
+  ConvoyEnvOptions options;
+  options.observation = ConvoyObservationKind::trail;
+  drives_exactly_as_in_the_environment(options);
 }
 
 TEST(PolicyController, APolicyThatDoesNotFitTheSensorsIsRefused) {
@@ -188,11 +202,10 @@ TEST(ShippedPolicy, BeatsTheBaselinesOnHeldOutEpisodes) {
 // numbers as the run that wrote it: the policy's readings (the first frame after a checkpoint
 // acts on them alone), its action and when the next one is due are in its state. Resumed from
 // just before an action and from between two actions.
-TEST(PolicyController, AResumedRunIsByteIdentical) {
+static void a_resumed_run_is_byte_identical(const ConvoyEnvOptions& options) {
   register_policy_controller();
   at::set_num_threads(1);
   const fs::path dir = syndds::test::learn_test_dir();
-  ConvoyEnvOptions options;
   const std::string policy_file = write_policy(dir, options);
   const auto s = policy_scenario(options, 21, policy_file, "checkpoint: {every_s: 1.5}\n");
   constexpr std::int64_t kEnd = 260;
@@ -250,4 +263,13 @@ TEST(PolicyController, AResumedRunIsByteIdentical) {
     }
     EXPECT_EQ(controller(resumed).actions_taken(), controller(straight).actions_taken());
   }
+}
+
+TEST(PolicyController, AResumedRunIsByteIdentical) { a_resumed_run_is_byte_identical({}); }
+
+// The trail observation's estimator (filters, the leader's trail) is in the checkpoint too.
+TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailObservation) {
+  ConvoyEnvOptions options;
+  options.observation = ConvoyObservationKind::trail;
+  a_resumed_run_is_byte_identical(options);
 }
