@@ -363,4 +363,8 @@ void SensorAgent::load_state(core::StateReader& r) {
   scene_->commit();
 }
 
+void SensorAgent::set_camera_frame_filter(const sensors::CameraSensor::FrameFilter& filter) {
+  for (auto& c : sensors_->cameras()) c->set_frame_filter(filter);
+}
+
 }  // namespace syndds::agents

@@ -44,6 +44,9 @@ class SensorAgent final : public proto::Agent {
 
   const sensors::Scene& scene() const { return *scene_; }
   std::uint64_t frames_rendered() const { return frames_rendered_; }
+  /// Every camera of the rig makes only the frames `filter` wants (CameraSensor::FrameFilter;
+  /// the ticks are this agent's frames).
+  void set_camera_frame_filter(const sensors::CameraSensor::FrameFilter& filter);
 
  private:
   void update_world(const proto::FrameSamples& inputs);

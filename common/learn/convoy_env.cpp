@@ -156,6 +156,7 @@ void ConvoyEnv::run_frame() {
 Observation ConvoyEnv::reset(std::uint64_t seed) {
   running_ = false;
   driver_ = nullptr;
+  sensor_ = nullptr;
   stepper_.reset();
   episode_ = make_convoy_episode(seed, options_.episode);
   const std::string yaml = convoy_scenario_yaml(episode_, convoy_scenario_options(options_, seed));
@@ -174,8 +175,10 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
       agents.push_back(std::move(d));
     } else if (m == scenario::sensor_member(kConvoyFollowerId)) {
       // Renders only: the rig saves no frames, so no output directory is needed.
-      agents.push_back(std::make_unique<agents::SensorAgent>(
-          s, *s.find_vehicle(kConvoyFollowerId), agents::SensorAgentOptions{""}));
+      auto sensor = std::make_unique<agents::SensorAgent>(
+          s, *s.find_vehicle(kConvoyFollowerId), agents::SensorAgentOptions{""});
+      sensor_ = sensor.get();
+      agents.push_back(std::move(sensor));
     } else {
       agents.push_back(agents::make_agent(s, m, no_recorder));
     }
@@ -197,6 +200,20 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
     run_frame();
   }
   running_ = true;
+  if (sensor_ && options_.render_only_observed) {
+    // From here on the policy reads the observation after every frames_per_step frames: after
+    // frame D = first + fps j (j >= 0). It holds the newest camera frame the driver agent has
+    // consumed by then, one available at tick A <= D - 2 (the sensor agent publishes it in frame
+    // A + 1, stamped A + 1, the driver reads it in frame A + 2). A frame is made only if some
+    // D - 2 falls in [its available tick, the next frame's): the one the policy will see.
+    const std::int64_t first = stepper_->next_frame() - 1;
+    const std::int64_t fps = options_.frames_per_step;
+    sensor_->set_camera_frame_filter([first, fps](std::int64_t available, std::int64_t next) {
+      const std::int64_t base = first - 2;  // D - 2 for j = 0
+      const std::int64_t j = available <= base ? 0 : (available - base + fps - 1) / fps;
+      return base + fps * j < next;
+    });
+  }
   return driver_->observations().observation();
 }
 

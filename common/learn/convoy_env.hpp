@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "agents/sensor_agent.hpp"
 #include "learn/convoy_episode.hpp"
 #include "learn/convoy_observation.hpp"
 #include "learn/env.hpp"
@@ -56,6 +57,10 @@ struct ConvoyEnvOptions {
   double target_speed_max_mps = 0.0;
   int frames_per_step = 10;        // control period: 10 frames of 0.01 s
   int max_steps = 500;             // truncated after this many steps (50 s)
+  /// The camera variant renders only the frames an observation will hold (the newest at each
+  /// step's end; 1 of the camera's 3 per step at 30 Hz): observations are the same bit for bit
+  /// as with every frame rendered (tested), which stays available for comparison.
+  bool render_only_observed = true;
   double lost_distance_m = 40.0;   // terminated when the leader is farther than this
   ConvoyRewardParams reward;
   ConvoyEpisodeOptions episode;
@@ -126,6 +131,8 @@ class ConvoyEnv final : public Env {
   /// Ground truth of the last frame (valid after reset).
   const proto::VehicleStateMsg& follower_state() const { return follower_state_; }
   const proto::VehicleStateMsg& leader_state() const { return leader_state_; }
+  /// Camera frames the follower's rig has made this episode (0 without a camera).
+  std::uint64_t camera_frames() const { return sensor_ ? sensor_->frames_rendered() : 0; }
 
  private:
   void run_frame();
@@ -135,6 +142,7 @@ class ConvoyEnv final : public Env {
   std::optional<scenario::Scenario> scenario_;
   std::unique_ptr<proto::FrameStepper> stepper_;
   ConvoyDriverAgent* driver_ = nullptr;  // owned by stepper_
+  agents::SensorAgent* sensor_ = nullptr; // the follower's (camera variant), owned by stepper_
   proto::VehicleStateMsg follower_state_;
   proto::VehicleStateMsg leader_state_;
   bool collided_ = false;

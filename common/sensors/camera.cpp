@@ -410,6 +410,11 @@ void CameraSensor::update(const Scene& scene, double time_s) {
   const std::int64_t tick = clock_.tick_of(time_s);
   advance(scene, tick);
   if (const auto k = clock_.trigger(tick)) {
+    if (filter_ && !filter_(tick + clock_.lag_ticks(),
+                            clock_.trigger_tick(*k + 1) + clock_.lag_ticks())) {
+      ++skipped_;
+      return;
+    }
     if (capture_) throw std::logic_error(config_.id + ": capture still open");
     capture_ = Capture{*k, tick, 0, 0.0};
     advance(scene, tick);

@@ -14,6 +14,7 @@
 // v = clamp(gain * radiance)^(1/gamma), noise on v (Gaussian std, or pixel-dependent
 // sigma = sqrt(slope v + intercept)), quantised to 8 bits.
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -107,6 +108,15 @@ class CameraSensor {
   RgbImage finish(std::span<const float> radiance, std::uint64_t noise_index);
   std::size_t renders() const { return renders_; }
 
+  /// Which frames to make (e.g. only those a consumer will read: the learning environment
+  /// renders only the newest frame at each decision). Called when frame k is due with its
+  /// available tick and the available tick of frame k + 1; false skips frame k: not rendered,
+  /// never available. Frames made are the same as without a filter (the noise is a function of
+  /// k). Not part of the checkpoint state; none by default.
+  using FrameFilter = std::function<bool(std::int64_t available_tick, std::int64_t next_available_tick)>;
+  void set_frame_filter(FrameFilter filter) { filter_ = std::move(filter); }
+  std::size_t skipped() const { return skipped_; }
+
   /// Checkpoint state (between frames): schedule, an exposure still open (its accumulated
   /// radiance), frames waiting for their lag (images included), the render counter. The
   /// renderer and the scene are not part of it (the scene is the caller's).
@@ -133,6 +143,8 @@ class CameraSensor {
   std::vector<float> frame_radiance_;
   std::vector<float> accum_;
   Pose last_pose_;
+  FrameFilter filter_;
+  std::size_t skipped_ = 0;
   LagQueue<CameraFrame> queue_;
   std::vector<float> gamma_lut_;
   std::size_t renders_ = 0;

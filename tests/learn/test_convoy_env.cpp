@@ -416,3 +416,41 @@ TEST(ConvoyEnv, LeaderSpeedCapIsDrawnPerEpisode) {
   o.target_speed_max_mps = 0.0;
   EXPECT_EQ(convoy_scenario_options(o, 5).target_speed_mps, 3.0);
 }
+
+// Rendering only the camera frames the observations hold (the default) gives the same
+// observations, image and vector, bit for bit as rendering every frame (but the image of a
+// step cut short by a collision), with one frame per step instead of three (30 Hz camera,
+// 10 Hz steps).
+TEST(ConvoyEnv, RenderingOnlyTheObservedFramesChangesNoObservation) {
+  for (const std::uint64_t seed : {4u, 9u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    ConvoyEnvOptions o = test_options();
+    o.camera = true;
+    o.observation = ConvoyObservationKind::trail;
+    ConvoyEnv lazy(o);
+    o.render_only_observed = false;
+    ConvoyEnv full(o);
+    Observation a = lazy.reset(seed), b = full.reset(seed);
+    ASSERT_EQ(a.image, b.image);
+    const std::uint64_t lazy_start = lazy.camera_frames(), full_start = full.camera_frames();
+    int steps = 0;
+    for (; steps < 40; ++steps) {
+      // Throttle on, steering in a slow wave: the view changes from step to step.
+      const std::vector<float> action = {0.3f * std::sin(0.3f * steps), 0.4f};
+      const StepResult ra = lazy.step(action), rb = full.step(action);
+      ASSERT_EQ(ra.observation.vector, rb.observation.vector) << "step " << steps;
+      ASSERT_EQ(ra.reward, rb.reward);
+      ASSERT_EQ(ra.terminated, rb.terminated);
+      // A collision stops the step's frames early: its image (never used: no value beyond a
+      // terminated step) is the newest rendered, which may be older.
+      if (ra.terminated) break;
+      ASSERT_EQ(ra.observation.image, rb.observation.image) << "step " << steps;
+      if (ra.truncated) break;
+    }
+    ASSERT_GT(steps, 20);
+    const auto lazy_frames = lazy.camera_frames() - lazy_start;
+    const auto full_frames = full.camera_frames() - full_start;
+    EXPECT_NEAR(static_cast<double>(full_frames) / steps, 3.0, 0.1);
+    EXPECT_NEAR(static_cast<double>(lazy_frames) / steps, 1.0, 0.1);
+  }
+}
