@@ -3,7 +3,8 @@
 # course on each terrain, the six deviation metrics of every follower, one CSV at the end.
 #
 #   launch_scripts/run_ensemble.sh --courses N --output DIR [--terrains rigid,scm_hard,scm_soft]
-#       [--convoy 1L3F|2L2F|3L1F] [--protocol current|paper] [--follower-policy FILE] [--jobs J]
+#       [--convoy 1L3F|2L2F|3L1F] [--protocol current|paper] [--follower-policy FILE]
+#       [--follower-rig RIG] [--jobs J]
 #       [--distributed] [--first-seed S] [--duration S] [--videos]
 #       [--slurm [--slurm-args "SBATCH OPTIONS"] [--wait]] [--gather-only]
 #   launch_scripts/run_ensemble.sh --paper --output DIR [...]
@@ -18,7 +19,9 @@
 # default): rendering and encoding it takes 4-6 times as long as the rest of a run and changes
 # no metric, so a study leaves it out unless asked (docs/ensemble.md, "Throughput").
 # --follower-policy drives the followers with a learned policy (e.g.
-# policies/convoy_follow_lowdim.pt; docs/learning.md) instead of the classical follower.
+# policies/convoy_follow_camera.pt; docs/learning.md) instead of the classical follower; the
+# followers then carry the rig the policy's metadata names (<policy>.json, "sensors") unless
+# --follower-rig names another (config/sensors/<rig>.yaml; syndds_course --follower-rig).
 # Course k has seed first-seed + k (default 1). Each run goes to DIR/runs/<seed>_<terrain>/, its
 # scenario to DIR/courses/. Runs in one process each (syndds_sim, byte-identical to a distributed
 # run) unless --distributed (run_scenario.sh: one process per member), J at a time (default: the
@@ -48,7 +51,7 @@ BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 die() { echo "run_ensemble: $1" >&2; exit "${2:-1}"; }  # message [exit status, default 1]
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
-JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""
+JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""; RIG=""
 VIDEOS=0; PROTOCOL=current; PROTOCOL_SET=0; PAPER=0; CONVOY_SET=0
 SLURM=0; SLURM_ARGS=""; SLURM_ARGS_SET=0; SLURM_EXTRA=(); WAIT=0; GATHER_ONLY=0; RUN_ONE=""
 while [ $# -gt 0 ]; do
@@ -63,6 +66,7 @@ while [ $# -gt 0 ]; do
     --first-seed) [ $# -ge 2 ] || die "--first-seed needs a number"; FIRST=$2; shift ;;
     --duration) [ $# -ge 2 ] || die "--duration needs seconds"; DURATION=(--duration "$2"); shift ;;
     --follower-policy) [ $# -ge 2 ] || die "--follower-policy needs a file"; POLICY=$2; shift ;;
+    --follower-rig) [ $# -ge 2 ] || die "--follower-rig needs a rig name"; RIG=$2; shift ;;
     --distributed) DISTRIBUTED=1 ;;
     --videos) VIDEOS=1 ;;
     --slurm) SLURM=1 ;;
@@ -128,6 +132,7 @@ mkdir -p "$OUTPUT/courses" "$OUTPUT/runs" || die "cannot create $OUTPUT"
 [ $SLURM = 0 ] || OUTPUT=$(cd "$OUTPUT" && pwd)
 # The courses are generated once: an ensemble folder belongs to one convoy and one follower.
 setup="convoy=$CONVOY follower_policy=${POLICY:-classical}"
+[ -z "$RIG" ] || setup+=" follower_rig=$RIG"
 [ "$PROTOCOL" = current ] || setup+=" protocol=$PROTOCOL"
 if [ -f "$OUTPUT/ensemble.setup" ]; then
   [ "$(cat "$OUTPUT/ensemble.setup")" = "$setup" ] ||
@@ -170,7 +175,8 @@ run_one() {
     [ "$VIDEOS" = 0 ] && { [ "$PROTOCOL" = current ] || [ "$seed" != "$FIRST" ]; } || video=()
     "$BIN/syndds_course" --seed "$seed" --terrain "$terrain" --convoy "$CONVOY" "${video[@]}" \
         --protocol "$PROTOCOL" \
-        ${POLICY:+--follower-policy "$POLICY"} --output "$scenario.tmp" > "$log" 2>&1 &&
+        ${POLICY:+--follower-policy "$POLICY"} ${RIG:+--follower-rig "$RIG"} \
+        --output "$scenario.tmp" > "$log" 2>&1 &&
       mv "$scenario.tmp" "$scenario" || return 1
   fi
   # exec: the pid the ensemble knows is the run's own, so a stop reaches it (and it aborts
@@ -293,6 +299,7 @@ if [ $SLURM = 1 ]; then
            --first-seed "$FIRST"
            "${DURATION[@]}")
   [ -z "$POLICY" ] || command+=(--follower-policy "$POLICY")
+  [ -z "$RIG" ] || command+=(--follower-rig "$RIG")
   [ "$VIDEOS" = 0 ] || command+=(--videos)
   {
     echo '#!/usr/bin/env bash'

@@ -17,6 +17,7 @@ The files are committed; run this again after changing it (python3 tools/make_co
 and commit the result. Obstacle positions are computed on the same centripetal Catmull-Rom
 spline the controllers use (common/control/path.cpp).
 """
+import json
 import math
 import pathlib
 
@@ -99,6 +100,15 @@ def fmt_pts(pts):
     return "[" + ", ".join(f"[{x:g}, {y:g}]" for x, y in pts) + "]"
 
 
+def follower_rig(policy):
+    """The rig a follower driven by `policy` needs: the "sensors" of the policy's metadata
+    (config/<policy stem>.json, written by syndds_train); convoy for the classical follower."""
+    if not policy:
+        return "convoy"
+    meta = ROOT / "config" / pathlib.Path(policy).with_suffix(".json")
+    return json.loads(meta.read_text()).get("sensors", "convoy") if meta.exists() else "convoy"
+
+
 def scenario(mix, terrain, policy=None):
     """One of the nine convoys; with `policy`, its followers are that learned policy."""
     leaders = MIXES[mix]
@@ -135,10 +145,11 @@ def scenario(mix, terrain, policy=None):
         lines.append("    model: hmmwv")
         lines.append("    dynamics: full")
         lines.append(f"    start: {{x: {x0:g}, y: 0, yaw_deg: 0}}")
+        rig = follower_rig(policy) if k >= leaders else "convoy"
         if last:
-            lines.append("    sensors: {rig: convoy_chase, video: true}")
+            lines.append(f"    sensors: {{rig: {rig}_chase, video: true}}")
         else:
-            lines.append("    sensors: convoy")
+            lines.append(f"    sensors: {rig}")
         lines.append("    v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}")
         lines.append("    controller:")
         if k < leaders:
@@ -248,7 +259,8 @@ def learned(terrain, follower):
         f"      path: {{waypoints: {fmt_pts(PATH)}}}",
         f"      speed: {{profile: ramp, target_mps: {LEARNED_TARGET_MPS:g}}}",
         "  - id: f1", "    model: hmmwv", "    dynamics: full",
-        f"    start: {{x: {-LEARNED_GAP_M:g}, y: 0, yaw_deg: 0}}", "    sensors: convoy",
+        f"    start: {{x: {-LEARNED_GAP_M:g}, y: 0, yaw_deg: 0}}",
+        f"    sensors: {follower_rig(POLICY) if follower == 'policy' else 'convoy'}",
         "    controller:",
     ]
     if follower == "policy":

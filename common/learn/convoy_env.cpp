@@ -186,6 +186,7 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
   stepper_ = std::make_unique<proto::FrameStepper>(std::move(agents), s.time.heartbeat_s);
   collided_ = false;
   leader_contact_ = false;
+  last_steering_ = 0.0;
   steps_ = 0;
   follower_state_ = {};
   leader_state_ = {};
@@ -224,6 +225,7 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
                                 std::to_string(action.size()));
   }
   driver_->set_action(action[0], action[1]);
+  const double steering = convoy_driver_inputs(action[0], action[1]).steering;
   for (int f = 0; f < options_.frames_per_step && !collided_; ++f) run_frame();
   ++steps_;
 
@@ -252,9 +254,13 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
     r.reward = options_.reward.lost;
     r.terminated = true;
   } else {
-    r.reward = options_.reward_kind == ConvoyRewardKind::track
-                   ? convoy_track_reward(distance, path_error, options_.reward)
-                   : convoy_reward(distance, heading_diff, options_.reward);
+    if (options_.reward_kind == ConvoyRewardKind::track) {
+      const double change = steering - last_steering_;
+      r.reward = convoy_track_reward(distance, path_error, options_.reward) -
+                 options_.reward.steer_change * change * change;
+    } else {
+      r.reward = convoy_reward(distance, heading_diff, options_.reward);
+    }
     r.truncated = leader_done || steps_ >= options_.max_steps;
   }
   r.info = {{"distance_m", distance},
@@ -267,6 +273,7 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
             {"leader_lost", lost ? 1.0 : 0.0},
             {"leader_done", leader_done ? 1.0 : 0.0},
             {"steps", static_cast<double>(steps_)}};
+  last_steering_ = steering;
   running_ = !(r.terminated || r.truncated);
   return r;
 }

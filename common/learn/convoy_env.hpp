@@ -30,6 +30,9 @@ struct ConvoyRewardParams {
   double collision = -10.0;
   double lost = -10.0;
   double track_width_m = 0.5;  // the track reward's: 0.5 at this distance from the path
+  /// The track reward's smoothness term: minus this times the square of the change of the
+  /// (clamped) steering from the previous step.
+  double steer_change = 0.1;
 };
 
 /// The reward of a step at centre distance `distance_m` with the leader `heading_diff_rad`
@@ -38,8 +41,9 @@ double convoy_reward(double distance_m, double heading_diff_rad, const ConvoyRew
 
 /// Which reward the environment gives (docs/learning.md, "Reward"): `paper`, the gap in the
 /// leader-in-view window above; `track`, the same gap term times 1 / (1 + e / track_width_m),
-/// e the follower's distance from the leader's path (ground truth): a follower is paid for
-/// driving where the leader drove, not for keeping the gap on any line.
+/// e the follower's distance from the leader's path (ground truth), less steer_change times the
+/// squared change of steering: a follower is paid for driving smoothly where the leader drove,
+/// not for keeping the gap on any line.
 enum class ConvoyRewardKind { paper, track };
 
 /// The track reward of a step: the gap term (no view window) times the track term.
@@ -145,6 +149,7 @@ class ConvoyEnv final : public Env {
   agents::SensorAgent* sensor_ = nullptr; // the follower's (camera variant), owned by stepper_
   proto::VehicleStateMsg follower_state_;
   proto::VehicleStateMsg leader_state_;
+  double last_steering_ = 0.0;  // the previous step's (clamped) steering
   bool collided_ = false;
   bool leader_contact_ = false;  // the collision was with the leader
   int steps_ = 0;

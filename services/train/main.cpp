@@ -83,6 +83,11 @@ int main(int argc, char** argv) {
   app.add_option("--threads", options.threads, "Threads stepping the copies")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
+  app.add_option("--torch-threads", options.torch_threads,
+                 "Threads of libtorch's operators (the learning phase; the environment copies "
+                 "are idle then). A run is reproducible for a given number")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
   app.add_option("--seed", options.seed, "Seed of the networks, sampling and episodes")
       ->capture_default_str();
   app.add_option("--network", options.network, "Actor-critic network")

@@ -4,7 +4,7 @@
 // network on a stand-in environment with the paper's 80 x 45 camera image and a 4-vector
 // (random pixels, 2 actions, 100-step episodes: the cost is the network's, not the task's).
 //
-//   bench_ppo [updates=5]
+//   bench_ppo [updates=5] [torch_threads=1] [minibatch=64]
 //
 // Prints per network the mean and the range over the updates after the first.
 #include <algorithm>
@@ -52,8 +52,11 @@ class CameraStandIn final : public Env {
   int steps_ = 0;
 };
 
-void measure(const char* name, EnvFactory factory, int updates) {
+void measure(const char* name, EnvFactory factory, int updates, int torch_threads,
+             int minibatch) {
   ppo::TrainerOptions options;
+  options.torch_threads = torch_threads;
+  options.ppo.minibatch = minibatch;
   ppo::Trainer trainer(std::move(factory), options);
   double total = 0.0, lo = 1e30, hi = 0.0, rollout = 0.0, learn = 0.0;
   for (int u = 0; u < updates + 1; ++u) {
@@ -66,9 +69,10 @@ void measure(const char* name, EnvFactory factory, int updates) {
     lo = std::min(lo, t);
     hi = std::max(hi, t);
   }
-  std::printf("%-7s %d interactions, minibatch %d, %d epochs: update %.3f s (%.3f .. %.3f), "
-              "rollout %.3f s, learning %.3f s\n",
+  std::printf("%-7s %d interactions, minibatch %d, %d epochs, torch threads %d: update %.3f s "
+              "(%.3f .. %.3f), rollout %.3f s, learning %.3f s\n",
               name, trainer.rollout_size(), options.ppo.minibatch, options.ppo.epochs,
+              options.torch_threads,
               total / updates, lo, hi, rollout / updates, learn / updates);
 }
 
@@ -76,7 +80,9 @@ void measure(const char* name, EnvFactory factory, int updates) {
 
 int main(int argc, char** argv) {
   const int updates = argc > 1 ? std::max(1, std::atoi(argv[1])) : 5;
-  measure("mlp", [] { return std::make_unique<DoubleIntegrator>(); }, updates);
-  measure("fusion", [] { return std::make_unique<CameraStandIn>(); }, updates);
+  const int threads = argc > 2 ? std::max(1, std::atoi(argv[2])) : 1;
+  const int minibatch = argc > 3 ? std::max(2, std::atoi(argv[3])) : 64;
+  measure("mlp", [] { return std::make_unique<DoubleIntegrator>(); }, updates, threads, minibatch);
+  measure("fusion", [] { return std::make_unique<CameraStandIn>(); }, updates, threads, minibatch);
   return 0;
 }

@@ -454,3 +454,20 @@ TEST(ConvoyEnv, RenderingOnlyTheObservedFramesChangesNoObservation) {
     EXPECT_NEAR(static_cast<double>(lazy_frames) / steps, 1.0, 0.1);
   }
 }
+
+// The track reward's smoothness term: a braked follower standing still, steering full left and
+// then full right, is paid steer_change x 2^2 less in the second step than one that keeps
+// steering left (nothing else differs: it does not move).
+TEST(ConvoyReward, TrackRewardChargesSteeringChanges) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail;
+  o.reward_kind = ConvoyRewardKind::track;
+  ConvoyEnv a(o), b(o);
+  a.reset(6);
+  b.reset(6);
+  const std::vector<float> left = {1.0f, -1.0f}, right = {-1.0f, -1.0f};
+  EXPECT_EQ(a.step(left).reward, b.step(left).reward);
+  const StepResult ra = a.step(right), rb = b.step(left);
+  ASSERT_EQ(ra.info.at("distance_m"), rb.info.at("distance_m"));
+  EXPECT_NEAR(rb.reward - ra.reward, o.reward.steer_change * 4.0, 1e-12);
+}
