@@ -154,7 +154,7 @@ void SensorAgent::update_world(const proto::FrameSamples& inputs) {
     soil_->take_local_changes();  // opens the merge window of the next frame's lists
     if (!updates.empty()) scene_->update_terrain_world(updates);
   }
-  scene_->commit();
+  if (!options_.commit_only_to_render) scene_->commit();
 }
 
 void SensorAgent::render_vertex(std::int32_t i, std::int32_t j,
@@ -190,6 +190,9 @@ void SensorAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples
   // The world as it was at the end of frame k-1.
   const double t = static_cast<double>(ctx.frame - 1) * ctx.heartbeat_s;
   update_world(inputs);
+  if (options_.commit_only_to_render && !scene_->committed() && sensors_->may_render(t)) {
+    scene_->commit();
+  }
   sensors_->update_rendered(*scene_, t);
   const sensors::RenderedBatch batch = sensors_->take_rendered(t);
   frames_rendered_ += batch.camera.size();
@@ -360,7 +363,7 @@ void SensorAgent::load_state(core::StateReader& r) {
     for (const auto& v : soil_->snapshot().vertices) render_vertex(v.i, v.j, updates);
     if (!updates.empty()) scene_->update_terrain_world(updates);
   }
-  scene_->commit();
+  if (!options_.commit_only_to_render) scene_->commit();
 }
 
 void SensorAgent::set_camera_frame_filter(const sensors::CameraSensor::FrameFilter& filter) {

@@ -20,6 +20,10 @@ namespace syndds::agents {
 struct SensorAgentOptions {
   std::string output_dir;  // where saved frames / videos go (scenario decides whether to save)
   bool resume = false;     // continue the frame index of a checkpointed run (load_state)
+  /// Commit the scene (rebuild its acceleration structures: most of a frame's cost when
+  /// little is rendered) only in frames where a sensor may render, not in every frame. The
+  /// learning environment's choice; the scene() of a frame without a render is then stale.
+  bool commit_only_to_render = false;
 };
 
 class SensorAgent final : public proto::Agent {

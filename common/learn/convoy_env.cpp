@@ -175,8 +175,9 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
       agents.push_back(std::move(d));
     } else if (m == scenario::sensor_member(kConvoyFollowerId)) {
       // Renders only: the rig saves no frames, so no output directory is needed.
-      auto sensor = std::make_unique<agents::SensorAgent>(
-          s, *s.find_vehicle(kConvoyFollowerId), agents::SensorAgentOptions{""});
+      agents::SensorAgentOptions so;
+      so.commit_only_to_render = options_.render_only_observed;
+      auto sensor = std::make_unique<agents::SensorAgent>(s, *s.find_vehicle(kConvoyFollowerId), so);
       sensor_ = sensor.get();
       agents.push_back(std::move(sensor));
     } else {

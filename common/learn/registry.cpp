@@ -94,6 +94,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.reward_kind = r.choice("reward", "paper", {"paper", "track"}) == "track"
                       ? ConvoyRewardKind::track
                       : ConvoyRewardKind::paper;
+  o.reward.steer_change = r.number("steer_change", 0.0, 0.0, 10.0);
   o.episode.kind = parse_episode_kind(r.choice("episodes", "paper", {"paper", "courses", "mixed"}));
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
   o.target_speed_max_mps = r.number("target_speed_max", 0.0, 0.0, 20.0);

@@ -421,6 +421,16 @@ void CameraSensor::update(const Scene& scene, double time_s) {
   }
 }
 
+bool CameraSensor::may_render(double time_s) const {
+  if (capture_) return true;
+  const std::int64_t tick = clock_.tick_of(time_s);
+  if (!clock_.due(tick)) return false;
+  if (!filter_) return true;
+  // The frame due (the clock has started once a frame was triggered; before, assume it may).
+  const std::uint64_t k = clock_.next_index();
+  return filter_(tick + clock_.lag_ticks(), clock_.trigger_tick(k + 1) + clock_.lag_ticks());
+}
+
 std::vector<CameraFrame> CameraSensor::take_available(double now_s) {
   return queue_.take_ready(clock_.tick_of(now_s));
 }

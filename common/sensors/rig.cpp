@@ -107,6 +107,14 @@ void VehicleSensors::update_rendered(const Scene& scene, double time_s) {
   for (auto& r : radars_) r->update(scene, time_s);
 }
 
+bool VehicleSensors::may_render(double time_s) const {
+  if (!lidars_.empty() || !radars_.empty()) return true;
+  for (const auto& c : cameras_) {
+    if (c->may_render(time_s)) return true;
+  }
+  return false;
+}
+
 InteroceptiveBatch VehicleSensors::take_interoceptive(double now_s) {
   InteroceptiveBatch b;
   auto append = [](auto& out, auto&& in) {

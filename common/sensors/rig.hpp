@@ -61,6 +61,9 @@ class VehicleSensors {
 
   void update_dynamics(const vehicle::VehicleSnapshot& snapshot);
   void update_rendered(const Scene& scene, double time_s);
+  /// Whether update_rendered(scene, time_s) may render (conservative: true whenever the rig
+  /// has a lidar or a radar): the scene needs a commit before it only then.
+  bool may_render(double time_s) const;
   InteroceptiveBatch take_interoceptive(double now_s);
   RenderedBatch take_rendered(double now_s);
 

@@ -51,6 +51,10 @@ class SampleClock {
   /// Call once per tick (ticks increasing). Returns the measurement index due at this tick,
   /// if any. A skipped tick makes the measurement happen at the next tick fed.
   std::optional<std::uint64_t> trigger(std::int64_t tick);
+  /// Whether trigger(tick) would return a measurement (true before the first tick is fed),
+  /// and which one (when started).
+  bool due(std::int64_t tick) const { return !started_ || tick >= next_tick_; }
+  std::uint64_t next_index() const { return next_k_; }
 
   SampleStamp stamp(std::uint64_t k, std::int64_t tick) const {
     return {k, time_of(tick), time_of(tick + lag_ticks_)};

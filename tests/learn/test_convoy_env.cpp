@@ -462,6 +462,7 @@ TEST(ConvoyReward, TrackRewardChargesSteeringChanges) {
   ConvoyEnvOptions o = test_options();
   o.observation = ConvoyObservationKind::trail;
   o.reward_kind = ConvoyRewardKind::track;
+  o.reward.steer_change = 0.1;
   ConvoyEnv a(o), b(o);
   a.reset(6);
   b.reset(6);
