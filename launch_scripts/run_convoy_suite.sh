@@ -60,15 +60,15 @@ import csv, json, pathlib, sys
 out = pathlib.Path(sys.argv[1])
 rows = ["| scenario | mode | status | RTF | leader max speed (m/s) | leader at x=190 (s) "
         "| cross-track mean / max (m) | min distance gap (m) | min bumper gap (m) "
-        "| below standstill (s) | obstacles hit | leader lost |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        "| below standstill (s) | obstacles hit | leader lost | stuck |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 for run in sorted(p for p in out.iterdir() if p.is_dir()):
     name, _, mode = run.name.rpartition("-")
     if name.endswith("-single"):  # "single-process" split on its dash
         name, mode = name[:-len("-single")], "single-process"
     summary_file = run / "summary.json"
     if not summary_file.exists():
-        rows.append(f"| {name} | {mode} | no summary | | | | | | | | | |")
+        rows.append(f"| {name} | {mode} | no summary | | | | | | | | | | |")
         continue
     s = json.loads(summary_file.read_text())
     leader = s["vehicles"][0]
@@ -87,10 +87,11 @@ for run in sorted(p for p in out.iterdir() if p.is_dir()):
         below = max(c["time_below_standstill_s"] for c in convoy)
         hits = sum(c["obstacles_hit"] for c in convoy)
         lost = sum(c["leader_lost_events"] for c in convoy)
+        stuck = sum(1 for c in convoy if c.get("stuck"))  # followers stopped for good
         followers = (f"{xt_mean:.2f} / {xt_max:.2f} | {gap:.1f} | {bumper:.2f} | {below:.2f} "
-                     f"| {hits} | {lost}")
+                     f"| {hits} | {lost} | {stuck}")
     else:
-        followers = "- | - | - | - | - | -"
+        followers = "- | - | - | - | - | - | -"
     rows.append(f"| {name} | {mode} | {s['status']} | {s.get('real_time_factor', 0):.3f} "
                 f"| {leader['max_speed_mps']:.2f} | {arrival} | {followers} |")
 table = "\n".join(rows) + "\n"

@@ -24,6 +24,7 @@ PACKAGES=(
   libopencv-dev libyaml-cpp-dev libspdlog-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libtorch-dev pybind11-dev python3-dev
+  libopenblas0-serial  # BLAS for libtorch: 3x the reference BLAS in learning, single-threaded (docs/learning.md)
   cyclonedds-dev cyclonedds-tools
   python3 python3-matplotlib python3-numpy
   iproute2 util-linux procps nftables openssl bc

@@ -232,6 +232,28 @@ TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
   }
 }
 
+// Followers with cameras: follower_rig gives every follower the rig (leaders keep convoy) and
+// the last, filming the chase video, <rig>_chase, whose first camera is the front camera a
+// camera policy observes.
+TEST(CourseScenario, FollowersCanCarryTheCameraRig) {
+  const Course c = make_course(5);
+  CourseOptions o;
+  o.seed = 5;
+  o.convoy = "2L2F";
+  o.follower_rig = "convoy_camera";
+  const scenario::Scenario s = load_text(scenario_yaml(c, o));
+  ASSERT_EQ(s.vehicles.size(), 4u);
+  EXPECT_EQ(s.vehicles[0].sensors->rig.name, "convoy");
+  EXPECT_EQ(s.vehicles[1].sensors->rig.name, "convoy");
+  EXPECT_EQ(s.vehicles[2].sensors->rig.name, "convoy_camera");
+  EXPECT_EQ(s.vehicles[3].sensors->rig.name, "convoy_camera_chase");
+  for (const int k : {2, 3}) {
+    ASSERT_FALSE(s.vehicles[k].sensors->rig.cameras.empty());
+    EXPECT_EQ(s.vehicles[k].sensors->rig.cameras.front().id, "front_camera");
+    EXPECT_EQ(s.vehicles[k].sensors->rig.cameras.front().intrinsics.width, 80);
+  }
+}
+
 // The chase camera behind the last vehicle is the course's default; a study leaves it out and
 // every vehicle carries the plain convoy rig.
 TEST(CourseScenario, TheChaseVideoCanBeLeftOut) {

@@ -15,11 +15,11 @@ fail() { echo "FAIL: $*" >&2; for f in "$work"/*.log; do echo "---- $f"; cat "$f
 args=(--courses 2 --terrains rigid,scm_hard --duration 30)
 
 "$E" "${args[@]}" --jobs 2 --output "$work/a" > "$work/a.log" 2>&1 || fail "ensemble a failed"
-header="seed,terrain,convoy,controller,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m,leader_max_speed_mps,leader_mean_speed_mps"
+header="seed,terrain,convoy,controller,status,follower,position,leader,m_p_avg,m_p_max,m_as_avg,m_as_max,m_rs_avg,m_rs_max,obstacles_hit,samples,segment_length_m,leader_max_speed_mps,leader_mean_speed_mps,leader_lost_events,stuck"
 [ "$(head -n1 "$work/a/ensemble.csv")" = "$header" ] || fail "ensemble.csv header: $(head -n1 "$work/a/ensemble.csv")"
 [ "$(tail -n +2 "$work/a/ensemble.csv" | wc -l)" = 12 ] || fail "ensemble.csv: not 2 courses x 2 terrains x 3 followers rows"
-# Every row: a completed run with all six metrics (after 30 s every follower has driven past the first 10 m of the leader's track).
-awk -F, 'NR > 1 && ($4 != "classical" || $5 != "completed" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "" || $14 == "" || $18 <= 0 || $19 <= 0 || $19 > $18) {exit 1}' \
+# Every row: a completed run with all six metrics (after 30 s every follower has driven past the first 10 m of the leader's track), no leader lost and no follower stuck.
+awk -F, 'NR > 1 && ($4 != "classical" || $5 != "completed" || $9 == "" || $10 == "" || $11 == "" || $12 == "" || $13 == "" || $14 == "" || $18 <= 0 || $19 <= 0 || $19 > $18 || $20 != 0 || $21 != 0) {exit 1}' \
     "$work/a/ensemble.csv" || fail "ensemble.csv has an incomplete row: $(cat "$work/a/ensemble.csv")"
 [ "$(head -n1 "$work/a/runs.csv")" = "seed,terrain,status,sim_time_s,wall_time_s,real_time_factor" ] || fail "runs.csv header"
 [ "$(grep -c ',completed,' "$work/a/runs.csv")" = 4 ] || fail "runs.csv: not 4 completed runs"
