@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
   app.add_option("--seed", options.seed, "Seed of the networks, sampling and episodes")
       ->capture_default_str();
   app.add_option("--network", options.network, "Actor-critic network")
-      ->check(CLI::IsMember({"auto", "mlp", "fusion"}))
+      ->check(CLI::IsMember({"auto", "mlp", "fusion", "residual_fusion"}))
       ->capture_default_str();
   app.add_option("--epochs", ppo.epochs, "Passes over each rollout")
       ->check(CLI::Range(1, 1 << 30))
@@ -137,8 +137,9 @@ int main(int argc, char** argv) {
       std::cerr << "syndds_train: --env-option: " << e.what() << "\n";
       return 1;
     }
-    if (options.network == "fusion" && !factory()->observation_space().image) {
-      std::cerr << "syndds_train: --network fusion: " << env_name
+    if ((options.network == "fusion" || options.network == "residual_fusion") &&
+        !factory()->observation_space().image) {
+      std::cerr << "syndds_train: --network " << options.network << ": " << env_name
                 << "'s observations have no image\n";
       return 1;
     }

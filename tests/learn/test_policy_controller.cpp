@@ -273,3 +273,45 @@ TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailObservation) {
   options.observation = ConvoyObservationKind::trail;
   a_resumed_run_is_byte_identical(options);
 }
+
+// The residual sensor-fusion network started from a vector policy of an earlier stage acts
+// exactly as that policy (its camera branch's heads start at zero), and learns from there:
+// after one update the camera branch has changed and the actions differ.
+TEST(ResidualFusion, StartsFromAVectorPolicyActingExactlyAsIt) {
+  at::set_num_threads(1);
+  const fs::path dir = syndds::test::learn_test_dir();
+  ConvoyEnvOptions vector_options;
+  vector_options.observation = ConvoyObservationKind::trail;
+  const std::string vector_file = write_policy(dir / "vector", vector_options);
+  ConvoyEnvOptions camera_options = vector_options;
+  camera_options.camera = true;
+  ppo::TrainerOptions t;
+  t.seed = 4;
+  t.network = "residual_fusion";
+  t.ppo.steps_per_update = 64;
+  t.ppo.epochs = 1;
+  ppo::Trainer trainer([camera_options] { return make_convoy_env(camera_options); }, t);
+  trainer.initialize_from_policy(vector_file);
+  const std::string camera_file = (dir / "camera.pt").string();
+  trainer.save_policy(camera_file);
+
+  Policy vector_policy, camera_policy;
+  vector_policy.load(vector_file);
+  camera_policy.load(camera_file);
+  ASSERT_TRUE(camera_policy.observation_space().image.has_value());
+  ConvoyEnv env(camera_options);
+  Observation obs = env.reset(31);
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(camera_policy.act(obs, true), vector_policy.act(obs, true)) << "step " << k;
+    obs = env.step(camera_policy.act(obs, true)).observation;
+  }
+  trainer.update();
+  trainer.save_policy(camera_file);
+  camera_policy.load(camera_file);
+  EXPECT_NE(camera_policy.act(obs, true), vector_policy.act(obs, true));
+  // A camera network cannot start from a camera-less fusion file, nor a vector run from it.
+  ppo::TrainerOptions plain;
+  plain.network = "fusion";
+  ppo::Trainer fusion([camera_options] { return make_convoy_env(camera_options); }, plain);
+  EXPECT_THROW(fusion.initialize_from_policy(vector_file), std::invalid_argument);
+}

@@ -71,6 +71,34 @@ ActorCriticOutput FusionActorCritic::forward(const torch::Tensor& vector,
   return {mean_head_->forward(h), value_head_->forward(h).squeeze(-1)};
 }
 
+ResidualFusionActorCritic::ResidualFusionActorCritic(int observation_size,
+                                                     const ImageSpec& image, int action_size) {
+  const double g = std::sqrt(2.0);
+  base_ = register_module("base", std::make_shared<MlpActorCritic>(observation_size, action_size));
+  cnn_ = register_module("cnn", nn::Sequential(conv(image.channels, 32, 8, 4), nn::ReLU(),
+                                               conv(32, 64, 4, 2), nn::ReLU(), conv(64, 64, 3, 1),
+                                               nn::ReLU(), nn::Flatten()));
+  int features = 0;
+  {
+    torch::NoGradGuard no_grad;
+    features = static_cast<int>(
+        cnn_->forward(torch::zeros({1, image.channels, image.height, image.width})).size(1));
+  }
+  branch_ = register_module(
+      "branch", nn::Sequential(linear(features + observation_size, 64, g), nn::ReLU()));
+  mean_head_ = register_module("mean", linear(64, action_size, 0.0));
+  value_head_ = register_module("value", linear(64, 1, 0.0));
+  log_std = base_->log_std;  // one parameter, registered by the base
+}
+
+ActorCriticOutput ResidualFusionActorCritic::forward(const torch::Tensor& vector,
+                                                     const torch::Tensor& image) {
+  const ActorCriticOutput b = base_->forward(vector, image);
+  const torch::Tensor pixels = image.permute({0, 3, 1, 2}).to(torch::kFloat32) / 255.0;
+  const torch::Tensor h = branch_->forward(torch::cat({cnn_->forward(pixels), vector}, 1));
+  return {b.mean + mean_head_->forward(h), b.value + value_head_->forward(h).squeeze(-1)};
+}
+
 std::shared_ptr<ActorCritic> make_actor_critic(const std::string& kind,
                                                const ObservationSpace& observations,
                                                const Box& actions) {
@@ -80,11 +108,16 @@ std::shared_ptr<ActorCritic> make_actor_critic(const std::string& kind,
   if (kind == "mlp" || (kind == "auto" && !image)) {
     return std::make_shared<MlpActorCritic>(d, a);
   }
+  if (kind == "residual_fusion") {
+    if (!image) throw std::invalid_argument("network residual_fusion needs observations with an image");
+    return std::make_shared<ResidualFusionActorCritic>(d, *observations.image, a);
+  }
   if (kind == "fusion" || kind == "auto") {
     if (!image) throw std::invalid_argument("network fusion needs observations with an image");
     return std::make_shared<FusionActorCritic>(d, *observations.image, a);
   }
-  throw std::invalid_argument("unknown network " + kind + " (mlp, fusion or auto)");
+  throw std::invalid_argument("unknown network " + kind +
+                              " (mlp, fusion, residual_fusion or auto)");
 }
 
 torch::Tensor image_batch(const std::vector<const std::vector<std::uint8_t>*>& images,

@@ -60,8 +60,28 @@ class FusionActorCritic final : public ActorCritic {
   int cnn_features_ = 0;
 };
 
-/// The network for an observation space: "mlp" (vector only), "fusion" (needs an image) or
-/// "auto" (fusion when the observations have an image). Throws std::invalid_argument otherwise.
+/// Sensor fusion as a residual on a vector policy: the MlpActorCritic on the vector (`base`,
+/// which a vector policy of an earlier stage initialises: Trainer::initialize_from_policy), plus
+/// a camera branch (the same convolutional stack as FusionActorCritic, its 768 features and the
+/// vector through one layer of 64, ReLU) whose mean and value heads start at zero. At
+/// initialisation from a vector policy it acts exactly as that policy; training then learns
+/// what the image adds. The log standard deviation is the base's.
+class ResidualFusionActorCritic final : public ActorCritic {
+ public:
+  ResidualFusionActorCritic(int observation_size, const ImageSpec& image, int action_size);
+  ActorCriticOutput forward(const torch::Tensor& vector, const torch::Tensor& image) override;
+  std::string kind() const override { return "residual_fusion"; }
+  MlpActorCritic& base() { return *base_; }
+
+ private:
+  std::shared_ptr<MlpActorCritic> base_;
+  torch::nn::Sequential cnn_{nullptr}, branch_{nullptr};
+  torch::nn::Linear mean_head_{nullptr}, value_head_{nullptr};
+};
+
+/// The network for an observation space: "mlp" (vector only), "fusion" or "residual_fusion"
+/// (need an image) or "auto" (fusion when the observations have an image). Throws
+/// std::invalid_argument otherwise.
 std::shared_ptr<ActorCritic> make_actor_critic(const std::string& kind,
                                                const ObservationSpace& observations,
                                                const Box& actions);

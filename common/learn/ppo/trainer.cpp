@@ -360,6 +360,29 @@ void Trainer::initialize_from_policy(const std::string& path) {
   Policy earlier;
   earlier.load(path);
   const ObservationSpace& o = earlier.observation_space();
+  if (auto* residual = dynamic_cast<ResidualFusionActorCritic*>(model_.get());
+      residual && !o.image) {
+    // A vector policy of an earlier stage becomes the residual network's base: the new run
+    // starts acting exactly as it did.
+    if (o.vector.size() != observation_space_.vector.size() ||
+        earlier.action_space().size() != action_space_.size()) {
+      throw std::invalid_argument(path + ": its vector observation or action space is not this "
+                                  "environment's");
+    }
+    torch::serialize::InputArchive archive, model, normalizer;
+    archive.load_from(path);
+    c10::IValue network;
+    archive.read("network", network);
+    if (network.toStringRef() != "mlp") {
+      throw std::invalid_argument(path + " holds a " + network.toStringRef() +
+                                  " network; a residual_fusion run starts from an mlp policy");
+    }
+    archive.read("model", model);
+    archive.read("normalizer", normalizer);
+    residual->base().load(model);
+    normalizer_.load(normalizer);
+    return;
+  }
   const bool same_image = o.image.has_value() == observation_space_.image.has_value() &&
                           (!o.image || (o.image->width == observation_space_.image->width &&
                                         o.image->height == observation_space_.image->height));
