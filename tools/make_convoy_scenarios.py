@@ -234,7 +234,7 @@ def emergency_stop(terrain, stop_at_s=STOP_DEFAULT_S):
 LEARNED_OUT = ROOT / "config" / "scenarios" / "learned"
 LEARNED_TARGET_MPS = 5.0    # the convoy-follow environment's leader (docs/learning.md)
 LEARNED_GAP_M = 15.0        # its optimal gap and start gap
-POLICY = "policies/convoy_follow_lowdim.pt"
+POLICY = "policies/convoy_follow_camera.pt"
 
 
 def learned(terrain, follower):

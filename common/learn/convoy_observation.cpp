@@ -66,6 +66,7 @@ ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scen
   if (!rig.cameras.empty()) {
     c.image = ImageSpec{rig.cameras.front().intrinsics.width,
                         rig.cameras.front().intrinsics.height, 3};
+    c.camera_id = rig.cameras.front().id;
   }
   c.estimator.leader = leader_id;
   c.vehicle = agents::follower_vehicle(follower, scenario.find_vehicle(leader_id));
@@ -105,7 +106,12 @@ void ConvoyObservationBuilder::consume(const proto::FrameContext& ctx,
   take_newest(s.gps_fixes, config_.follower_id, fix_);
   take_newest(s.magnetometers, config_.follower_id, compass_);
   take_newest(s.wheel_speeds, config_.follower_id, wheels_);
-  if (config_.image) take_newest(s.images, config_.follower_id, image_);
+  if (config_.image) {
+    for (const auto& m : s.images) {  // the observed camera's only
+      if (m.vehicle_id != config_.follower_id || m.stamp.sensor_id != config_.camera_id) continue;
+      if (!image_ || m.stamp.time_s >= image_->stamp.time_s) image_ = m;
+    }
+  }
   for (const auto& m : s.v2v_messages) {
     if (m.vehicle_id != config_.leader_id) continue;
     if (!v2v_ || m.sequence > v2v_->sequence) v2v_ = m;

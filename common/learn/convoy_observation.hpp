@@ -37,6 +37,8 @@ struct ConvoyObservationConfig {
   sensors::GeodeticModel geodetic_model = sensors::GeodeticModel::wgs84;
   double wheel_radius_m = 0.0;        // the tachometer's spin times this is the own speed
   std::optional<ImageSpec> image;     // the camera's frame size; absent: no image
+  std::string camera_id;              // the observed camera (the rig's first): others' images
+                                      // (e.g. a chase camera's) are not the policy's
   // The trail kind's estimator: its configuration (leader, filter gains; the control gains
   // are unused) and the vehicles' dimensions.
   convoy::FollowerConfig estimator;
