@@ -77,5 +77,26 @@ class VectorEnvironment(unittest.TestCase):
             envs.step(np.zeros((3, 1), np.float32))
 
 
+class CameraFollower(unittest.TestCase):
+    """The camera environment of the shipped camera policy: options by keyword, a Dict
+    observation of the 45 x 80 x 3 image and the trail's 12 numbers."""
+
+    def test_camera_environment_on_the_trail_observation(self):
+        env = syndds.make("convoy_follow", camera=True, observation="trail", reward="track",
+                          episodes="mixed", dynamics="full")
+        obs, info = env.reset(seed=3)
+        self.assertEqual(obs["image"].shape, (45, 80, 3))
+        self.assertEqual(obs["image"].dtype, np.uint8)
+        self.assertEqual(obs["vector"].shape, (12,))
+        self.assertEqual(env.observation_space["vector"].names[0], "cross_track_m")
+        obs, reward, terminated, truncated, info = env.step(np.array([0.0, 0.3], np.float32))
+        self.assertIn("path_error_m", info)
+        self.assertEqual(obs["image"].shape, (45, 80, 3))
+
+    def test_an_unknown_observation_is_an_error_naming_it(self):
+        with self.assertRaisesRegex(ValueError, "option observation: 'radar' is not one of"):
+            syndds.make("convoy_follow", observation="radar")
+
+
 if __name__ == "__main__":
     unittest.main()
