@@ -77,6 +77,10 @@ vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brak
 }
 
 std::vector<float> convoy_heuristic_action(const Observation& o) {
+  if (o.vector.size() != 4) {
+    throw std::invalid_argument("the hand-written follower reads the paper observation (4 "
+                                "numbers), not " + std::to_string(o.vector.size()));
+  }
   const double north = o.vector.at(0), east = o.vector.at(1), heading = o.vector.at(2);
   const double closing = o.vector.at(3);
   const double bearing = std::atan2(east, north);    // clockwise from north, as the compass

@@ -53,7 +53,7 @@ struct ConvoyEnvOptions {
   ConvoyTerrain terrain = ConvoyTerrain::rigid;
   ConvoyDynamics dynamics = ConvoyDynamics::reduced;
   bool camera = false;             // the 80 x 45 front-bumper camera in the observation
-  ConvoyObservationKind observation = ConvoyObservationKind::paper;
+  ConvoyObservationKind observation = ConvoyObservationKind::paper;  // the vector's numbers
   ConvoyRewardKind reward_kind = ConvoyRewardKind::paper;
   double target_speed_mps = 5.0;   // the leader's ramp cap
   /// Above target_speed_mps: each episode's cap is drawn uniformly in [target_speed_mps,
@@ -82,7 +82,8 @@ vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brak
 
 /// A hand-written follower on the convoy observation (the baseline a learned policy has to
 /// beat): steer toward the leader (2 x its bearing off the nose), pedal by the gap to the
-/// optimal 15 m less the closing speed (0.15 (gap - 15) - 0.3 closing).
+/// optimal 15 m less the closing speed (0.15 (gap - 15) - 0.3 closing). The paper observation
+/// only: std::invalid_argument for another.
 std::vector<float> convoy_heuristic_action(const Observation& observation);
 
 /// The subscriptions of a convoy follower's controller: its own GPS, compass, tachometer and
