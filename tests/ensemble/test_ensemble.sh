@@ -61,7 +61,7 @@ code=0
 [ "$code" = 2 ] || fail "ensemble with a broken run exited $code, not 2"
 grep -q "1 runs failed: 2_rigid" "$work/c.log" || fail "the failed run is not named"
 grep -q "^1,rigid,1L3F,classical,completed,f1," "$work/c/ensemble.csv" || fail "course 1 missing: $(cat "$work/c/ensemble.csv")"
-grep -q "^2,rigid,1L3F,classical,no summary,,,,,,,,,,,,,,$" "$work/c/ensemble.csv" || fail "the failed run's row: $(cat "$work/c/ensemble.csv")"
+grep -q "^2,rigid,1L3F,classical,no summary,,,,,,,,,,,,,,,,$" "$work/c/ensemble.csv" || fail "the failed run's row: $(cat "$work/c/ensemble.csv")"
 grep -q "^2,rigid,no summary,,,$" "$work/c/runs.csv" || fail "runs.csv: $(cat "$work/c/runs.csv")"
 grep -q "Runs that did not complete: 2_rigid (no summary)" "$work/c/report.md" || fail "report.md does not list the failed run"
 grep -q "2_rigid.yaml" "$work/c/runs/2_rigid.log" || fail "the failed run's log does not name its scenario"
