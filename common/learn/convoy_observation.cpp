@@ -44,10 +44,6 @@ ConvoyObservationKind parse_observation_kind(const std::string& name) {
   throw std::invalid_argument("observation '" + name + "' is not one of paper, trail");
 }
 
-const char* observation_kind_name(ConvoyObservationKind kind) {
-  return kind == ConvoyObservationKind::trail ? "trail" : "paper";
-}
-
 ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scenario,
                                                   const scenario::VehicleConfig& follower,
                                                   const std::string& leader_id,

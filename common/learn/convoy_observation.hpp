@@ -26,8 +26,8 @@ namespace syndds::learn {
 ///   estimates in the follower's frame: distance and heading to the trail, the trail's
 ///   curvature ahead, speeds, the gap along the trail, the leader's relative place.
 enum class ConvoyObservationKind { paper, trail };
+/// std::invalid_argument naming `name` if it is neither.
 ConvoyObservationKind parse_observation_kind(const std::string& name);
-const char* observation_kind_name(ConvoyObservationKind kind);
 
 struct ConvoyObservationConfig {
   ConvoyObservationKind kind = ConvoyObservationKind::paper;

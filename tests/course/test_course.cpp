@@ -215,14 +215,20 @@ TEST(CourseScenario, LoadsWithTheConvoyAndTheObstacles) {
   }
 }
 
-// With a follower policy every follower is that learned policy, following the vehicle ahead.
-TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
-  const Course c = make_course(5);
+// The 2L2F scenario of course 5 with `set` applied to its options.
+template <typename Set>
+scenario::Scenario course5_2l2f(Set&& set) {
   CourseOptions o;
   o.seed = 5;
   o.convoy = "2L2F";
-  o.follower_policy = "policies/convoy_follow_lowdim.pt";
-  const scenario::Scenario s = load_text(scenario_yaml(c, o));
+  set(o);
+  return load_text(scenario_yaml(make_course(5), o));
+}
+
+// With a follower policy every follower is that learned policy, following the vehicle ahead.
+TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
+  const scenario::Scenario s =
+      course5_2l2f([](CourseOptions& o) { o.follower_policy = "policies/convoy_follow_lowdim.pt"; });
   ASSERT_EQ(s.vehicles.size(), 4u);
   EXPECT_EQ(s.vehicles[1].controller.type, "path_follower");
   for (const int k : {2, 3}) {
@@ -236,12 +242,8 @@ TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
 // the last, filming the chase video, <rig>_chase, whose first camera is the front camera a
 // camera policy observes.
 TEST(CourseScenario, FollowersCanCarryTheCameraRig) {
-  const Course c = make_course(5);
-  CourseOptions o;
-  o.seed = 5;
-  o.convoy = "2L2F";
-  o.follower_rig = "convoy_camera";
-  const scenario::Scenario s = load_text(scenario_yaml(c, o));
+  const scenario::Scenario s =
+      course5_2l2f([](CourseOptions& o) { o.follower_rig = "convoy_camera"; });
   ASSERT_EQ(s.vehicles.size(), 4u);
   EXPECT_EQ(s.vehicles[0].sensors->rig.name, "convoy");
   EXPECT_EQ(s.vehicles[1].sensors->rig.name, "convoy");
