@@ -114,6 +114,7 @@ void ConvoyDriverAgent::step(const proto::FrameContext& ctx, const proto::FrameS
 void ConvoyDriverAgent::set_action(double steering, double throttle_brake) {
   steering_ = steering;  // clamped when written (convoy_driver_inputs)
   throttle_brake_ = throttle_brake;
+  builder_.note_action(steering, throttle_brake);
 }
 
 // ---- ConvoyEnv ------------------------------------------------------------------------------

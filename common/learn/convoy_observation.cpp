@@ -1,5 +1,6 @@
 #include "learn/convoy_observation.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -38,10 +39,16 @@ void held_io(Archive& a, std::optional<Msg>& held) {
 
 }  // namespace
 
+bool observes_trail(ConvoyObservationKind kind) {
+  return kind == ConvoyObservationKind::trail || kind == ConvoyObservationKind::trail_action;
+}
+
 ConvoyObservationKind parse_observation_kind(const std::string& name) {
   if (name == "paper") return ConvoyObservationKind::paper;
   if (name == "trail") return ConvoyObservationKind::trail;
-  throw std::invalid_argument("observation '" + name + "' is not one of paper, trail");
+  if (name == "trail_action") return ConvoyObservationKind::trail_action;
+  throw std::invalid_argument("observation '" + name +
+                              "' is not one of paper, trail, trail_action");
 }
 
 ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scenario,
@@ -71,19 +78,27 @@ ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scen
 
 ConvoyObservationBuilder::ConvoyObservationBuilder(ConvoyObservationConfig config)
     : config_(std::move(config)), converter_(config_.geodetic_origin, config_.geodetic_model) {
-  if (config_.kind == ConvoyObservationKind::trail) {
+  if (observes_trail(config_.kind)) {
     estimator_.emplace(config_.estimator, config_.vehicle, converter_);
   }
 }
 
 Box ConvoyObservationBuilder::vector_space(ConvoyObservationKind kind) {
-  if (kind == ConvoyObservationKind::trail) {
-    return Box{{-50.0f, -1.0f, -1.0f, -1.0f, -1.0f, -1.0f, -5.0f, -5.0f, -20.0f, -200.0f,
-                -200.0f, -200.0f},
-               {50.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 30.0f, 30.0f, 20.0f, 200.0f, 200.0f, 200.0f},
-               {"cross_track_m", "heading_error_sin", "heading_error_cos", "curvature_0m_per_m",
-                "curvature_5m_per_m", "curvature_10m_per_m", "speed_mps", "leader_speed_mps",
-                "leader_accel_mps2", "gap_m", "leader_forward_m", "leader_left_m"}};
+  if (observes_trail(kind)) {
+    Box b{{-50.0f, -1.0f, -1.0f, -1.0f, -1.0f, -1.0f, -5.0f, -5.0f, -20.0f, -200.0f, -200.0f,
+           -200.0f},
+          {50.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 30.0f, 30.0f, 20.0f, 200.0f, 200.0f, 200.0f},
+          {"cross_track_m", "heading_error_sin", "heading_error_cos", "curvature_0m_per_m",
+           "curvature_5m_per_m", "curvature_10m_per_m", "speed_mps", "leader_speed_mps",
+           "leader_accel_mps2", "gap_m", "leader_forward_m", "leader_left_m"}};
+    if (kind == ConvoyObservationKind::trail_action) {
+      for (const char* name : {"previous_steering", "previous_throttle_brake"}) {
+        b.low.push_back(-1.0f);
+        b.high.push_back(1.0f);
+        b.names.push_back(name);
+      }
+    }
+    return b;
   }
   return Box{{-200.0f, -200.0f, 0.0f, -30.0f},
              {200.0f, 200.0f, 6.2832f, 30.0f},
@@ -158,6 +173,10 @@ Observation ConvoyObservationBuilder::observation() const {
                 static_cast<float>(f.gap_m),
                 static_cast<float>(f.leader_forward_m),
                 static_cast<float>(f.leader_left_m)};
+    if (config_.kind == ConvoyObservationKind::trail_action) {
+      o.vector.push_back(static_cast<float>(previous_steering_));
+      o.vector.push_back(static_cast<float>(previous_throttle_brake_));
+    }
   } else {
     o.vector = {static_cast<float>(north), static_cast<float>(east),
                 static_cast<float>(compass_->heading_rad), static_cast<float>(closing)};
@@ -176,6 +195,12 @@ Observation ConvoyObservationBuilder::observation() const {
   return o;
 }
 
+void ConvoyObservationBuilder::note_action(double steering, double throttle_brake) {
+  const auto applied = [](double v) { return std::isnan(v) ? 0.0 : std::clamp(v, -1.0, 1.0); };
+  previous_steering_ = applied(steering);
+  previous_throttle_brake_ = applied(throttle_brake);
+}
+
 template <typename Archive>
 void ConvoyObservationBuilder::state_io(Archive& a) {
   a.begin("convoy_observation", 1);
@@ -190,6 +215,10 @@ void ConvoyObservationBuilder::state_io(Archive& a) {
     } else {
       estimator_->load_state(a);
     }
+  }
+  if (config_.kind == ConvoyObservationKind::trail_action) {
+    a.io(previous_steering_);
+    a.io(previous_throttle_brake_);
   }
   a.end();
 }

@@ -24,9 +24,14 @@ namespace syndds::learn {
 /// - trail: the classical follower's estimator (convoy::ConvoyFollower: filtered own and
 ///   leader positions, the leader's breadcrumb trail) run on the same readings, and its
 ///   estimates in the follower's frame: distance and heading to the trail, the trail's
-///   curvature ahead, speeds, the gap along the trail, the leader's relative place.
-enum class ConvoyObservationKind { paper, trail };
-/// std::invalid_argument naming `name` if it is neither.
+///   curvature ahead, speeds, the gap along the trail, the leader's relative place;
+/// - trail_action: trail's numbers and the controller's previous action (steering,
+///   throttle/brake, as applied: clamped), so that a policy can know, and be paid for, how
+///   much it changes its command.
+enum class ConvoyObservationKind { paper, trail, trail_action };
+/// Whether a kind runs the trail estimator.
+bool observes_trail(ConvoyObservationKind kind);
+/// std::invalid_argument naming `name` if it is none of them.
 ConvoyObservationKind parse_observation_kind(const std::string& name);
 
 struct ConvoyObservationConfig {
@@ -71,6 +76,10 @@ class ConvoyObservationBuilder {
   bool ready() const;
   /// The observation from the newest readings. Throws std::logic_error before ready().
   Observation observation() const;
+  /// The action the controller applies from now on (clamped to [-1, 1], NaN as 0, as
+  /// convoy_driver_inputs applies it); the trail_action kind observes it. Before the first:
+  /// steering 0, brake 1 (the brake the controllers hold until they act).
+  void note_action(double steering, double throttle_brake);
 
   /// Checkpoints (docs/checkpoints.md): the newest reading of each kind held, every field.
   void save_state(core::StateWriter& w) const;
@@ -87,7 +96,9 @@ class ConvoyObservationBuilder {
   std::optional<proto::WheelSpeedsMsg> wheels_;
   std::optional<proto::V2VMessageMsg> v2v_;
   std::optional<proto::ImageMsg> image_;
-  std::optional<convoy::ConvoyFollower> estimator_;  // the trail kind's
+  std::optional<convoy::ConvoyFollower> estimator_;  // the trail kinds'
+  double previous_steering_ = 0.0;                    // note_action's
+  double previous_throttle_brake_ = -1.0;
 };
 
 }  // namespace syndds::learn

@@ -107,6 +107,7 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
     const std::vector<float> a = policy_.act(builder_.observation(), true);
     steering_ = a[0];
     throttle_brake_ = a[1];
+    builder_.note_action(steering_, throttle_brake_);
     since_action_ = 0;
     ++actions_;
   }

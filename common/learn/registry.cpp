@@ -90,7 +90,8 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
                    ? ConvoyDynamics::full
                    : ConvoyDynamics::reduced;
   o.camera = r.flag("camera", false);
-  o.observation = parse_observation_kind(r.choice("observation", "paper", {"paper", "trail"}));
+  o.observation = parse_observation_kind(
+      r.choice("observation", "paper", {"paper", "trail", "trail_action"}));
   o.reward_kind = r.choice("reward", "paper", {"paper", "track"}) == "track"
                       ? ConvoyRewardKind::track
                       : ConvoyRewardKind::paper;

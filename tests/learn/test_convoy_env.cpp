@@ -396,6 +396,39 @@ TEST(ConvoyEnv, TrailObservationIsTheEstimatorsViewOfTheTrail) {
   EXPECT_EQ(again.reset(2).vector, first.vector);
 }
 
+// trail_action: trail's 12 numbers, then the action applied since the previous step, clamped
+// as the vehicle gets it (NaN as 0); before the first step the brake the follower holds.
+TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail;
+  ConvoyEnv trail(o);
+  o.observation = ConvoyObservationKind::trail_action;
+  ConvoyEnv env(o);
+  const Box space = env.observation_space().vector;
+  ASSERT_EQ(space.size(), 14u);
+  EXPECT_EQ(space.names[11], "leader_left_m");
+  EXPECT_EQ(space.names[12], "previous_steering");
+  EXPECT_EQ(space.names[13], "previous_throttle_brake");
+  const Observation first = env.reset(2);
+  const Observation first_trail = trail.reset(2);
+  ASSERT_EQ(first.vector.size(), 14u);
+  EXPECT_EQ(std::vector<float>(first.vector.begin(), first.vector.begin() + 12), first_trail.vector);
+  EXPECT_EQ(first.vector[12], 0.0f);
+  EXPECT_EQ(first.vector[13], -1.0f);
+  const std::vector<std::vector<float>> actions = {
+      {0.25f, 0.5f}, {-3.0f, 2.0f}, {std::nanf(""), -0.75f}};
+  const std::vector<std::vector<float>> applied = {{0.25f, 0.5f}, {-1.0f, 1.0f}, {0.0f, -0.75f}};
+  for (std::size_t k = 0; k < actions.size(); ++k) {
+    const StepResult r = env.step(actions[k]);
+    const StepResult rt = trail.step(actions[k]);
+    ASSERT_EQ(r.observation.vector.size(), 14u);
+    EXPECT_EQ(std::vector<float>(r.observation.vector.begin(), r.observation.vector.begin() + 12),
+              rt.observation.vector) << "step " << k;
+    EXPECT_EQ(r.observation.vector[12], applied[k][0]) << "step " << k;
+    EXPECT_EQ(r.observation.vector[13], applied[k][1]) << "step " << k;
+  }
+}
+
 // target_speed_max: each episode's leader cap drawn in [target_speed, target_speed_max] from
 // its seed, the same for the same seed, and the episode's other draws unchanged.
 TEST(ConvoyEnv, LeaderSpeedCapIsDrawnPerEpisode) {

@@ -56,6 +56,9 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
   // As syndds_train writes it: the environment and its options (the observation's kind).
   PolicyMetadata meta{{"env", "convoy_follow"}, {"env_options", ""}};
   if (options.observation == ConvoyObservationKind::trail) meta["env_options"] = "observation=trail";
+  if (options.observation == ConvoyObservationKind::trail_action) {
+    meta["env_options"] = "observation=trail_action";
+  }
   trainer.save_policy(path, meta);
   return path;
 }
@@ -162,6 +165,14 @@ TEST(PolicyController, ACameraPolicyObservesOnlyItsCameraBesideAChaseCamera) {
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailObservation) {
   ConvoyEnvOptions options;
   options.observation = ConvoyObservationKind::trail;
+  drives_exactly_as_in_the_environment(options);
+}
+
+// trail_action: the previous action the observation holds is the one the controller applied,
+// as in the environment.
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailActionObservation) {
+  ConvoyEnvOptions options;
+  options.observation = ConvoyObservationKind::trail_action;
   drives_exactly_as_in_the_environment(options);
 }
 
@@ -321,6 +332,13 @@ TEST(PolicyController, AResumedRunIsByteIdentical) { a_resumed_run_is_byte_ident
 TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailObservation) {
   ConvoyEnvOptions options;
   options.observation = ConvoyObservationKind::trail;
+  a_resumed_run_is_byte_identical(options);
+}
+
+// The previous action of the trail_action observation is in the checkpoint too.
+TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailActionObservation) {
+  ConvoyEnvOptions options;
+  options.observation = ConvoyObservationKind::trail_action;
   a_resumed_run_is_byte_identical(options);
 }
 
