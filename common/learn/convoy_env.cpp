@@ -76,6 +76,12 @@ vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brak
   return cmd;
 }
 
+double convoy_lagged_steering(double previous, double action, double lag_s, double period_s) {
+  const double target = std::isnan(action) ? 0.0 : std::clamp(action, -1.0, 1.0);
+  if (lag_s <= 0.0) return target;
+  return previous + (1.0 - std::exp(-period_s / lag_s)) * (target - previous);
+}
+
 std::vector<float> convoy_heuristic_action(const Observation& o) {
   if (o.vector.size() != 4) {
     throw std::invalid_argument("the hand-written follower reads the paper observation (4 "
@@ -230,8 +236,11 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
     throw std::invalid_argument("ConvoyEnv::step: expected 2 action values, got " +
                                 std::to_string(action.size()));
   }
-  driver_->set_action(action[0], action[1]);
-  const double steering = convoy_driver_inputs(action[0], action[1]).steering;
+  const double period_s = options_.frames_per_step * scenario_->time.heartbeat_s;
+  const double steering = convoy_lagged_steering(
+      convoy_driver_inputs(driver_->steering(), 0.0).steering, action[0], options_.steer_lag_s,
+      period_s);
+  driver_->set_action(steering, action[1]);
   for (int f = 0; f < options_.frames_per_step && !collided_; ++f) run_frame();
   ++steps_;
 

@@ -60,6 +60,10 @@ struct ConvoyEnvOptions {
   /// target_speed_max_mps] from its seed (else every episode has target_speed_mps).
   double target_speed_max_mps = 0.0;
   int frames_per_step = 10;        // control period: 10 frames of 0.01 s
+  /// The policy's steering reaches the vehicle through a first-order lag of this time
+  /// constant, applied once per action (convoy_lagged_steering; the policy controller applies
+  /// the same); 0: directly.
+  double steer_lag_s = 0.0;
   int max_steps = 500;             // truncated after this many steps (50 s)
   /// The camera variant renders only the frames an observation will hold (the newest at each
   /// step's end; 1 of the camera's 3 per step at 30 Hz): observations are the same bit for bit
@@ -79,6 +83,11 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
 /// throttle/brake value in [-1, 1] (positive throttle, negative brake), clamped; NaN is 0
 /// (straight ahead, coasting).
 vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake);
+
+/// The steering a convoy controller applies for a new `action` after `previous` (the one it
+/// applied for the last period_s): the clamped action (NaN as 0) without a lag (lag_s <= 0),
+/// else previous + (1 - exp(-period_s / lag_s)) (clamped action - previous).
+double convoy_lagged_steering(double previous, double action, double lag_s, double period_s);
 
 /// A hand-written follower on the convoy observation (the baseline a learned policy has to
 /// beat): steer toward the leader (2 x its bearing off the nose), pedal by the gap to the
@@ -109,6 +118,8 @@ class ConvoyDriverAgent final : public proto::Agent {
   /// steering in [-1, 1] (positive left), throttle_brake in [-1, 1] (positive throttle,
   /// negative brake); clamped.
   void set_action(double steering, double throttle_brake);
+  /// The steering of the command (as set, before clamping).
+  double steering() const { return steering_; }
   const ConvoyObservationBuilder& observations() const { return builder_; }
 
  private:

@@ -39,9 +39,9 @@ Policy load_policy(const std::string& file, const std::string& where) {
   return p;
 }
 
-// The observation the policy was trained on: its file's env_options (a file without
-// metadata is a convoy_follow policy on the paper observation).
-ConvoyObservationKind policy_observation(const Policy& policy, const std::string& where) {
+// The environment options the policy was trained with: its file's env_options (a file
+// without metadata is a convoy_follow policy on the defaults: the paper observation).
+ConvoyEnvOptions policy_env_options(const Policy& policy, const std::string& where) {
   const auto& meta = policy.metadata();
   const auto env = meta.find("env");
   if (env != meta.end() && env->second != "convoy_follow") {
@@ -49,9 +49,9 @@ ConvoyObservationKind policy_observation(const Policy& policy, const std::string
                       ", not of convoy_follow: it cannot drive a convoy follower");
   }
   const auto options = meta.find("env_options");
-  if (options == meta.end()) return ConvoyObservationKind::paper;
+  if (options == meta.end()) return ConvoyEnvOptions{};
   try {
-    return convoy_env_options(parse_env_options_line(options->second)).observation;
+    return convoy_env_options(parse_env_options_line(options->second));
   } catch (const std::invalid_argument& e) {
     throw ConfigError(where + "its env_options '" + options->second + "': " + e.what());
   }
@@ -60,9 +60,9 @@ ConvoyObservationKind policy_observation(const Policy& policy, const std::string
 // The vehicle's observation, with the camera only if the policy looks at one.
 ConvoyObservationConfig observation_for(const scenario::Scenario& s,
                                         const scenario::VehicleConfig& v, const Policy& policy,
-                                        const std::string& where) {
-  ConvoyObservationConfig c = convoy_observation_config(s, v, v.controller.convoy.leader,
-                                                        policy_observation(policy, where));
+                                        const ConvoyEnvOptions& trained) {
+  ConvoyObservationConfig c =
+      convoy_observation_config(s, v, v.controller.convoy.leader, trained.observation);
   if (!policy.observation_space().image) c.image.reset();
   return c;
 }
@@ -77,7 +77,8 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
       where_(s.file + ": vehicle " + v.id + ": controller.model " + v.controller.policy_file +
              ": "),
       policy_(load_policy(v.controller.policy_file, where_)),
-      builder_(observation_for(s, v, policy_, where_)) {
+      trained_(policy_env_options(policy_, where_)),
+      builder_(observation_for(s, v, policy_, trained_)) {
   const ObservationSpace expected = builder_.space();
   const ObservationSpace& got = policy_.observation_space();
   const bool same_image = expected.image.has_value() == got.image.has_value() &&
@@ -94,6 +95,7 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
                       " actions; a convoy follower's are 2 (steering, throttle/brake)");
   }
   period_frames_ = std::llround(v.controller.policy_period_s / s.time.heartbeat_s);
+  action_period_s_ = period_frames_ * s.time.heartbeat_s;
 }
 
 std::vector<proto::Subscription> PolicyControllerAgent::subscriptions() const {
@@ -105,7 +107,8 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
   // The observation as it stood after the previous frame (as the environment returns it).
   if (builder_.ready() && (actions_ == 0 || since_action_ >= period_frames_)) {
     const std::vector<float> a = policy_.act(builder_.observation(), true);
-    steering_ = a[0];
+    steering_ = convoy_lagged_steering(convoy_driver_inputs(steering_, 0.0).steering, a[0],
+                                       trained_.steer_lag_s, action_period_s_);
     throttle_brake_ = a[1];
     builder_.note_action(steering_, throttle_brake_);
     since_action_ = 0;

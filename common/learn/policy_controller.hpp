@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <string>
 
-#include "learn/convoy_observation.hpp"
+#include "learn/convoy_env.hpp"
 #include "learn/ppo/policy.hpp"
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
@@ -52,11 +52,13 @@ class PolicyControllerAgent final : public proto::Agent {
   std::string member_id_;
   std::string where_;  // "<scenario>: vehicle <id>: controller.model <file>: " for errors
   Policy policy_;      // loaded before the builder: it says whether the camera is observed
+  ConvoyEnvOptions trained_;  // the environment options of its training (metadata)
   ConvoyObservationBuilder builder_;
   std::int64_t period_frames_ = 10;
+  double action_period_s_ = 0.1;
   std::int64_t since_action_ = 0;
   std::uint64_t actions_ = 0;
-  double steering_ = 0.0;
+  double steering_ = 0.0;          // as applied (after the steering lag of the training)
   double throttle_brake_ = -1.0;  // the brake until the first action
 };
 

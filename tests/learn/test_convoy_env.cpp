@@ -429,6 +429,29 @@ TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
   }
 }
 
+// The steering lag: none gives the clamped action (NaN as 0); a lag of tau moves the applied
+// steering 1 - exp(-T / tau) of the way to the clamped action per period T.
+TEST(ConvoyEnv, SteeringLagIsFirstOrderPerAction) {
+  EXPECT_EQ(convoy_lagged_steering(0.4, 0.3, 0.0, 0.1), 0.3);
+  EXPECT_EQ(convoy_lagged_steering(0.4, 7.0, 0.0, 0.1), 1.0);
+  EXPECT_EQ(convoy_lagged_steering(0.4, std::nan(""), 0.0, 0.1), 0.0);
+  const double b = 1.0 - std::exp(-0.5);
+  EXPECT_DOUBLE_EQ(convoy_lagged_steering(0.0, 1.0, 0.2, 0.1), b);
+  EXPECT_DOUBLE_EQ(convoy_lagged_steering(0.5, -3.0, 0.2, 0.1), 0.5 + b * (-1.0 - 0.5));
+  // In the environment: the observation's previous steering is the lagged one.
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail_action;
+  o.steer_lag_s = 0.2;
+  ConvoyEnv env(o);
+  env.reset(2);
+  double applied = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const StepResult r = env.step(std::vector<float>{1.0f, 0.2f});
+    applied += b * (1.0 - applied);
+    EXPECT_FLOAT_EQ(r.observation.vector[12], static_cast<float>(applied)) << "step " << k;
+  }
+}
+
 // target_speed_max: each episode's leader cap drawn in [target_speed, target_speed_max] from
 // its seed, the same for the same seed, and the episode's other draws unchanged.
 TEST(ConvoyEnv, LeaderSpeedCapIsDrawnPerEpisode) {

@@ -55,10 +55,16 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
   const std::string path = (dir / "policy.pt").string();
   // As syndds_train writes it: the environment and its options (the observation's kind).
   PolicyMetadata meta{{"env", "convoy_follow"}, {"env_options", ""}};
-  if (options.observation == ConvoyObservationKind::trail) meta["env_options"] = "observation=trail";
+  std::string env_options;
+  if (options.observation == ConvoyObservationKind::trail) env_options = "observation=trail";
   if (options.observation == ConvoyObservationKind::trail_action) {
-    meta["env_options"] = "observation=trail_action";
+    env_options = "observation=trail_action";
   }
+  if (options.steer_lag_s > 0.0) {
+    env_options += (env_options.empty() ? "" : " ") + std::string("steer_lag=") +
+                   std::to_string(options.steer_lag_s);
+  }
+  meta["env_options"] = env_options;
   trainer.save_policy(path, meta);
   return path;
 }
@@ -173,6 +179,15 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailObservation) {
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailActionObservation) {
   ConvoyEnvOptions options;
   options.observation = ConvoyObservationKind::trail_action;
+  drives_exactly_as_in_the_environment(options);
+}
+
+// A policy trained with a steering lag: the controller applies the same lag (from the policy's
+// metadata), and its observation holds the lagged steering, as in the environment.
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithASteeringLag) {
+  ConvoyEnvOptions options;
+  options.observation = ConvoyObservationKind::trail_action;
+  options.steer_lag_s = 0.25;
   drives_exactly_as_in_the_environment(options);
 }
 
@@ -339,6 +354,13 @@ TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailObservation) {
 TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailActionObservation) {
   ConvoyEnvOptions options;
   options.observation = ConvoyObservationKind::trail_action;
+  a_resumed_run_is_byte_identical(options);
+}
+
+TEST(PolicyController, AResumedRunIsByteIdenticalWithASteeringLag) {
+  ConvoyEnvOptions options;
+  options.observation = ConvoyObservationKind::trail_action;
+  options.steer_lag_s = 0.25;
   a_resumed_run_is_byte_identical(options);
 }
 
