@@ -164,6 +164,27 @@ void place_pair(ConvoyEpisode& e, const ConvoyEpisodeOptions& o) {
   if (e.leader_path.size() < 2) throw std::logic_error("convoy episode: leader starts at the end");
 }
 
+// The leader's path displaced sideways by the drawn sine (ConvoyEpisodeOptions).
+void wobble_leader(ConvoyEpisode& e, std::uint64_t seed, const ConvoyEpisodeOptions& o) {
+  if (o.leader_wobble_m <= 0.0) return;
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
+  const double wavelength = 8.0 + unit(rng) * 22.0;
+  const double k = 2.0 * std::numbers::pi / wavelength;
+  const double amplitude =
+      std::min(unit(rng) * o.leader_wobble_m, o.leader_wobble_curvature_per_m / (k * k));
+  const double phase = unit(rng) * 2.0 * std::numbers::pi;
+  const std::vector<Vec2> fine = resample(e.leader_path, 0.5);
+  std::vector<Vec2> out{fine.front()};
+  for (std::size_t i = 1; i < fine.size(); ++i) {
+    const double s = 0.5 * static_cast<double>(i);
+    const Vec2 d = (fine[std::min(i + 1, fine.size() - 1)] - fine[i - 1]).normalized();
+    const double side = amplitude * std::min(1.0, s / 10.0) * std::sin(k * s + phase);
+    out.push_back(fine[i] + side * Vec2(-d.y(), d.x()));
+  }
+  e.leader_path = std::move(out);
+  e.leader_wobble_m = amplitude;
+}
+
 // A random obstacle course of the study's generator (current protocol): its planned path and
 // its obstacles as the study's scenarios place them (fixed ones rocks, the others trees and
 // bushes in turn), the pair starting anywhere in the first 60 % of the path.
@@ -189,6 +210,7 @@ ConvoyEpisode course_episode(std::uint64_t seed, const ConvoyEpisodeOptions& o) 
     e.obstacles.push_back({std::string(label) + std::to_string(i + 1), label, ci.centre,
                            ci.radius, height});
   }
+  wobble_leader(e, seed, o);
   return e;
 }
 
@@ -242,6 +264,7 @@ ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions
     }
     if (!placed) throw std::runtime_error("convoy episode: no place for obstacle " + std::to_string(k + 1));
   }
+  wobble_leader(e, seed, o);
   return e;
 }
 

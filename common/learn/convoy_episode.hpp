@@ -59,6 +59,13 @@ struct ConvoyEpisodeOptions {
   double obstacle_offset_min_m = 4.0;  // obstacle centre to path, drawn in [min, max]
   double obstacle_offset_max_m = 10.0;
   double clearance_m = 2.2;       // obstacle edge to path at least this (the vehicle's width)
+  /// Above 0: the leader drives its path displaced sideways by a sine (a leader that wanders
+  /// as a follower does), amplitude drawn in [0, leader_wobble_m], wavelength in [8, 30] m,
+  /// the amplitude cut so that the sine's curvature stays under leader_wobble_curvature_per_m,
+  /// faded in over the leader's first 10 m. `path` (the reward's reference) stays the
+  /// planned one. Drawn from a stream of its own: the episode's other draws do not change.
+  double leader_wobble_m = 0.0;
+  double leader_wobble_curvature_per_m = 0.05;
 };
 
 struct ConvoyEpisode {
@@ -74,7 +81,9 @@ struct ConvoyEpisode {
   double follower_yaw_rad = 0.0;   // anticlockwise from east (the path's direction there)
   Vec2 leader_start = Vec2::Zero();
   double leader_yaw_rad = 0.0;
-  std::vector<Vec2> leader_path;   // the path from the leader's start to the end
+  std::vector<Vec2> leader_path;   // the leader's path from its start to the end (wobbled
+                                   // if leader_wobble_m > 0)
+  double leader_wobble_m = 0.0;    // the drawn amplitude (0: none)
   std::vector<ConvoyObstacle> obstacles;
 };
 

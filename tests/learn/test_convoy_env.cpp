@@ -346,6 +346,40 @@ TEST(ConvoyEpisode, CourseEpisodesUseTheStudysGeneratorOnTrainingSeeds) {
   EXPECT_EQ(make_convoy_episode(10, o).path, make_convoy_episode(10).path);
 }
 
+// The wandering leader: every other draw of the episode unchanged, the planned path (the
+// reward's reference) unchanged, the leader's path starting where it did and staying within
+// the drawn amplitude of the planned one, on both kinds of episode; some amplitudes large.
+TEST(ConvoyEpisode, AWobblingLeaderWandersAroundThePlannedPath) {
+  double largest = 0.0;
+  for (const ConvoyEpisodeKind kind : {ConvoyEpisodeKind::paper, ConvoyEpisodeKind::courses}) {
+    ConvoyEpisodeOptions plain;
+    plain.kind = kind;
+    ConvoyEpisodeOptions wobbly = plain;
+    wobbly.leader_wobble_m = 0.5;
+    for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+      SCOPED_TRACE("seed " + std::to_string(seed));
+      const ConvoyEpisode a = make_convoy_episode(seed, plain);
+      const ConvoyEpisode b = make_convoy_episode(seed, wobbly);
+      EXPECT_EQ(a.leader_wobble_m, 0.0);
+      EXPECT_EQ(b.path, a.path);
+      EXPECT_EQ(b.leader_start, a.leader_start);
+      EXPECT_EQ(b.follower_start, a.follower_start);
+      ASSERT_EQ(b.obstacles.size(), a.obstacles.size());
+      for (std::size_t i = 0; i < a.obstacles.size(); ++i) {
+        EXPECT_EQ(b.obstacles[i].centre, a.obstacles[i].centre);
+      }
+      EXPECT_EQ(b.leader_path.front(), a.leader_path.front());
+      EXPECT_LE(b.leader_wobble_m, 0.5);
+      double farthest = 0.0;
+      for (const Vec2& p : b.leader_path) farthest = std::max(farthest, distance_to_path(a.path, p));
+      EXPECT_LE(farthest, b.leader_wobble_m + 1e-6);
+      EXPECT_GE(farthest, 0.5 * b.leader_wobble_m);
+      largest = std::max(largest, b.leader_wobble_m);
+    }
+  }
+  EXPECT_GT(largest, 0.25);
+}
+
 // The track reward: the gap term times 1 / (1 + e / 0.5 m): 1 at the optimal gap on the path,
 // one half 0.5 m off it or a gap width away, a quarter both; no view window.
 TEST(ConvoyReward, TrackRewardPaysForDrivingWhereTheLeaderDrove) {
