@@ -293,6 +293,13 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
   return r;
 }
 
+std::vector<float> ConvoyEnv::expert_action() const {
+  if (!driver_) return {};
+  std::vector<float> a = driver_->observations().classical_action();
+  for (float& v : a) v = std::clamp(v, -1.0f, 1.0f);
+  return a;
+}
+
 std::unique_ptr<Env> make_convoy_env(const ConvoyEnvOptions& options) {
   return std::make_unique<ConvoyEnv>(options);
 }

@@ -140,6 +140,10 @@ class ConvoyEnv final : public Env {
   Box action_space() const override;
   Observation reset(std::uint64_t seed) override;
   StepResult step(std::span<const float> action) override;
+  /// The trail kinds: the classical follower's action for the current state, from the
+  /// estimator the observation runs (convoy::ConvoyFollower with its default gains, on the
+  /// same readings: no ground truth); empty for the paper observation.
+  std::vector<float> expert_action() const override;
 
   const ConvoyEnvOptions& options() const { return options_; }
   /// The current episode (valid after reset).

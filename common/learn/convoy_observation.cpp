@@ -111,8 +111,10 @@ void ConvoyObservationBuilder::consume(const proto::FrameContext& ctx,
     // As the classical follower's member does: the inputs describe the end of frame k-1.
     const convoy::OwnReadings own{s.gps_fixes, s.magnetometers, s.wheel_speeds};
     std::vector<convoy::FollowerEvent> events;  // leader lost shows in the features
-    estimator_->update(ctx.sim_time_s - ctx.heartbeat_s, ctx.heartbeat_s, own, s.v2v_messages,
-                       events);
+    const vehicle::DriverInputs command = estimator_->update(
+        ctx.sim_time_s - ctx.heartbeat_s, ctx.heartbeat_s, own, s.v2v_messages, events);
+    classical_action_ = {static_cast<float>(command.steering),
+                         static_cast<float>(command.throttle - command.braking)};
   }
   take_newest(s.gps_fixes, config_.follower_id, fix_);
   take_newest(s.magnetometers, config_.follower_id, compass_);

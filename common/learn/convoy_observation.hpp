@@ -76,6 +76,11 @@ class ConvoyObservationBuilder {
   bool ready() const;
   /// The observation from the newest readings. Throws std::logic_error before ready().
   Observation observation() const;
+  /// The trail kinds: the classical follower's command for now (its estimator is the classical
+  /// follower, run on the same readings) as a convoy action [steering, throttle_brake]; the
+  /// teacher a trainer may imitate (ConvoyEnv::expert_action). Empty for the paper kind and
+  /// before the estimator's first update; not checkpointed (the next frame recomputes it).
+  std::vector<float> classical_action() const { return classical_action_; }
   /// The action the controller applies from now on (clamped to [-1, 1], NaN as 0, as
   /// convoy_driver_inputs applies it); the trail_action kind observes it. Before the first:
   /// steering 0, brake 1 (the brake the controllers hold until they act).
@@ -97,6 +102,7 @@ class ConvoyObservationBuilder {
   std::optional<proto::V2VMessageMsg> v2v_;
   std::optional<proto::ImageMsg> image_;
   std::optional<convoy::ConvoyFollower> estimator_;  // the trail kinds'
+  std::vector<float> classical_action_;               // the estimator's newest command
   double previous_steering_ = 0.0;                    // note_action's
   double previous_throttle_brake_ = -1.0;
 };

@@ -69,6 +69,10 @@ class Env {
   /// Applies the action for one control period. Calling it before reset, or after an episode
   /// ended, throws std::logic_error.
   virtual StepResult step(std::span<const float> action) = 0;
+  /// An expert's action for the current state (after reset or step), within the action
+  /// space, for a trainer to imitate; never part of the observation. Empty: this environment
+  /// has no expert.
+  virtual std::vector<float> expert_action() const { return {}; }
 };
 
 using EnvFactory = std::function<std::unique_ptr<Env>()>;

@@ -24,7 +24,7 @@ namespace {
 
 constexpr const char* kHeader =
     "update,interactions,episodes,mean_return,moving_average_return,policy_loss,value_loss,"
-    "entropy,approx_kl,clip_fraction,wall_s";
+    "entropy,approx_kl,clip_fraction,wall_s,imitation_weight,imitation_loss";
 
 std::string number(double v) {
   if (std::isnan(v)) return "nan";
@@ -103,6 +103,15 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-9, 1.0))
       ->capture_default_str();
   app.add_option("--entropy-coef", ppo.entropy_coef, "Weight of the entropy bonus")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--imitation-weight", options.imitation_weight,
+                 "Weight of imitating the environment's expert action (convoy_follow with a trail "
+                 "observation: the classical follower's command) in the loss; 0: PPO alone")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--imitation-updates", options.imitation_updates,
+                 "The imitation weight falls linearly to 0 over this many updates (0: constant)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   app.add_option("--output", output, "Directory of training.csv, checkpoint.pt, policy.pt")
@@ -193,7 +202,8 @@ int main(int argc, char** argv) {
       out << s.update << ',' << s.interactions << ',' << s.episodes << ',' << number(s.mean_return)
           << ',' << number(s.moving_average_return) << ',' << number(s.policy_loss) << ','
           << number(s.value_loss) << ',' << number(s.entropy) << ',' << number(s.approx_kl) << ','
-          << number(s.clip_fraction) << ',' << number(wall) << '\n';
+          << number(s.clip_fraction) << ',' << number(wall) << ',' << number(s.imitation_weight)
+          << ',' << number(s.imitation_loss) << '\n';
       out.flush();
       const double left = wall / (s.update - first) * (updates - s.update);
       std::printf("update %d/%d  interactions %lld  episodes %lld  mean return %s  (last %d: %s)"
@@ -216,6 +226,10 @@ int main(int argc, char** argv) {
                                    {"updates", std::to_string(trainer.updates())},
                                    {"interactions", std::to_string(trainer.interactions())}};
     if (!init_from.empty()) metadata["init_from"] = fs::path(init_from).filename().string();
+    if (options.imitation_weight > 0.0) {
+      metadata["imitation"] = "weight " + number(options.imitation_weight) + " over " +
+                              std::to_string(options.imitation_updates) + " updates";
+    }
     if (env_name == "convoy_follow") {
       // The rig a vehicle driven by this policy needs (config/sensors/<rig>.yaml).
       metadata["sensors"] = factory()->observation_space().image ? "convoy_camera" : "convoy";

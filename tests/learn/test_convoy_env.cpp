@@ -463,6 +463,40 @@ TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
   }
 }
 
+// The expert a trainer may imitate: the classical follower's command from the observation's
+// own estimator. Driving the episode with it at the policy's 10 Hz, the follower stays near
+// the leader's path and behind it, with no collision; the paper observation has no expert.
+TEST(ConvoyEnv, ExpertActionIsTheClassicalFollowersCommand) {
+  ConvoyEnvOptions o = test_options();
+  ConvoyEnv paper(o);
+  paper.reset(2);
+  EXPECT_TRUE(paper.expert_action().empty());
+  o.observation = ConvoyObservationKind::trail;
+  o.reward_kind = ConvoyRewardKind::track;
+  for (const std::uint64_t seed : {2u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    ConvoyEnv env(o);
+    env.reset(seed);
+    double error_sum = 0.0, distance_min = 1e9;
+    int steps = 0;
+    for (; steps < 400; ++steps) {
+      const std::vector<float> a = env.expert_action();
+      ASSERT_EQ(a.size(), 2u);
+      EXPECT_LE(std::abs(a[0]), 1.0f);
+      EXPECT_LE(std::abs(a[1]), 1.0f);
+      const StepResult r = env.step(a);
+      ASSERT_FALSE(r.terminated) << "collided " << r.info.at("collided") << ", lost "
+                                 << r.info.at("leader_lost") << " at step " << steps;
+      error_sum += r.info.at("path_error_m");
+      distance_min = std::min(distance_min, r.info.at("distance_m"));
+      if (r.truncated) break;
+    }
+    EXPECT_GT(steps, 150);
+    EXPECT_LT(error_sum / steps, 0.4);
+    EXPECT_GT(distance_min, 6.0);
+  }
+}
+
 // The steering lag: none gives the clamped action (NaN as 0); a lag of tau moves the applied
 // steering 1 - exp(-T / tau) of the way to the clamped action per period T.
 TEST(ConvoyEnv, SteeringLagIsFirstOrderPerAction) {

@@ -150,7 +150,12 @@ UpdateStats Trainer::update() {
   const auto n = static_cast<std::size_t>(T) * k_count;
   const auto a_size = static_cast<std::int64_t>(action_space_.size());
 
-  std::vector<torch::Tensor> obs_steps, image_steps, action_steps, logp_steps;
+  std::vector<torch::Tensor> obs_steps, image_steps, action_steps, logp_steps, expert_steps;
+  const double imitation =
+      options_.imitation_updates > 0
+          ? options_.imitation_weight *
+                std::max(0.0, 1.0 - static_cast<double>(updates_) / options_.imitation_updates)
+          : options_.imitation_weight;
   std::vector<double> values(n), next_values(n, 0.0), rewards(n);
   std::vector<bool> terminated(n), truncated(n);
   std::vector<double> finished;
@@ -175,6 +180,19 @@ UpdateStats Trainer::update() {
     }
     obs_steps.push_back(vec);
     if (img.defined()) image_steps.push_back(img);
+    if (imitation > 0.0) {
+      std::vector<float> experts;
+      for (int k = 0; k < K; ++k) {
+        const std::vector<float> e = envs_.copy(k).expert_action();
+        if (e.size() != static_cast<std::size_t>(a_size)) {
+          throw std::invalid_argument("Trainer: imitation needs an expert action of " +
+                                      std::to_string(a_size) + " values, the environment gave " +
+                                      std::to_string(e.size()));
+        }
+        experts.insert(experts.end(), e.begin(), e.end());
+      }
+      expert_steps.push_back(torch::tensor(experts).reshape({K, a_size}));
+    }
     action_steps.push_back(action);
     logp_steps.push_back(logp);
     std::vector<std::vector<float>> actions(k_count);
@@ -238,11 +256,13 @@ UpdateStats Trainer::update() {
   const torch::Tensor images = image_steps.empty() ? torch::Tensor() : torch::cat(image_steps);
   const torch::Tensor actions = torch::cat(action_steps);
   const torch::Tensor old_logp = torch::cat(logp_steps);
+  const torch::Tensor experts = expert_steps.empty() ? torch::Tensor() : torch::cat(expert_steps);
   const torch::Tensor old_values = doubles(values).to(torch::kFloat32);
   const torch::Tensor advantages = doubles(gae.advantages).to(torch::kFloat32);
   const torch::Tensor returns = doubles(gae.returns).to(torch::kFloat32);
   const auto m = static_cast<std::int64_t>(n);
   double policy_loss = 0.0, value_loss = 0.0, entropy = 0.0, kl = 0.0, clipped = 0.0;
+  double imitation_loss = 0.0;
   int batches = 0;
   for (int epoch = 0; epoch < p.epochs; ++epoch) {
     const torch::Tensor perm = torch::randperm(m, generator_, torch::kInt64);
@@ -267,7 +287,12 @@ UpdateStats Trainer::update() {
       vl = 0.5 * vl.mean();
       const torch::Tensor ent =
           (model_->log_std + 0.5 * (1.0 + std::log(2.0 * std::numbers::pi))).sum();
-      const torch::Tensor loss = pg + p.value_coef * vl - p.entropy_coef * ent;
+      torch::Tensor loss = pg + p.value_coef * vl - p.entropy_coef * ent;
+      torch::Tensor il;
+      if (experts.defined()) {
+        il = (out.mean - experts.index_select(0, idx)).pow(2).sum(-1).mean();
+        loss = loss + imitation * il;
+      }
       optimizer_->zero_grad();
       loss.backward();
       torch::nn::utils::clip_grad_norm_(model_->parameters(), p.max_grad_norm);
@@ -279,6 +304,7 @@ UpdateStats Trainer::update() {
         entropy += ent.item<double>();
         kl += ((ratio - 1.0) - log_ratio).mean().item<double>();
         clipped += ((ratio - 1.0).abs() > p.clip).to(torch::kFloat64).mean().item<double>();
+        if (il.defined()) imitation_loss += il.item<double>();
       }
       ++batches;
     }
@@ -313,6 +339,8 @@ UpdateStats Trainer::update() {
   stats.entropy = entropy / batches;
   stats.approx_kl = kl / batches;
   stats.clip_fraction = clipped / batches;
+  stats.imitation_loss = experts.defined() ? imitation_loss / batches : nan;
+  stats.imitation_weight = imitation;
   return stats;
 }
 

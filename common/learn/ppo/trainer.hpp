@@ -56,6 +56,13 @@ struct TrainerOptions {
   std::uint64_t seed = 0;  // network initialisation, sampling, shuffling, episode seeds
   std::string network = "auto";  // mlp, fusion or auto (networks.hpp)
   int return_window = 20;        // episodes in the moving average of returns
+  /// Imitation of the environments' expert_action() (a teacher, e.g. the classical convoy
+  /// follower): the loss gains weight times the mean over the minibatch of the squared
+  /// distance between the policy's mean action and the expert's, for the states the policy
+  /// itself visits (as DAgger collects them). The weight falls linearly to 0 over
+  /// `imitation_updates` updates (0: constant). 0: PPO alone.
+  double imitation_weight = 0.0;
+  int imitation_updates = 0;
 };
 
 /// What one update did. Returns are the environment's (unscaled) episode returns.
@@ -70,6 +77,9 @@ struct UpdateStats {
   double entropy = 0.0;
   double approx_kl = 0.0;          // mean of (r - 1) - log r, r the probability ratio
   double clip_fraction = 0.0;      // fraction of samples with |r - 1| > clip
+  double imitation_loss = 0.0;     // mean squared distance to the expert's action (NaN when
+                                   // not imitating)
+  double imitation_weight = 0.0;   // the weight this update used
   double rollout_s = 0.0;          // wall time collecting the rollout (not deterministic)
   double learn_s = 0.0;            // wall time of GAE and the epochs of minibatches
 };
