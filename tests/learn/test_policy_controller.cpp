@@ -110,6 +110,14 @@ std::vector<proto::VehicleStateMsg> run_with_controller(const ConvoyEnvOptions& 
 
 }  // namespace
 
+// Environment options of a policy trained on observation `kind` with a steering lag.
+static ConvoyEnvOptions trained_with(ConvoyObservationKind kind, double steer_lag_s = 0.0) {
+  ConvoyEnvOptions options;
+  options.observation = kind;
+  options.steer_lag_s = steer_lag_s;
+  return options;
+}
+
 static void drives_exactly_as_in_the_environment(const ConvoyEnvOptions& options,
                                                  const std::string& rig = "") {
   register_policy_controller();
@@ -169,26 +177,19 @@ TEST(PolicyController, ACameraPolicyObservesOnlyItsCameraBesideAChaseCamera) {
 // The trail observation: the estimator inside the observation builder runs the same in the
 // environment's driver agent and in the controller member.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailObservation) {
-  ConvoyEnvOptions options;
-  options.observation = ConvoyObservationKind::trail;
-  drives_exactly_as_in_the_environment(options);
+  drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail));
 }
 
 // trail_action: the previous action the observation holds is the one the controller applied,
 // as in the environment.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailActionObservation) {
-  ConvoyEnvOptions options;
-  options.observation = ConvoyObservationKind::trail_action;
-  drives_exactly_as_in_the_environment(options);
+  drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_action));
 }
 
 // A policy trained with a steering lag: the controller applies the same lag (from the policy's
 // metadata), and its observation holds the lagged steering, as in the environment.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithASteeringLag) {
-  ConvoyEnvOptions options;
-  options.observation = ConvoyObservationKind::trail_action;
-  options.steer_lag_s = 0.25;
-  drives_exactly_as_in_the_environment(options);
+  drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_action, 0.25));
 }
 
 TEST(PolicyController, APolicyThatDoesNotFitTheSensorsIsRefused) {
@@ -356,23 +357,16 @@ TEST(PolicyController, AResumedRunIsByteIdentical) { a_resumed_run_is_byte_ident
 
 // The trail observation's estimator (filters, the leader's trail) is in the checkpoint too.
 TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailObservation) {
-  ConvoyEnvOptions options;
-  options.observation = ConvoyObservationKind::trail;
-  a_resumed_run_is_byte_identical(options);
+  a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail));
 }
 
 // The previous action of the trail_action observation is in the checkpoint too.
 TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailActionObservation) {
-  ConvoyEnvOptions options;
-  options.observation = ConvoyObservationKind::trail_action;
-  a_resumed_run_is_byte_identical(options);
+  a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_action));
 }
 
 TEST(PolicyController, AResumedRunIsByteIdenticalWithASteeringLag) {
-  ConvoyEnvOptions options;
-  options.observation = ConvoyObservationKind::trail_action;
-  options.steer_lag_s = 0.25;
-  a_resumed_run_is_byte_identical(options);
+  a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_action, 0.25));
 }
 
 // The residual sensor-fusion network started from a vector policy of an earlier stage acts
