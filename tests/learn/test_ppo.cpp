@@ -431,3 +431,50 @@ TEST(Ppo, ImitationBringsThePolicyToTheExpert) {
   Trainer no_expert(double_integrator(), o);
   EXPECT_THROW(no_expert.update(), std::invalid_argument);
 }
+
+// A run with imitation resumes bit for bit (the expert's actions come back with the replayed
+// episodes, the weight's schedule from the update count), and a checkpoint refuses a run with
+// another imitation schedule, which would silently train otherwise.
+TEST(Ppo, AnImitationRunResumesBitForBitAndOnlyWithItsSchedule) {
+  const fs::path dir = syndds::test::learn_test_dir();
+  const std::string checkpoint = (dir / "checkpoint.pt").string();
+  const auto factory = [] { return std::make_unique<TaughtDoubleIntegrator>(); };
+  TrainerOptions o = small_options(2, 1, 150);
+  o.imitation_weight = 1.5;
+  o.imitation_updates = 6;
+  Trainer straight(factory, o);
+  std::vector<UpdateStats> expected;
+  for (int u = 0; u < 4; ++u) expected.push_back(straight.update());
+  {
+    Trainer first(factory, o);
+    first.update();
+    first.update();
+    first.save_checkpoint(checkpoint);
+  }
+  Trainer resumed(factory, o);
+  resumed.load_checkpoint(checkpoint);
+  for (int u = 2; u < 4; ++u) {
+    const UpdateStats s = resumed.update();
+    const UpdateStats& e = expected[static_cast<std::size_t>(u)];
+    EXPECT_EQ(s.imitation_weight, e.imitation_weight);
+    EXPECT_EQ(s.imitation_loss, e.imitation_loss);
+    EXPECT_EQ(s.policy_loss, e.policy_loss);
+  }
+  expect_identical(parameters(straight), parameters(resumed));
+  for (const auto& [weight, over] : {std::pair{1.0, 6}, std::pair{1.5, 0}, std::pair{0.0, 0}}) {
+    TrainerOptions other = o;
+    other.imitation_weight = weight;
+    other.imitation_updates = over;
+    Trainer t(factory, other);
+    try {
+      t.load_checkpoint(checkpoint);
+      ADD_FAILURE() << "a checkpoint of imitation 1.5 over 6 loaded into " << weight << " over "
+                    << over;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("imitation weight 1.5 over 6 updates"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  fs::remove_all(dir);
+}

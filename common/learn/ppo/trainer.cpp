@@ -9,6 +9,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <sstream>
 #include <stdexcept>
 
 #include "learn/ppo/policy.hpp"
@@ -362,6 +363,8 @@ void Trainer::save_checkpoint(const std::string& path) const {
   archive.write("updates", int_tensor(updates_));
   archive.write("interactions", int_tensor(interactions_));
   archive.write("env_seed", int_tensor(std::bit_cast<std::int64_t>(envs_.seed())));
+  archive.write("imitation_weight", doubles({options_.imitation_weight}));
+  archive.write("imitation_updates", int_tensor(options_.imitation_updates));
   std::vector<std::int64_t> episodes;
   for (const auto e : envs_.episodes()) episodes.push_back(std::bit_cast<std::int64_t>(e));
   archive.write("episodes", torch::tensor(episodes, torch::kInt64));
@@ -453,6 +456,25 @@ void Trainer::load_checkpoint(const std::string& path) {
   check("seed", int_of(archive, "seed"), std::bit_cast<std::int64_t>(options_.seed));
   check("copies", int_of(archive, "copies"), options_.copies);
   check("steps per copy", int_of(archive, "steps"), steps_);
+  // The imitation schedule shapes every later update: a resumed run must have the same one.
+  // (A checkpoint written before imitation existed has none: PPO alone.)
+  torch::Tensor saved_weight;
+  const double weight =
+      archive.try_read("imitation_weight", saved_weight) ? doubles(saved_weight).at(0) : 0.0;
+  torch::Tensor saved_updates;
+  const std::int64_t over = archive.try_read("imitation_updates", saved_updates)
+                                ? saved_updates.item<std::int64_t>()
+                                : 0;
+  if (weight != options_.imitation_weight || over != options_.imitation_updates) {
+    const auto schedule = [](double w, std::int64_t n) {
+      std::ostringstream out;
+      out << "imitation weight " << w << " over " << n << " updates";
+      return out.str();
+    };
+    throw std::invalid_argument(path + " was written with " + schedule(weight, over) +
+                                ", this run has " +
+                                schedule(options_.imitation_weight, options_.imitation_updates));
+  }
   torch::serialize::InputArchive model, optimizer, normalizer, return_normalizer;
   archive.read("model", model);
   archive.read("optimizer", optimizer);
