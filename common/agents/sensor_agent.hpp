@@ -22,8 +22,9 @@ struct SensorAgentOptions {
   bool resume = false;     // continue the frame index of a checkpointed run (load_state)
   /// Commit the scene (rebuild its acceleration structures: most of a frame's cost when
   /// little is rendered) only in frames where a sensor may render, not in every frame. The
-  /// learning environment's choice; the scene() of a frame without a render is then stale.
-  bool commit_only_to_render = false;
+  /// images are the same either way; the scene() of a frame without a render is then stale
+  /// (false: committed in every frame).
+  bool commit_only_to_render = true;
 };
 
 class SensorAgent final : public proto::Agent {

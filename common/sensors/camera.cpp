@@ -422,9 +422,13 @@ void CameraSensor::update(const Scene& scene, double time_s) {
 }
 
 bool CameraSensor::may_render(double time_s) const {
-  if (capture_) return true;
   const std::int64_t tick = clock_.tick_of(time_s);
+  // The open exposure's next instant has come (advance() renders it).
+  if (capture_ && capture_->trigger_tick + offsets_[capture_->next].first <= tick) return true;
   if (!clock_.due(tick)) return false;
+  // A frame triggered now renders now only if its exposure starts at the trigger (midpoint and
+  // average exposures start later: their renders come in later ticks).
+  if (offsets_.front().first > 0) return false;
   if (!filter_) return true;
   // The frame due (the clock has started once a frame was triggered; before, assume it may).
   const std::uint64_t k = clock_.next_index();

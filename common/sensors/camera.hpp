@@ -116,8 +116,9 @@ class CameraSensor {
   using FrameFilter = std::function<bool(std::int64_t available_tick, std::int64_t next_available_tick)>;
   void set_frame_filter(FrameFilter filter) { filter_ = std::move(filter); }
   std::size_t skipped() const { return skipped_; }
-  /// Whether update(scene, time_s) may render (an exposure open, or a frame due that the
-  /// filter wants): the scene must be committed before such an update, not before others.
+  /// Whether update(scene, time_s) renders (an instant of the open exposure has come, or a
+  /// frame due now, that the filter wants, exposes at its trigger): the scene must be
+  /// committed before such an update, not before others.
   bool may_render(double time_s) const;
 
   /// Checkpoint state (between frames): schedule, an exposure still open (its accumulated

@@ -577,3 +577,42 @@ TEST(CameraSensor, RateLagAndExposureOnTheFrameGrid) {
   cfg.lag_s = 0.0;
   EXPECT_THROW(CameraSensor(cfg, "ego", 1, kFrame), std::invalid_argument);
 }
+
+// may_render(t) is true exactly in the frames whose update(scene, t) renders (the sensor agent
+// commits the scene only then), for an exposure at the trigger, at its midpoint and averaged
+// over sub-frames, with and without a frame filter.
+TEST(CameraSensor, MayRenderExactlyWhenAnUpdateRenders) {
+  Scene scene;
+  flat_terrain(scene, terrain_look("rigid"));
+  scene.add_vehicle("ego", VehicleShape{});
+  for (int variant = 0; variant < 4; ++variant) {
+    SCOPED_TRACE("variant " + std::to_string(variant));
+    CameraConfig cfg;
+    cfg.intrinsics.width = 16;
+    cfg.intrinsics.height = 9;
+    cfg.mount.pose.position = Vec3(2.5, 0, 0.5);
+    if (variant == 0) cfg.exposure_s = 0.0;  // one render at the trigger
+    if (variant == 2) {
+      cfg.exposure_mode = ExposureMode::average;
+      cfg.subframes = 3;
+    }
+    CameraSensor cam(cfg, "ego", 1, kFrame);
+    // Variant 3: every other frame skipped by a filter.
+    if (variant == 3) {
+      cam.set_frame_filter([](std::int64_t available, std::int64_t) { return available % 2 == 0; });
+    }
+    int renders = 0;
+    for (int f = 0; f <= 100; ++f) {
+      const double t = f * kFrame;
+      scene.set_vehicle_pose("ego", Pose{Vec3(10.0 * t, 0, 0.467), Quat::Identity()}, {});
+      scene.commit();
+      const bool may = cam.may_render(t);
+      const auto before = cam.renders();
+      cam.update(scene, t);
+      EXPECT_EQ(may, cam.renders() > before) << "frame " << f;
+      renders += cam.renders() > before;
+      cam.take_available(t);
+    }
+    EXPECT_GE(renders, 10);
+  }
+}
