@@ -247,6 +247,11 @@ TrailFeatures ConvoyFollower::trail_features() const {
   f.leader_forward_m = rel.dot(d);
   f.leader_left_m = d.x() * rel.y() - d.y() * rel.x();
   f.leader_lost = lost_;
+  const double v = std::max(own_->speed, 0.0);
+  const double k_ahead = trail_curvature(pr.s + v * kPreviewS, kCurvatureWindowM);
+  f.feedforward_steering =
+      steering_input(std::clamp(kinematic_angle(k_ahead) + understeer_ * v * v * k_ahead,
+                                -max_bicycle_angle(), max_bicycle_angle()));
   return f;
 }
 

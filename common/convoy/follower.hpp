@@ -107,6 +107,10 @@ struct TrailFeatures {
   double leader_forward_m = 0.0;    // the leader's estimate in the follower's frame
   double leader_left_m = 0.0;
   bool leader_lost = false;
+  /// The steering command's feed-forward part: the road-wheel angle for the trail's curvature
+  /// just ahead, kinematic plus the learned understeer term (the follower's own estimate of
+  /// how much more this ground needs), as a steering input in [-1, 1].
+  double feedforward_steering = 0.0;
 };
 
 struct FollowerEvent {

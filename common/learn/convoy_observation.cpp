@@ -40,15 +40,17 @@ void held_io(Archive& a, std::optional<Msg>& held) {
 }  // namespace
 
 bool observes_trail(ConvoyObservationKind kind) {
-  return kind == ConvoyObservationKind::trail || kind == ConvoyObservationKind::trail_action;
+  return kind == ConvoyObservationKind::trail || kind == ConvoyObservationKind::trail_action ||
+         kind == ConvoyObservationKind::trail_ff;
 }
 
 ConvoyObservationKind parse_observation_kind(const std::string& name) {
   if (name == "paper") return ConvoyObservationKind::paper;
   if (name == "trail") return ConvoyObservationKind::trail;
   if (name == "trail_action") return ConvoyObservationKind::trail_action;
+  if (name == "trail_ff") return ConvoyObservationKind::trail_ff;
   throw std::invalid_argument("observation '" + name +
-                              "' is not one of paper, trail, trail_action");
+                              "' is not one of paper, trail, trail_action, trail_ff");
 }
 
 ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scenario,
@@ -91,6 +93,11 @@ Box ConvoyObservationBuilder::vector_space(ConvoyObservationKind kind) {
           {"cross_track_m", "heading_error_sin", "heading_error_cos", "curvature_0m_per_m",
            "curvature_5m_per_m", "curvature_10m_per_m", "speed_mps", "leader_speed_mps",
            "leader_accel_mps2", "gap_m", "leader_forward_m", "leader_left_m"}};
+    if (kind == ConvoyObservationKind::trail_ff) {
+      b.low.push_back(-1.0f);
+      b.high.push_back(1.0f);
+      b.names.push_back("feedforward_steering");
+    }
     if (kind == ConvoyObservationKind::trail_action) {
       for (const char* name : {"previous_steering", "previous_throttle_brake"}) {
         b.low.push_back(-1.0f);
@@ -175,6 +182,9 @@ Observation ConvoyObservationBuilder::observation() const {
                 static_cast<float>(f.gap_m),
                 static_cast<float>(f.leader_forward_m),
                 static_cast<float>(f.leader_left_m)};
+    if (config_.kind == ConvoyObservationKind::trail_ff) {
+      o.vector.push_back(static_cast<float>(f.feedforward_steering));
+    }
     if (config_.kind == ConvoyObservationKind::trail_action) {
       o.vector.push_back(static_cast<float>(previous_steering_));
       o.vector.push_back(static_cast<float>(previous_throttle_brake_));

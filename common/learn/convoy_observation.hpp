@@ -27,8 +27,11 @@ namespace syndds::learn {
 ///   curvature ahead, speeds, the gap along the trail, the leader's relative place;
 /// - trail_action: trail's numbers and the controller's previous action (steering,
 ///   throttle/brake, as applied: clamped), so that a policy can know, and be paid for, how
-///   much it changes its command.
-enum class ConvoyObservationKind { paper, trail, trail_action };
+///   much it changes its command;
+/// - trail_ff: trail's numbers and the estimator's feed-forward steering (the curvature just
+///   ahead turned into a steering input with the understeer the estimator learns from the
+///   own steering and compass: how much more this ground needs).
+enum class ConvoyObservationKind { paper, trail, trail_action, trail_ff };
 /// Whether a kind runs the trail estimator.
 bool observes_trail(ConvoyObservationKind kind);
 /// std::invalid_argument naming `name` if it is none of them.

@@ -91,7 +91,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
                    : ConvoyDynamics::reduced;
   o.camera = r.flag("camera", false);
   o.observation = parse_observation_kind(
-      r.choice("observation", "paper", {"paper", "trail", "trail_action"}));
+      r.choice("observation", "paper", {"paper", "trail", "trail_action", "trail_ff"}));
   o.reward_kind = r.choice("reward", "paper", {"paper", "track"}) == "track"
                       ? ConvoyRewardKind::track
                       : ConvoyRewardKind::paper;

@@ -3,6 +3,8 @@
 // hand-written follower beating do-nothing and random actions, and the camera variant's images.
 #include <gtest/gtest.h>
 
+#include <numeric>
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -461,6 +463,50 @@ TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
     EXPECT_EQ(r.observation.vector[12], applied[k][0]) << "step " << k;
     EXPECT_EQ(r.observation.vector[13], applied[k][1]) << "step " << k;
   }
+}
+
+// trail_ff: trail's numbers and the estimator's feed-forward steering, which is most of what the
+// classical follower steers (the rest is feedback on the distance and heading to the trail):
+// driving with the expert, the two go together.
+TEST(ConvoyEnv, TrailFeedForwardObservationEndsWithTheFeedForwardSteering) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail;
+  ConvoyEnv trail(o);
+  o.observation = ConvoyObservationKind::trail_ff;
+  ConvoyEnv env(o);
+  const Box space = env.observation_space().vector;
+  ASSERT_EQ(space.size(), 13u);
+  EXPECT_EQ(space.names[12], "feedforward_steering");
+  Observation obs = env.reset(2);
+  ASSERT_EQ(std::vector<float>(obs.vector.begin(), obs.vector.begin() + 12), trail.reset(2).vector);
+  std::vector<double> ff, steer;
+  for (int k = 0; k < 200; ++k) {
+    const std::vector<float> expert = env.expert_action();
+    ff.push_back(obs.vector[12]);
+    steer.push_back(expert[0]);
+    EXPECT_GE(obs.vector[12], -1.0f);
+    EXPECT_LE(obs.vector[12], 1.0f);
+    const StepResult r = env.step(expert);
+    const StepResult rt = trail.step(expert);
+    ASSERT_EQ(std::vector<float>(r.observation.vector.begin(), r.observation.vector.begin() + 12),
+              rt.observation.vector) << "step " << k;
+    obs = r.observation;
+    if (r.terminated || r.truncated) break;
+  }
+  ASSERT_GT(ff.size(), 100u);
+  const auto n = static_cast<double>(ff.size());
+  const double mf = std::accumulate(ff.begin(), ff.end(), 0.0) / n;
+  const double ms = std::accumulate(steer.begin(), steer.end(), 0.0) / n;
+  double sff = 0.0, sss = 0.0, sfs = 0.0;
+  for (std::size_t i = 0; i < ff.size(); ++i) {
+    sff += (ff[i] - mf) * (ff[i] - mf);
+    sss += (steer[i] - ms) * (steer[i] - ms);
+    sfs += (ff[i] - mf) * (steer[i] - ms);
+  }
+  const double correlation = sfs / std::sqrt(sff * sss);
+  std::printf("feed-forward against the expert's steering: correlation %.3f over %zu steps\n",
+              correlation, ff.size());
+  EXPECT_GT(correlation, 0.4);  // 0.52 here
 }
 
 // The expert a trainer may imitate: the classical follower's command from the observation's
