@@ -60,6 +60,7 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
   if (options.observation == ConvoyObservationKind::trail_action) {
     env_options = "observation=trail_action";
   }
+  if (options.observation == ConvoyObservationKind::trail_ff) env_options = "observation=trail_ff";
   if (options.steer_lag_s > 0.0) {
     env_options += (env_options.empty() ? "" : " ") + std::string("steer_lag=") +
                    std::to_string(options.steer_lag_s);
@@ -186,6 +187,12 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailActionObservatio
   drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_action));
 }
 
+// trail_ff: the feed-forward steering (with the understeer the estimator learns while driving)
+// is the same in the controller as in the environment.
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailFfObservation) {
+  drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_ff));
+}
+
 // A policy trained with a steering lag: the controller applies the same lag (from the policy's
 // metadata), and its observation holds the lagged steering, as in the environment.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithASteeringLag) {
@@ -244,8 +251,8 @@ TEST(ShippedPolicy, BeatsTheBaselinesOnHeldOutEpisodes) {
   EXPECT_LE(learned.terminated, 3);  // at most 3 of 10 end in a collision or a lost leader
 }
 
-// The shipped camera policy (config/policies/convoy_follow_camera.pt, docs/learning.md: trail
-// observation, trained in two stages on rigid ground with imitation of the classical
+// The shipped camera policy (config/policies/convoy_follow_camera.pt, docs/learning.md:
+// trail_ff observation, trained in two stages on rigid ground with imitation of the classical
 // follower) in the environment its metadata names (full vehicle, camera), on 10 episodes of
 // seeds it never saw: far better than doing nothing or random actions, and near the classical
 // follower (the environment's expert, at the policy's 10 Hz) in return and in distance to the
@@ -363,6 +370,11 @@ TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailObservation) {
 // The previous action of the trail_action observation is in the checkpoint too.
 TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailActionObservation) {
   a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_action));
+}
+
+// The learned understeer behind trail_ff's feed-forward is in the estimator's checkpoint.
+TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailFfObservation) {
+  a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_ff));
 }
 
 TEST(PolicyController, AResumedRunIsByteIdenticalWithASteeringLag) {
