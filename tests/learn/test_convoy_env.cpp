@@ -432,14 +432,32 @@ TEST(ConvoyEnv, TrailObservationIsTheEstimatorsViewOfTheTrail) {
   EXPECT_EQ(again.reset(2).vector, first.vector);
 }
 
+namespace {
+
+// An environment observing `kind` and, beside it, one observing trail on the same options.
+struct BesideTrail {
+  explicit BesideTrail(ConvoyObservationKind kind)
+      : trail(with_observation(ConvoyObservationKind::trail)), env(with_observation(kind)) {}
+  static ConvoyEnvOptions with_observation(ConvoyObservationKind kind) {
+    ConvoyEnvOptions o = test_options();
+    o.observation = kind;
+    return o;
+  }
+  ConvoyEnv trail;
+  ConvoyEnv env;
+};
+
+// The first 12 numbers of an observation: trail's.
+std::vector<float> trail_part(const std::vector<float>& v) { return {v.begin(), v.begin() + 12}; }
+
+}  // namespace
+
 // trail_action: trail's 12 numbers, then the action applied since the previous step, clamped
 // as the vehicle gets it (NaN as 0); before the first step the brake the follower holds.
 TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
-  ConvoyEnvOptions o = test_options();
-  o.observation = ConvoyObservationKind::trail;
-  ConvoyEnv trail(o);
-  o.observation = ConvoyObservationKind::trail_action;
-  ConvoyEnv env(o);
+  BesideTrail envs(ConvoyObservationKind::trail_action);
+  ConvoyEnv& trail = envs.trail;
+  ConvoyEnv& env = envs.env;
   const Box space = env.observation_space().vector;
   ASSERT_EQ(space.size(), 14u);
   EXPECT_EQ(space.names[11], "leader_left_m");
@@ -448,7 +466,7 @@ TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
   const Observation first = env.reset(2);
   const Observation first_trail = trail.reset(2);
   ASSERT_EQ(first.vector.size(), 14u);
-  EXPECT_EQ(std::vector<float>(first.vector.begin(), first.vector.begin() + 12), first_trail.vector);
+  EXPECT_EQ(trail_part(first.vector), first_trail.vector);
   EXPECT_EQ(first.vector[12], 0.0f);
   EXPECT_EQ(first.vector[13], -1.0f);
   const std::vector<std::vector<float>> actions = {
@@ -458,8 +476,7 @@ TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
     const StepResult r = env.step(actions[k]);
     const StepResult rt = trail.step(actions[k]);
     ASSERT_EQ(r.observation.vector.size(), 14u);
-    EXPECT_EQ(std::vector<float>(r.observation.vector.begin(), r.observation.vector.begin() + 12),
-              rt.observation.vector) << "step " << k;
+    EXPECT_EQ(trail_part(r.observation.vector), rt.observation.vector) << "step " << k;
     EXPECT_EQ(r.observation.vector[12], applied[k][0]) << "step " << k;
     EXPECT_EQ(r.observation.vector[13], applied[k][1]) << "step " << k;
   }
@@ -469,16 +486,14 @@ TEST(ConvoyEnv, TrailActionObservationEndsWithThePreviousAction) {
 // classical follower steers (the rest is feedback on the distance and heading to the trail):
 // driving with the expert, the two go together.
 TEST(ConvoyEnv, TrailFeedForwardObservationEndsWithTheFeedForwardSteering) {
-  ConvoyEnvOptions o = test_options();
-  o.observation = ConvoyObservationKind::trail;
-  ConvoyEnv trail(o);
-  o.observation = ConvoyObservationKind::trail_ff;
-  ConvoyEnv env(o);
+  BesideTrail envs(ConvoyObservationKind::trail_ff);
+  ConvoyEnv& trail = envs.trail;
+  ConvoyEnv& env = envs.env;
   const Box space = env.observation_space().vector;
   ASSERT_EQ(space.size(), 13u);
   EXPECT_EQ(space.names[12], "feedforward_steering");
   Observation obs = env.reset(2);
-  ASSERT_EQ(std::vector<float>(obs.vector.begin(), obs.vector.begin() + 12), trail.reset(2).vector);
+  ASSERT_EQ(trail_part(obs.vector), trail.reset(2).vector);
   std::vector<double> ff, steer;
   for (int k = 0; k < 200; ++k) {
     const std::vector<float> expert = env.expert_action();
@@ -488,8 +503,7 @@ TEST(ConvoyEnv, TrailFeedForwardObservationEndsWithTheFeedForwardSteering) {
     EXPECT_LE(obs.vector[12], 1.0f);
     const StepResult r = env.step(expert);
     const StepResult rt = trail.step(expert);
-    ASSERT_EQ(std::vector<float>(r.observation.vector.begin(), r.observation.vector.begin() + 12),
-              rt.observation.vector) << "step " << k;
+    ASSERT_EQ(trail_part(r.observation.vector), rt.observation.vector) << "step " << k;
     obs = r.observation;
     if (r.terminated || r.truncated) break;
   }
