@@ -61,7 +61,7 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
     so.target_speed_mps = options.target_speed_mps +
                           u * (options.target_speed_max_mps - options.target_speed_mps);
   }
-  so.end_time_s = 0.01 * options.frames_per_step * (options.max_steps + 100);
+  so.end_time_s = kConvoyEnvHeartbeatS * options.frames_per_step * (options.max_steps + 100);
   so.seed = seed;
   return so;
 }

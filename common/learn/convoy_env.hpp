@@ -59,7 +59,7 @@ struct ConvoyEnvOptions {
   /// Above target_speed_mps: each episode's cap is drawn uniformly in [target_speed_mps,
   /// target_speed_max_mps] from its seed (else every episode has target_speed_mps).
   double target_speed_max_mps = 0.0;
-  int frames_per_step = 10;        // control period: 10 frames of 0.01 s
+  int frames_per_step = 10;        // control period in frames of kConvoyEnvHeartbeatS: 0.1 s
   /// The policy's steering reaches the vehicle through a first-order lag of this time
   /// constant, applied once per action (convoy_lagged_steering; the policy controller applies
   /// the same); 0: directly.

@@ -274,7 +274,8 @@ std::string convoy_scenario_yaml(const ConvoyEpisode& e, const ConvoyScenarioOpt
   std::ostringstream y;
   y << "name: convoy_env\n";
   y << "seed: " << (o.seed % 4000000000000000ULL) << "\n";
-  y << "time: {step_s: " << num(step_s) << ", heartbeat_s: 0.01, end_time_s: "
+  y << "time: {step_s: " << num(step_s) << ", heartbeat_s: " << num(kConvoyEnvHeartbeatS)
+    << ", end_time_s: "
     << num(o.end_time_s) << "}\n";
   y << "world: {x_min_m: " << num(e.world_min.x()) << ", x_max_m: " << num(e.world_max.x())
     << ", y_min_m: " << num(e.world_min.y()) << ", y_max_m: " << num(e.world_max.y()) << "}\n";

@@ -11,6 +11,9 @@
 
 namespace syndds::learn {
 
+/// The heartbeat (frame period) of the environment's scenarios.
+inline constexpr double kConvoyEnvHeartbeatS = 0.01;
+
 inline constexpr double kConvoyAreaM = 90.0;     // the area is [0, 90] x [0, 90] m
 inline constexpr int kConvoyPathVariants = 16;   // 2 shapes x mirror E-W x mirror N-S x rotate
 

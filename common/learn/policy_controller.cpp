@@ -3,6 +3,7 @@
 #include <ATen/Parallel.h>
 
 #include <cmath>
+#include <sstream>
 #include <type_traits>
 
 #include "agents/agent_factory.hpp"
@@ -94,7 +95,20 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
     throw ConfigError(where_ + "the policy has " + std::to_string(policy_.action_space().size()) +
                       " actions; a convoy follower's are 2 (steering, throttle/brake)");
   }
-  period_frames_ = std::llround(v.controller.policy_period_s / s.time.heartbeat_s);
+  // The scenario's period_s, else the policy's own: frames_per_step frames of the
+  // environment's 0.01 s heartbeat.
+  const double period_s = v.controller.policy_period_s > 0.0
+                              ? v.controller.policy_period_s
+                              : trained_.frames_per_step * kConvoyEnvHeartbeatS;
+  const double frames = period_s / s.time.heartbeat_s;
+  if (frames < 1.0 - 1e-9 || std::abs(frames - std::round(frames)) > 1e-6) {
+    std::ostringstream msg;
+    msg << where_ << "the policy acts every " << period_s
+        << " s (its training period), not a whole multiple of time.heartbeat_s ("
+        << s.time.heartbeat_s << " s): give controller.period_s";
+    throw ConfigError(msg.str());
+  }
+  period_frames_ = std::llround(frames);
   action_period_s_ = period_frames_ * s.time.heartbeat_s;
 }
 

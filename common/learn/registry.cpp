@@ -1,6 +1,7 @@
 #include "learn/registry.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <set>
 #include <stdexcept>
 
@@ -52,6 +53,11 @@ class OptionReader {
       fail(key, "'" + v + "' is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
     }
     return x;
+  }
+  int whole(const std::string& key, int fallback, int lo, int hi) {
+    const double x = number(key, fallback, lo, hi);
+    if (x != std::floor(x)) fail(key, "'" + raw(key, "") + "' is not a whole number");
+    return static_cast<int>(x);
   }
   /// Throws naming the first option that was never read.
   void finish() const {
@@ -105,7 +111,8 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
     throw std::invalid_argument("environment convoy_follow, option target_speed_max: below "
                                 "target_speed");
   }
-  o.max_steps = static_cast<int>(r.number("max_steps", o.max_steps, 1, 100000));
+  o.frames_per_step = r.whole("frames_per_step", o.frames_per_step, 1, 100);
+  o.max_steps = r.whole("max_steps", o.max_steps, 1, 100000);
   r.finish();
   return o;
 }

@@ -498,7 +498,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   std::optional<YamlNode> controller_node = m.optional("controller");
   if (controller_node) {
     v.controller = parse_controller(*controller_node, world, config_dir, files);
-    if (v.controller.type == "policy") {
+    if (v.controller.type == "policy" && v.controller.policy_period_s > 0.0) {
       const double frames = v.controller.policy_period_s / time.heartbeat_s;
       if (frames < 1.0 - 1e-9 || std::abs(frames - std::round(frames)) > 1e-6) {
         std::ostringstream msg;

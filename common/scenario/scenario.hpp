@@ -106,7 +106,9 @@ struct ControllerConfig {
   std::optional<double> stop_at_s;
   convoy::FollowerConfig convoy;       // follower and policy: the vehicle followed (convoy.leader)
   std::string policy_file;             // policy: the learned policy (syndds_train's policy.pt)
-  double policy_period_s = 0.1;        // policy: a new action every period (as in training)
+  /// policy: a new action every period; 0 (the default): the policy's own, the control period
+  /// it was trained with (its metadata's frames_per_step).
+  double policy_period_s = 0.0;
   /// Runs as the member controller/<id> (path_follower, follower and policy).
   bool is_builtin() const { return type == "path_follower" || follows(); }
   /// Follows another vehicle of the scenario (convoy.leader) from its V2V messages.

@@ -65,6 +65,10 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
     env_options += (env_options.empty() ? "" : " ") + std::string("steer_lag=") +
                    std::to_string(options.steer_lag_s);
   }
+  if (options.frames_per_step != ConvoyEnvOptions{}.frames_per_step) {
+    env_options += (env_options.empty() ? "" : " ") + std::string("frames_per_step=") +
+                   std::to_string(options.frames_per_step);
+  }
   meta["env_options"] = env_options;
   trainer.save_policy(path, meta);
   return path;
@@ -197,6 +201,35 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailFfObservation) {
 // metadata), and its observation holds the lagged steering, as in the environment.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithASteeringLag) {
   drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_action, 0.25));
+}
+
+// A policy trained at 20 Hz (frames_per_step 5): with no controller.period_s the controller
+// acts at the policy's own period, as in the environment.
+TEST(PolicyController, ActsAtThePeriodThePolicyWasTrainedWith) {
+  ConvoyEnvOptions options = trained_with(ConvoyObservationKind::trail_ff);
+  options.frames_per_step = 5;
+  drives_exactly_as_in_the_environment(options);
+}
+
+// A period the scenario's heartbeat does not divide is refused naming the policy file.
+TEST(PolicyController, APeriodTheHeartbeatDoesNotDivideIsRefused) {
+  register_policy_controller();
+  ConvoyEnvOptions options;
+  options.frames_per_step = 5;
+  const std::string policy_file = write_policy(syndds::test::learn_test_dir(), options);
+  auto s = policy_scenario(options, 21, policy_file);
+  s.time.heartbeat_s = 0.02;  // 0.05 s is 2.5 frames
+  const auto follower = std::find_if(s.vehicles.begin(), s.vehicles.end(),
+                                     [](const auto& v) { return v.id == kConvoyFollowerId; });
+  ASSERT_NE(follower, s.vehicles.end());
+  try {
+    PolicyControllerAgent agent(s, *follower);
+    FAIL() << "a 0.05 s policy on a 0.02 s heartbeat was accepted";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(policy_file), std::string::npos) << what;
+    EXPECT_NE(what.find("not a whole multiple of time.heartbeat_s"), std::string::npos) << what;
+  }
 }
 
 TEST(PolicyController, APolicyThatDoesNotFitTheSensorsIsRefused) {

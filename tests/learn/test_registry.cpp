@@ -43,6 +43,8 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_FALSE(short_env->step(brake).truncated);
   EXPECT_FALSE(short_env->step(brake).truncated);
   EXPECT_TRUE(short_env->step(brake).truncated);
+  EXPECT_EQ(convoy_env_options({{"frames_per_step", "5"}}).frames_per_step, 5);
+  EXPECT_EQ(convoy_env_options({}).frames_per_step, 10);
 }
 
 TEST(Registry, MistakesAreNamed) {
@@ -61,6 +63,11 @@ TEST(Registry, MistakesAreNamed) {
                 .find("option target_speed: 'fast' is not a number"),
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"target_speed", "50"}}).find("outside"), std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"frames_per_step", "2.5"}})
+                .find("option frames_per_step: '2.5' is not a whole number"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"frames_per_step", "0"}}).find("outside"),
+            std::string::npos);
   EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
             std::string::npos);
 }
