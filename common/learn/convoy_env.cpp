@@ -296,6 +296,24 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
 std::vector<float> ConvoyEnv::expert_action() const {
   if (!driver_) return {};
   std::vector<float> a = driver_->observations().classical_action();
+  const convoy::TrailFeatures f = driver_->observations().estimator_features();
+  if (options_.teacher_clearance_m > 0.0 && a.size() == 2 && f.valid) {
+    // The classical follower's Stanley term aimed, from the true position, at the planned path
+    // shifted by the offset the obstacles ahead ask for, instead of at its estimate of the
+    // trail (its gain and soft speed, the full vehicle's steering range; the steering input
+    // about linear in the road-wheel angle).
+    constexpr double kHalfWidthM = 1.1, kGainPerS = 1.0, kSoftSpeedMps = 1.0, kMaxSteerRad = 0.53;
+    const Vec2 here(follower_state_.pose.position.x(), follower_state_.pose.position.y());
+    const double v = std::hypot(follower_state_.linear_velocity.x(),
+                                follower_state_.linear_velocity.y());
+    const PathClearance c = path_clearance(episode_.path, episode_.obstacles, here, 2.0,
+                                           3.0 + 1.5 * v,
+                                           kHalfWidthM + options_.teacher_clearance_m);
+    const double k = kGainPerS / (v + kSoftSpeedMps);
+    const double shift =
+        std::atan(k * f.cross_track_m) - std::atan(k * (c.cross_track_m - c.offset_m));
+    a[0] = static_cast<float>(a[0] + shift / kMaxSteerRad);
+  }
   for (float& v : a) v = std::clamp(v, -1.0f, 1.0f);
   return a;
 }

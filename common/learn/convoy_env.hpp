@@ -65,6 +65,10 @@ struct ConvoyEnvOptions {
   /// the same); 0: directly.
   double steer_lag_s = 0.0;
   int max_steps = 500;             // truncated after this many steps (50 s)
+  /// Above 0: the teacher (expert_action) is the classical follower steered to keep this much
+  /// room between the vehicle's side and every obstacle beside the planned path just ahead
+  /// (ground truth: path_clearance; the observation is unchanged). 0: the classical follower.
+  double teacher_clearance_m = 0.0;
   /// The camera variant renders only the frames an observation will hold (the newest at each
   /// step's end; 1 of the camera's 3 per step at 30 Hz): observations are the same bit for bit
   /// as with every frame rendered (tested), which stays available for comparison.
