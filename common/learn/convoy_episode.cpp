@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <map>
 #include <mutex>
 #include <numbers>
@@ -113,46 +112,6 @@ double distance_to_path(const std::vector<Vec2>& path, const Vec2& p) {
     best = std::min(best, (p - (a + t * ab)).norm());
   }
   return best;
-}
-
-PathClearance path_clearance(const std::vector<Vec2>& path,
-                             const std::vector<ConvoyObstacle>& obstacles, const Vec2& p,
-                             double behind_m, double ahead_m, double need_m) {
-  PathClearance out;
-  if (path.size() < 2) return out;
-  // The projection: the nearest point of the nearest segment, and its arc length.
-  std::vector<double> arc(path.size(), 0.0);
-  for (std::size_t i = 1; i < path.size(); ++i) arc[i] = arc[i - 1] + (path[i] - path[i - 1]).norm();
-  double best = std::numeric_limits<double>::infinity(), s0 = 0.0;
-  for (std::size_t i = 1; i < path.size(); ++i) {
-    const Vec2 a = path[i - 1], ab = path[i] - a;
-    const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-    const Vec2 d = p - (a + t * ab);
-    const double dist = d.norm();
-    if (dist < best) {
-      best = dist;
-      s0 = arc[i - 1] + t * (arc[i] - arc[i - 1]);
-      out.cross_track_m = (ab.x() * d.y() - ab.y() * d.x()) >= 0.0 ? dist : -dist;
-    }
-  }
-  double left = 0.0, right = 0.0;
-  for (std::size_t j = 0; j + 1 < path.size(); ++j) {
-    if (arc[j] < s0 - behind_m || arc[j] > s0 + ahead_m) continue;
-    const Vec2 q = path[j];
-    const Vec2 t = (path[j + 1] - q).normalized();
-    const Vec2 n(-t.y(), t.x());
-    for (const auto& ob : obstacles) {
-      const Vec2 d = ob.centre - q;
-      const double along = d.dot(t), lateral = d.dot(n);
-      if (std::abs(along) >= ob.radius_m) continue;
-      const double edge = std::abs(lateral) - std::sqrt(ob.radius_m * ob.radius_m - along * along);
-      if (edge >= need_m) continue;
-      const double ask = std::min(need_m - edge, need_m);
-      (lateral > 0.0 ? right : left) = std::max(lateral > 0.0 ? right : left, ask);
-    }
-  }
-  out.offset_m = left - right;
-  return out;
 }
 
 ConvoyEpisodeKind parse_episode_kind(const std::string& name) {

@@ -97,22 +97,6 @@ ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions
 /// Distance from `p` to the polyline `path`.
 double distance_to_path(const std::vector<Vec2>& path, const Vec2& p);
 
-/// Where `p` lies against the polyline `path` (points at least a few centimetres apart) and
-/// what the obstacles beside the path ahead of it ask of a vehicle there: the privileged
-/// teacher's view (ground truth, for training labels only; docs/learning.md, "Teacher").
-struct PathClearance {
-  double cross_track_m = 0.0;  // signed distance to the path, > 0: left of it
-  /// Sideways shift (> 0: left) that gives every obstacle edge within [projection - behind_m,
-  /// projection + ahead_m] along the path at least need_m from the path line: for each path
-  /// point there and obstacle (a circle) whose chord at that point's normal leaves less than
-  /// need_m, the shortfall (at most need_m) away from it; the largest ask to the left less the
-  /// largest to the right (a gap narrower than asked on both sides: they cancel).
-  double offset_m = 0.0;
-};
-PathClearance path_clearance(const std::vector<Vec2>& path,
-                             const std::vector<ConvoyObstacle>& obstacles, const Vec2& p,
-                             double behind_m, double ahead_m, double need_m);
-
 struct ConvoyScenarioOptions {
   ConvoyTerrain terrain = ConvoyTerrain::rigid;
   ConvoyDynamics dynamics = ConvoyDynamics::reduced;  // the follower's; the leader is reduced

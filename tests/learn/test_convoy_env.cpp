@@ -657,32 +657,41 @@ TEST(ConvoyReward, TrackRewardChargesSteeringChanges) {
   EXPECT_NEAR(rb.reward - ra.reward, o.reward.steer_change * 4.0, 1e-12);
 }
 
-// The privileged teacher's geometry on a straight path along x: an obstacle whose edge is 2 m
-// right of the path, with 2.6 m asked, asks for 0.6 m to the left; mirrored, to the right; both
-// at once cancel; one behind the window, or far enough, asks for nothing; the signed
-// cross-track is positive on the left.
-TEST(ConvoyEpisode, PathClearanceAsksForRoomAwayFromObstaclesAhead) {
-  std::vector<Vec2> path;
-  for (int i = 0; i <= 40; ++i) path.emplace_back(i, 0.0);
-  const Vec2 here(10.0, 0.25);
+// The obstacle-aware teacher's geometry. The vehicle at the origin heading east, its trail
+// 0.25 m to its right, straight: an obstacle whose edge is 2 m right of the trail, with 2.6 m
+// asked, asks for 0.6 m to the left; mirrored, to the right; both at once: the larger wins,
+// less the other; one behind, beyond the window, or far enough asks for nothing; a path
+// through an obstacle asks for need_m. Where the trail bends left, an obstacle straight ahead
+// of the vehicle lies to the trail's right.
+TEST(ConvoyEnv, TeacherOffsetAsksForRoomAwayFromObstaclesBesideTheTrail) {
+  convoy::TrailFeatures f;
+  f.valid = true;
+  f.cross_track_m = 0.25;  // the vehicle is left of the trail
   auto obstacle = [](double x, double y, double r) {
     return ConvoyObstacle{"o", "rock", Vec2(x, y), r, 1.0};
   };
-  const auto right = path_clearance(path, {obstacle(15, -3.0, 1.0)}, here, 2.0, 8.0, 2.6);
-  EXPECT_NEAR(right.cross_track_m, 0.25, 1e-12);
-  EXPECT_NEAR(right.offset_m, 0.6, 1e-9);
-  EXPECT_NEAR(path_clearance(path, {obstacle(15, 3.0, 1.0)}, here, 2.0, 8.0, 2.6).offset_m, -0.6,
+  auto offset = [&](const std::vector<ConvoyObstacle>& obstacles) {
+    return trail_obstacle_offset_m(f, Vec2::Zero(), 0.0, obstacles, 8.0, 2.6);
+  };
+  EXPECT_NEAR(offset({obstacle(5, -3.25, 1.0)}), 0.6, 1e-9);
+  EXPECT_NEAR(offset({obstacle(5, 2.75, 1.0)}), -0.6, 1e-9);
+  EXPECT_NEAR(offset({obstacle(5, 2.75, 1.0), obstacle(6, -3.45, 1.0)}), 0.4 - 0.6, 1e-9);
+  EXPECT_EQ(offset({obstacle(-5, -3.25, 1.0)}), 0.0);
+  EXPECT_EQ(offset({obstacle(14, -3.25, 1.0)}), 0.0);
+  EXPECT_EQ(offset({obstacle(5, -3.95, 1.0)}), 0.0);
+  EXPECT_NEAR(offset({obstacle(5, -0.75, 3.0)}), 2.6, 1e-9);
+  // The same obstacles seen from a vehicle elsewhere, turned: the same asks.
+  const double yaw = 1.0;
+  const Vec2 at(10.0, -4.0);
+  const Vec2 ob = at + Vec2(5 * std::cos(yaw) + 3.25 * std::sin(yaw),
+                            5 * std::sin(yaw) - 3.25 * std::cos(yaw));
+  EXPECT_NEAR(trail_obstacle_offset_m(f, at, yaw, {obstacle(ob.x(), ob.y(), 1.0)}, 8.0, 2.6), 0.6,
               1e-9);
-  EXPECT_NEAR(path_clearance(path, {obstacle(15, 3.0, 1.0), obstacle(16, -3.2, 1.0)}, here, 2.0,
-                             8.0, 2.6).offset_m,
-              0.4 - 0.6, 1e-9);
-  EXPECT_EQ(path_clearance(path, {obstacle(5, -3.0, 1.0)}, here, 2.0, 8.0, 2.6).offset_m, 0.0);
-  EXPECT_EQ(path_clearance(path, {obstacle(25, -3.0, 1.0)}, here, 2.0, 8.0, 2.6).offset_m, 0.0);
-  EXPECT_EQ(path_clearance(path, {obstacle(15, -3.7, 1.0)}, here, 2.0, 8.0, 2.6).offset_m, 0.0);
-  // A path through an obstacle asks for no more than need_m.
-  EXPECT_NEAR(path_clearance(path, {obstacle(15, -0.5, 3.0)}, here, 2.0, 8.0, 2.6).offset_m, 2.6,
-              1e-9);
-  EXPECT_LT(path_clearance(path, {}, Vec2(3.0, -1.5), 2.0, 8.0, 2.6).cross_track_m, 0.0);
+  f.cross_track_m = 0.0;
+  f.curvature_per_m = {0.1, 0.1, 0.1};
+  const double bend = offset({obstacle(7.0, 0.0, 1.0)});
+  EXPECT_GT(bend, 0.0);
+  EXPECT_LT(bend, 2.6);
 }
 
 // The smallest room between the follower's centre line and an obstacle edge (ground truth)
@@ -710,13 +719,13 @@ static double smallest_room_under_the_teacher(double teacher_clearance_m, std::u
 }
 
 // Asked for 2 m beside the vehicle (3.1 m from its centre line), the teacher keeps more room
-// from the obstacles than the classical follower, which keeps to its estimate of the trail
-// (measured: 1.25 / 1.82 / 1.30 m against 1.35 / 2.39 / 2.18 m).
+// from the obstacles than the classical follower, which keeps to its estimate of the trail.
 TEST(ConvoyEnv, AvoidingTeacherKeepsMoreRoomFromObstacles) {
   double gain = 0.0;
   for (const std::uint64_t seed : {1u, 3u, 5u}) {
     const double classical = smallest_room_under_the_teacher(0.0, seed);
-    const double avoiding = smallest_room_under_the_teacher(2.0, seed);
+    const double avoiding = smallest_room_under_the_teacher(getenv("TC") ? atof(getenv("TC")) : 2.0, seed);
+    std::printf("seed %d classical %.3f avoiding %.3f\n", (int)seed, classical, avoiding);
     EXPECT_GT(avoiding, classical + 0.05) << "seed " << seed;
     gain += (avoiding - classical) / 3.0;
   }
