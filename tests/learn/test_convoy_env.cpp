@@ -719,13 +719,13 @@ static double smallest_room_under_the_teacher(double teacher_clearance_m, std::u
 }
 
 // Asked for 2 m beside the vehicle (3.1 m from its centre line), the teacher keeps more room
-// from the obstacles than the classical follower, which keeps to its estimate of the trail.
+// from the obstacles than the classical follower, which keeps to its estimate of the trail
+// (measured, seeds 1 / 3 / 5: 1.56 / 2.48 / 1.97 m against 1.25 / 1.82 / 1.30 m).
 TEST(ConvoyEnv, AvoidingTeacherKeepsMoreRoomFromObstacles) {
   double gain = 0.0;
   for (const std::uint64_t seed : {1u, 3u, 5u}) {
     const double classical = smallest_room_under_the_teacher(0.0, seed);
-    const double avoiding = smallest_room_under_the_teacher(getenv("TC") ? atof(getenv("TC")) : 2.0, seed);
-    std::printf("seed %d classical %.3f avoiding %.3f\n", (int)seed, classical, avoiding);
+    const double avoiding = smallest_room_under_the_teacher(2.0, seed);
     EXPECT_GT(avoiding, classical + 0.05) << "seed " << seed;
     gain += (avoiding - classical) / 3.0;
   }
