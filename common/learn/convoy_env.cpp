@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <random>
 #include <stdexcept>
 
@@ -297,73 +296,8 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
 std::vector<float> ConvoyEnv::expert_action() const {
   if (!driver_) return {};
   std::vector<float> a = driver_->observations().classical_action();
-  const convoy::TrailFeatures f = driver_->observations().estimator_features();
-  if (options_.teacher_clearance_m > 0.0 && a.size() == 2 && f.valid) {
-    // The classical follower's Stanley term aimed at its trail shifted by the offset the
-    // obstacles ahead ask for (its gain and soft speed, the full vehicle's steering range; the
-    // steering input about linear in the road-wheel angle). The offset comes from the trail as
-    // the follower estimates it and the obstacles' true places relative to the vehicle: what
-    // its camera shows, not its GPS error.
-    constexpr double kHalfWidthM = 1.1, kGainPerS = 1.0, kSoftSpeedMps = 1.0, kMaxSteerRad = 0.53;
-    const Vec2 here(follower_state_.pose.position.x(), follower_state_.pose.position.y());
-    const double v = std::hypot(follower_state_.linear_velocity.x(),
-                                follower_state_.linear_velocity.y());
-    const double offset = trail_obstacle_offset_m(
-        f, here, yaw_of(follower_state_.pose.orientation), episode_.obstacles,
-        3.0 + 1.5 * v, kHalfWidthM + options_.teacher_clearance_m);
-    const double e = f.cross_track_m, k = kGainPerS / (v + kSoftSpeedMps);
-    const double shift = std::atan(k * e) - std::atan(k * (e - offset));
-    a[0] = static_cast<float>(a[0] + shift / kMaxSteerRad);
-  }
   for (float& v : a) v = std::clamp(v, -1.0f, 1.0f);
   return a;
-}
-
-double trail_obstacle_offset_m(const convoy::TrailFeatures& f, const Vec2& position, double yaw,
-                               const std::vector<ConvoyObstacle>& obstacles, double ahead_m,
-                               double need_m) {
-  // The corridor's centre line in the vehicle frame (x ahead, y left), every 0.5 m: it starts
-  // at the trail beside the vehicle (-cross_track), along the trail's heading there, bending
-  // with the curvatures read 0, 5 and 10 m ahead (linear between, constant beyond).
-  constexpr double kStepM = 0.5;
-  const auto& k = f.curvature_per_m;
-  const auto& at = convoy::TrailFeatures::kCurvatureAheadM;
-  std::vector<Vec2> line;
-  Vec2 q(0.0, -f.cross_track_m);
-  double heading = f.heading_error_rad;
-  for (double s = 0.0; s <= ahead_m + 1e-9; s += kStepM) {
-    line.push_back(q);
-    const double kappa = s <= at[1]   ? k[0] + (k[1] - k[0]) * (s - at[0]) / (at[1] - at[0])
-                         : s <= at[2] ? k[1] + (k[2] - k[1]) * (s - at[1]) / (at[2] - at[1])
-                                      : k[2];
-    q += kStepM * Vec2(std::cos(heading), std::sin(heading));
-    heading += kappa * kStepM;
-  }
-  const Vec2 ahead(std::cos(yaw), std::sin(yaw)), left_of(-std::sin(yaw), std::cos(yaw));
-  double left = 0.0, right = 0.0;
-  for (const auto& ob : obstacles) {
-    const Vec2 d = ob.centre - position;
-    const Vec2 c(d.dot(ahead), d.dot(left_of));  // the obstacle in the vehicle frame
-    if (c.norm() > ahead_m + ob.radius_m + need_m) continue;
-    double gap = std::numeric_limits<double>::infinity();
-    bool on_left = false;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-      const double g = (c - line[i]).norm() - ob.radius_m;
-      if (g < gap) {
-        gap = g;
-        const Vec2 t = i + 1 < line.size() ? line[i + 1] - line[i] : line[i] - line[i - 1];
-        on_left = t.x() * (c.y() - line[i].y()) - t.y() * (c.x() - line[i].x()) > 0.0;
-      }
-    }
-    if (gap >= need_m) continue;
-    const double ask = std::min(need_m - gap, need_m);
-    if (on_left) {
-      right = std::max(right, ask);
-    } else {
-      left = std::max(left, ask);
-    }
-  }
-  return left - right;
 }
 
 std::unique_ptr<Env> make_convoy_env(const ConvoyEnvOptions& options) {

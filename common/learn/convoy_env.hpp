@@ -65,10 +65,6 @@ struct ConvoyEnvOptions {
   /// the same); 0: directly.
   double steer_lag_s = 0.0;
   int max_steps = 500;             // truncated after this many steps (50 s)
-  /// Above 0: the teacher (expert_action) is the classical follower steered to keep this much
-  /// room between the vehicle's side and every obstacle beside its trail just ahead
-  /// (trail_obstacle_offset_m; the observation is unchanged). 0: the classical follower.
-  double teacher_clearance_m = 0.0;
   /// The camera variant renders only the frames an observation will hold (the newest at each
   /// step's end; 1 of the camera's 3 per step at 30 Hz): observations are the same bit for bit
   /// as with every frame rendered (tested), which stays available for comparison.
@@ -78,17 +74,6 @@ struct ConvoyEnvOptions {
   ConvoyEpisodeOptions episode;
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
 };
-
-/// The obstacle-aware teacher's sideways shift of the trail (m, > 0: to the left), from what a
-/// camera could see: the trail as the follower's estimator has it (`f`: cross-track, heading
-/// error, curvatures ahead), drawn forward from the vehicle's reference point over [0, ahead_m],
-/// against the obstacles' true places relative to the vehicle (`position`, `yaw`). For each
-/// obstacle (a circle) whose edge comes closer than need_m to that corridor's centre line, the
-/// shortfall (at most need_m) away from it; the largest ask to the left less the largest to the
-/// right (a gap narrower than asked on both sides: they cancel).
-double trail_obstacle_offset_m(const convoy::TrailFeatures& f, const Vec2& position, double yaw,
-                               const std::vector<ConvoyObstacle>& obstacles, double ahead_m,
-                               double need_m);
 
 /// The scenario options of the environment's episode `seed` (its run is a little longer than
 /// max_steps control periods).

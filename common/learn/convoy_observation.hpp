@@ -84,11 +84,6 @@ class ConvoyObservationBuilder {
   /// teacher a trainer may imitate (ConvoyEnv::expert_action). Empty for the paper kind and
   /// before the estimator's first update; not checkpointed (the next frame recomputes it).
   std::vector<float> classical_action() const { return classical_action_; }
-  /// The trail kinds: the estimator's features as of its newest update (valid false before it
-  /// has any, and for the paper kind).
-  convoy::TrailFeatures estimator_features() const {
-    return estimator_ ? estimator_->trail_features() : convoy::TrailFeatures{};
-  }
   /// The action the controller applies from now on (clamped to [-1, 1], NaN as 0, as
   /// convoy_driver_inputs applies it); the trail_action kind observes it. Before the first:
   /// steering 0, brake 1 (the brake the controllers hold until they act).

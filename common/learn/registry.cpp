@@ -111,7 +111,6 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
     throw std::invalid_argument("environment convoy_follow, option target_speed_max: below "
                                 "target_speed");
   }
-  o.teacher_clearance_m = r.number("teacher_clearance", 0.0, 0.0, 3.0);
   o.frames_per_step = r.whole("frames_per_step", o.frames_per_step, 1, 100);
   o.max_steps = r.whole("max_steps", o.max_steps, 1, 100000);
   r.finish();

@@ -45,8 +45,6 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_TRUE(short_env->step(brake).truncated);
   EXPECT_EQ(convoy_env_options({{"frames_per_step", "5"}}).frames_per_step, 5);
   EXPECT_EQ(convoy_env_options({}).frames_per_step, 10);
-  EXPECT_EQ(convoy_env_options({{"teacher_clearance", "2"}}).teacher_clearance_m, 2.0);
-  EXPECT_EQ(convoy_env_options({}).teacher_clearance_m, 0.0);
 }
 
 TEST(Registry, MistakesAreNamed) {
