@@ -353,6 +353,8 @@ void CoordinatorService::note_recovery_locked(const proto::FrameGrantMsg& grant)
   spdlog::warn("coordinator: recovery {}: {} lost in frame {}; every member rolls back to the "
                "checkpoint of frame {} and goes on", barrier_->recoveries().size(), names,
                r.lost_in, r.to_checkpoint);
+  recovery_wall_s_.push_back(
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count());
   if (options_.run_dir.empty()) return;
   // The run's record of its recoveries (the CSV files of the run hold no trace of them: they
   // are byte-identical to an undisturbed run's).
@@ -497,6 +499,21 @@ void CoordinatorService::write_status_locked(const std::string& state, int exit_
   j["frame"] = granted_frame_;
   j["final_frame"] = options_.barrier.final_frame;
   j["recoveries"] = barrier_ ? barrier_->recoveries().size() : 0;
+  // Each recovery, for tools that time them (the benchmarks): the frame a member was lost in,
+  // the checkpoint rolled back to, the members lost and when it was decided (Unix time, s).
+  j["recovery_list"] = nlohmann::json::array();
+  if (barrier_) {
+    const auto& list = barrier_->recoveries();
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      nlohmann::json members = nlohmann::json::array();
+      for (const auto& [member, why] : list[i].members) members.push_back(member);
+      j["recovery_list"].push_back(
+          {{"lost_in_frame", list[i].lost_in},
+           {"rolled_back_to_frame", list[i].to_checkpoint},
+           {"members", members},
+           {"decided_unix_s", i < recovery_wall_s_.size() ? recovery_wall_s_[i] : 0.0}});
+    }
+  }
   j["reason"] = result_.reason;
   j["exit_code"] = exit_code;
   j["failed_after_end"] = failed_after_end_;

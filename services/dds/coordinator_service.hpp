@@ -123,6 +123,7 @@ class CoordinatorService {
   proto::RunControlMsg result_;
   std::map<std::string, std::string> failed_after_end_;
   std::int64_t granted_frame_ = -1;  // the newest frame granted (for the status file)
+  std::vector<double> recovery_wall_s_;  // when each recovery was decided (Unix time, s)
 
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
   std::unique_ptr<Writer<msg::FrameGrant>> grant_writer_;

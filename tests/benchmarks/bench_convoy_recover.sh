@@ -71,8 +71,8 @@ for original in "$ROOT"/config/scenarios/convoy/*.yaml; do
   [ -n "$pid" ] && kill -KILL "$pid" 2>/dev/null
   wait $launcher; rc=$?
   run_s=$(( $(date +%s) - started ))
-  back=$(grep -h "recovery 1:" "$out/logs/coordinator.log" 2>/dev/null |
-         sed 's/.*checkpoint of frame \([0-9]*\).*/\1/' | head -n1)
+  back=$(python3 -c 'import json, sys; r = json.load(open(sys.argv[1])).get("recovery_list", []); print(r[0]["rolled_back_to_frame"] if r else "")' \
+         "$out/logs/run_status.json" 2>/dev/null)
   video=$(cd "$out" && find sensors -name '*.avi' | head -n1)
   size=$(stat -c %s "$out/$video" 2>/dev/null || echo 0)
   if [ $rc -eq 0 ] && [ -n "$back" ] && diff_out=$(same_files "$dir/reference" "$out"); then

@@ -58,11 +58,17 @@ for t in $(seq 1 "$TRIALS"); do
   killed_at=$(date +%s.%N)
   [ -n "$pid" ] && kill -KILL "$pid" 2>/dev/null
   wait $launcher; rc=$?
-  back=$(grep -h "recovery 1:" "$out/logs/coordinator.log" 2>/dev/null | sed 's/^\[\([0-9:.]*\)\].*checkpoint of frame \([0-9]*\).*/\1 \2/')
+  # The first recovery, from the coordinator's status file: "FRAME SECONDS-AFTER-THE-KILL".
+  back=$(python3 - "$out/logs/run_status.json" "$killed_at" <<'PY' 2>/dev/null
+import json, sys
+r = json.load(open(sys.argv[1])).get("recovery_list", [])
+if r: print(r[0]["rolled_back_to_frame"], "%.2f" % (r[0]["decided_unix_s"] - float(sys.argv[2])))
+PY
+)
   secs="-"; to="-"
   if [ -n "$back" ]; then
-    to=${back#* }
-    secs=$(python3 -c "import datetime,sys; t=datetime.datetime.strptime('$(date -d @${killed_at%.*} +%F) ${back%% *}','%Y-%m-%d %H:%M:%S.%f').timestamp(); print(f'{t-$killed_at:.2f}')")
+    to=${back% *}
+    secs=${back#* }
   fi
   if [ $rc -eq 0 ] && diff_out=$(same_files "$WORK/reference" "$out"); then
     result=byte-identical

@@ -2,8 +2,10 @@
 // processes were all killed resumes from its last complete checkpoint, and under
 // on_member_loss: recover a run in which one member is killed goes on; both end with exactly
 // the files of an undisturbed run.
+#include <chrono>
 #include <csignal>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
 
 #include "harness.hpp"
@@ -351,6 +353,18 @@ TEST(Checkpoint, QuietLogsStillRecoverAndComplete) {
       << launcher->log();
   EXPECT_EQ(launcher->log().find("stopping"), std::string::npos) << launcher->log();
   expect_same_run(want, out);
+  // The status file lists the recovery for tools (no log line needed): vehicle/b, lost after
+  // the checkpoint it rolled back to, decided while the test ran.
+  const auto status = nlohmann::json::parse(read_file(out / "logs" / "run_status.json"));
+  ASSERT_EQ(status.at("recovery_list").size(), 1u) << status.dump(2);
+  const auto& r = status.at("recovery_list").at(0);
+  EXPECT_EQ(r.at("members"), nlohmann::json::array({"vehicle/b"}));
+  EXPECT_GT(r.at("rolled_back_to_frame").get<long>(), 0);
+  EXPECT_GE(r.at("lost_in_frame").get<long>(), r.at("rolled_back_to_frame").get<long>());
+  const double now = std::chrono::duration<double>(
+                         std::chrono::system_clock::now().time_since_epoch()).count();
+  EXPECT_GT(r.at("decided_unix_s").get<double>(), now - 600.0);
+  EXPECT_LE(r.at("decided_unix_s").get<double>(), now);
 }
 
 // Two vehicles in contact (a rear-end, the rear one pushing from frame 533 on): vehicle/b is
