@@ -1,8 +1,9 @@
 // The learned-policy controller member against the environment it was trained in: the same
 // episode driven by the environment (actions from Policy::act on its observations) and by a
 // scenario whose follower has `controller: {type: policy}` (the agent builds the observation
-// from its inputs and acts every control period of its training) gives the same follower track bit for bit; a policy that
-// does not fit the vehicle's sensors is refused naming the files.
+// from its inputs and acts at the control period of its training) gives the same follower
+// track bit for bit; a policy that does not fit the vehicle's sensors is refused naming the
+// files.
 #include <gtest/gtest.h>
 
 #include <ATen/Parallel.h>
