@@ -97,6 +97,8 @@ class Barrier {
   std::int64_t last_checkpoint() const { return last_checkpoint_; }
   /// Recoveries so far (on_member_loss: recover).
   const std::vector<Recovery>& recoveries() const { return recoveries_; }
+  /// The members whose loss ends the run (the abort to come or made), with why.
+  const std::vector<std::pair<std::string, std::string>>& lost() const { return lost_; }
   /// Lost members the run waits for (to announce themselves again) before it rolls back.
   std::vector<std::string> rejoining_members() const;
 

@@ -514,6 +514,13 @@ void CoordinatorService::write_status_locked(const std::string& state, int exit_
            {"decided_unix_s", i < recovery_wall_s_.size() ? recovery_wall_s_[i] : 0.0}});
     }
   }
+  // The members whose loss ended the run (none if it completed or recovered every loss).
+  j["lost"] = nlohmann::json::array();
+  if (barrier_) {
+    for (const auto& [member, why] : barrier_->lost()) {
+      j["lost"].push_back({{"member", member}, {"why", why}});
+    }
+  }
   j["reason"] = result_.reason;
   j["exit_code"] = exit_code;
   j["failed_after_end"] = failed_after_end_;

@@ -66,7 +66,9 @@ for loss in $LOSSES; do
     rtf=$(sed -n 's/.*"real_time_factor": *\([0-9.]*\).*/\1/p' "$out/summary.json" 2>/dev/null | head -n1)
     status=$(sed -n 's/.*"status": *"\([a-z]*\)".*/\1/p' "$out/summary.json" 2>/dev/null | head -n1)
     same=no; cmp -s "$WORK/single/vehicles.csv" "$out/vehicles.csv" && same=yes
-    lost=$(grep -h " lost" "$out/logs/coordinator.log" 2>/dev/null | grep -c "lost:")
+    # Members declared lost: those that ended the run and those recovered, from the status.
+    lost=$(python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); print(len(s.get("lost", [])) + sum(len(r["members"]) for r in s.get("recovery_list", [])))' \
+           "$out/logs/run_status.json" 2>/dev/null || echo "-")
     printf '| %s | %s | %s | %s | %s | %s |\n' "$loss" "$run" "${status:-none}" "${rtf:--}" "$same" "$lost"
     hosts_down
   done

@@ -203,6 +203,12 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   const std::string coordinator = read_file(out / "logs" / "coordinator.log");
   EXPECT_NE(coordinator.find("run aborted: member vehicle/b lost"), std::string::npos)
       << coordinator;
+  // The status file names it for tools, apart from the reason's text.
+  const auto status = nlohmann::json::parse(read_file(out / "logs" / "run_status.json"));
+  EXPECT_EQ(status.at("state"), "aborted");
+  ASSERT_EQ(status.at("lost").size(), 1u) << status.dump(2);
+  EXPECT_EQ(status.at("lost").at(0).at("member"), "vehicle/b");
+  EXPECT_TRUE(status.at("recovery_list").empty());
   const std::string launcher_log = launcher.log();
   EXPECT_NE(launcher_log.find("FAILED: run 'long_run' aborted: member vehicle/b lost"),
             std::string::npos)
