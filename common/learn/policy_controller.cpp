@@ -100,15 +100,15 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
   const double period_s = v.controller.policy_period_s > 0.0
                               ? v.controller.policy_period_s
                               : trained_.frames_per_step * kConvoyEnvHeartbeatS;
-  const double frames = period_s / s.time.heartbeat_s;
-  if (frames < 1.0 - 1e-9 || std::abs(frames - std::round(frames)) > 1e-6) {
+  const std::optional<std::int64_t> frames = scenario::whole_frames(period_s, s.time.heartbeat_s);
+  if (!frames) {
     std::ostringstream msg;
     msg << where_ << "the policy acts every " << period_s
         << " s (its training period), not a whole multiple of time.heartbeat_s ("
         << s.time.heartbeat_s << " s): give controller.period_s";
     throw ConfigError(msg.str());
   }
-  period_frames_ = std::llround(frames);
+  period_frames_ = *frames;
   action_period_s_ = period_frames_ * s.time.heartbeat_s;
 }
 

@@ -499,8 +499,7 @@ VehicleConfig parse_vehicle(const YamlNode& node, const std::string& config_dir,
   if (controller_node) {
     v.controller = parse_controller(*controller_node, world, config_dir, files);
     if (v.controller.type == "policy" && v.controller.policy_period_s > 0.0) {
-      const double frames = v.controller.policy_period_s / time.heartbeat_s;
-      if (frames < 1.0 - 1e-9 || std::abs(frames - std::round(frames)) > 1e-6) {
+      if (!whole_frames(v.controller.policy_period_s, time.heartbeat_s)) {
         std::ostringstream msg;
         msg << "period_s (" << v.controller.policy_period_s
             << " s) must be a whole multiple of time.heartbeat_s (" << time.heartbeat_s << " s)";
@@ -821,6 +820,12 @@ Scenario load_scenario_config(const std::string& file, const Overrides& override
   buffer << in.rdbuf();
   const std::string text = buffer.str();
   return parse_scenario_config(YamlNode::load_string(text, file), text, overrides, config_dir);
+}
+
+std::optional<std::int64_t> whole_frames(double period_s, double heartbeat_s) {
+  const double frames = period_s / heartbeat_s;
+  if (frames < 1.0 - 1e-9 || std::abs(frames - std::round(frames)) > 1e-6) return std::nullopt;
+  return std::llround(frames);
 }
 
 }  // namespace syndds::scenario

@@ -242,4 +242,8 @@ std::string external_member(const std::string& vehicle_id);
 std::string sensor_member(const std::string& vehicle_id);
 inline constexpr const char* kRecorderMember = "recorder";
 
+/// Frames of `heartbeat_s` in `period_s` when it is a whole number of them (at least 1),
+/// else nullopt: the policy controller's period rule.
+std::optional<std::int64_t> whole_frames(double period_s, double heartbeat_s);
+
 }  // namespace syndds::scenario
