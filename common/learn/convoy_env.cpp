@@ -150,6 +150,7 @@ void ConvoyEnv::run_frame() {
   for (const auto& s : out.vehicle_states) {
     if (s.vehicle_id == kConvoyFollowerId) follower_state_ = s;
     if (s.vehicle_id == kConvoyLeaderId) leader_state_ = s;
+    if (s.vehicle_id == kConvoyHeadId) head_state_ = s;
   }
   for (const auto& c : out.collision_events) {
     if (c.vehicle_id != kConvoyFollowerId) continue;
@@ -202,6 +203,7 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
   steps_ = 0;
   follower_state_ = {};
   leader_state_ = {};
+  head_state_ = {};
   // Frames until every input of the observation has arrived (the first GPS fix and V2V
   // message, lagged 0.1 s, and the first camera frame): the follower holds its brake.
   driver_->set_action(0.0, -1.0);
@@ -254,11 +256,13 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
                                   follower_state_.linear_velocity.y());
   const double leader_speed =
       std::hypot(leader_state_.linear_velocity.x(), leader_state_.linear_velocity.y());
+  // Done when the path follower at the convoy's head has stopped at the path's end and the
+  // leader has stopped too (in an unchained episode they are the same vehicle).
   const Vec2 end = episode_.path.back();
+  const proto::VehicleStateMsg& head = episode_.chained ? head_state_ : leader_state_;
   const bool leader_done =
-      std::hypot(leader_state_.pose.position.x() - end.x(),
-                 leader_state_.pose.position.y() - end.y()) < 3.0 &&
-      leader_speed < 0.1;
+      std::hypot(head.pose.position.x() - end.x(), head.pose.position.y() - end.y()) < 3.0 &&
+      std::hypot(head.linear_velocity.x(), head.linear_velocity.y()) < 0.1 && leader_speed < 0.1;
   const bool lost = distance > options_.lost_distance_m;
   const Vec2 here(follower_state_.pose.position.x(), follower_state_.pose.position.y());
   const double path_error = distance_to_path(episode_.path, here);

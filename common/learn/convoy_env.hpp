@@ -165,6 +165,7 @@ class ConvoyEnv final : public Env {
   agents::SensorAgent* sensor_ = nullptr; // the follower's (camera variant), owned by stepper_
   proto::VehicleStateMsg follower_state_;
   proto::VehicleStateMsg leader_state_;
+  proto::VehicleStateMsg head_state_;  // chained episodes: the leader's leader
   double last_steering_ = 0.0;  // the previous step's (clamped) steering
   bool collided_ = false;
   bool leader_contact_ = false;  // the collision was with the leader

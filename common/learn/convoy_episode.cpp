@@ -145,6 +145,18 @@ const course::Course& training_course(std::uint64_t seed) {
   return it->second;
 }
 
+// The path from arc length `arc` to the end: the point there, then the path's points beyond
+// it (at least 0.5 m on, so that no two waypoints coincide).
+std::vector<Vec2> path_from(const std::vector<Vec2>& path, double arc, const Vec2& start) {
+  std::vector<Vec2> out{start};
+  double acc = 0.0;
+  for (std::size_t i = 1; i < path.size(); ++i) {
+    acc += (path[i] - path[i - 1]).norm();
+    if (acc > arc + 0.5) out.push_back(path[i]);
+  }
+  return out;
+}
+
 // The leader's start (gap_m ahead of the follower) and its path from there to the end.
 void place_pair(ConvoyEpisode& e, const ConvoyEpisodeOptions& o) {
   e.leader_arc_m = e.follower_arc_m + o.gap_m;
@@ -153,15 +165,24 @@ void place_pair(ConvoyEpisode& e, const ConvoyEpisodeOptions& o) {
   e.follower_yaw_rad = std::atan2(t.y(), t.x());
   at_arc(e.path, e.leader_arc_m, e.leader_start, t);
   e.leader_yaw_rad = std::atan2(t.y(), t.x());
-  // The leader's path: its start, then the path's points beyond it (at least 0.5 m on, so
-  // that no two waypoints coincide).
-  e.leader_path.push_back(e.leader_start);
-  double acc = 0.0;
-  for (std::size_t i = 1; i < e.path.size(); ++i) {
-    acc += (e.path[i] - e.path[i - 1]).norm();
-    if (acc > e.leader_arc_m + 0.5) e.leader_path.push_back(e.path[i]);
-  }
+  e.leader_path = path_from(e.path, e.leader_arc_m, e.leader_start);
   if (e.leader_path.size() < 2) throw std::logic_error("convoy episode: leader starts at the end");
+}
+
+// A head vehicle gap_m ahead of the leader (ConvoyEpisodeOptions::chain_fraction), drawn from
+// a stream of its own; not where fewer than 20 m of path would be left to it.
+void chain_leader(ConvoyEpisode& e, std::uint64_t seed, const ConvoyEpisodeOptions& o) {
+  if (o.chain_fraction <= 0.0) return;
+  std::mt19937_64 rng(seed ^ 0x7f4a7c159e3779b9ULL);
+  if (unit(rng) >= o.chain_fraction) return;
+  const double head_arc = e.leader_arc_m + o.gap_m;
+  if (head_arc + 20.0 > e.path_length_m) return;
+  e.chained = true;
+  e.head_arc_m = head_arc;
+  Vec2 t;
+  at_arc(e.path, head_arc, e.head_start, t);
+  e.head_yaw_rad = std::atan2(t.y(), t.x());
+  e.head_path = path_from(e.path, head_arc, e.head_start);
 }
 
 // The leader's path displaced sideways by the drawn sine (ConvoyEpisodeOptions).
@@ -211,6 +232,7 @@ ConvoyEpisode course_episode(std::uint64_t seed, const ConvoyEpisodeOptions& o) 
                            ci.radius, height});
   }
   wobble_leader(e, seed, o);
+  chain_leader(e, seed, o);
   return e;
 }
 
@@ -265,6 +287,7 @@ ConvoyEpisode make_convoy_episode(std::uint64_t seed, const ConvoyEpisodeOptions
     if (!placed) throw std::runtime_error("convoy episode: no place for obstacle " + std::to_string(k + 1));
   }
   wobble_leader(e, seed, o);
+  chain_leader(e, seed, o);
   return e;
 }
 
@@ -295,17 +318,32 @@ std::string convoy_scenario_yaml(const ConvoyEpisode& e, const ConvoyScenarioOpt
       << ", height_m: " << num(ob.height_m) << "}\n";
   }
   const double rad2deg = 180.0 / std::numbers::pi;
+  // A vehicle on reduced dynamics with the convoy rig and V2V; its controller follows.
+  const auto lead_vehicle = [&](const char* id, const Vec2& start, double yaw_rad) {
+    y << "  - id: " << id << "\n    model: hmmwv\n    dynamics: reduced\n";
+    y << "    start: {x: " << num(start.x()) << ", y: " << num(start.y())
+      << ", yaw_deg: " << num(yaw_rad * rad2deg) << "}\n";
+    y << "    sensors: convoy\n    v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}\n";
+  };
+  const auto path_follower = [&](const std::vector<Vec2>& path) {
+    y << "    controller:\n      type: path_follower\n      path: {waypoints: [";
+    for (std::size_t i = 0; i < path.size(); ++i) {
+      y << (i ? ", [" : "[") << num(path[i].x()) << ", " << num(path[i].y()) << "]";
+    }
+    y << "]}\n      speed: {profile: ramp, target_mps: " << num(o.target_speed_mps)
+      << ", accel_mps2: " << num(o.accel_mps2) << "}\n";
+  };
   y << "vehicles:\n";
-  y << "  - id: " << kConvoyLeaderId << "\n    model: hmmwv\n    dynamics: reduced\n";
-  y << "    start: {x: " << num(e.leader_start.x()) << ", y: " << num(e.leader_start.y())
-    << ", yaw_deg: " << num(e.leader_yaw_rad * rad2deg) << "}\n";
-  y << "    sensors: convoy\n    v2v: {rate_hz: 10, latency_s: 0.0, drop_probability: 0.0}\n";
-  y << "    controller:\n      type: path_follower\n      path: {waypoints: [";
-  for (std::size_t i = 0; i < e.leader_path.size(); ++i) {
-    y << (i ? ", [" : "[") << num(e.leader_path[i].x()) << ", " << num(e.leader_path[i].y()) << "]";
+  if (e.chained) {
+    lead_vehicle(kConvoyHeadId, e.head_start, e.head_yaw_rad);
+    path_follower(e.head_path);
+    lead_vehicle(kConvoyLeaderId, e.leader_start, e.leader_yaw_rad);
+    y << "    controller:\n      type: follower\n      follow: " << kConvoyHeadId
+      << "\n      gap: {time_s: 1.0, standstill_bumper_m: 5}\n";
+  } else {
+    lead_vehicle(kConvoyLeaderId, e.leader_start, e.leader_yaw_rad);
+    path_follower(e.leader_path);
   }
-  y << "]}\n      speed: {profile: ramp, target_mps: " << num(o.target_speed_mps)
-    << ", accel_mps2: " << num(o.accel_mps2) << "}\n";
   y << "  - id: " << kConvoyFollowerId << "\n    model: hmmwv\n    dynamics: "
     << (o.dynamics == ConvoyDynamics::full ? "full" : "reduced") << "\n";
   y << "    start: {x: " << num(e.follower_start.x()) << ", y: " << num(e.follower_start.y())

@@ -69,6 +69,12 @@ struct ConvoyEpisodeOptions {
   /// planned one. Drawn from a stream of its own: the episode's other draws do not change.
   double leader_wobble_m = 0.0;
   double leader_wobble_curvature_per_m = 0.05;
+  /// The fraction of episodes in which the vehicle followed is itself a classical follower
+  /// (controller `follower`, the convoy scenarios' gap) of a head vehicle that drives the path
+  /// from gap_m further on: the trail the policy follows is then a follower's, as behind the
+  /// first follower of a convoy. Drawn from a stream of its own; episodes too short for a
+  /// third vehicle stay unchained.
+  double chain_fraction = 0.0;
 };
 
 struct ConvoyEpisode {
@@ -87,6 +93,13 @@ struct ConvoyEpisode {
   std::vector<Vec2> leader_path;   // the leader's path from its start to the end (wobbled
                                    // if leader_wobble_m > 0)
   double leader_wobble_m = 0.0;    // the drawn amplitude (0: none)
+  /// Chained episodes (ConvoyEpisodeOptions::chain_fraction): the head's start, gap_m ahead of
+  /// the leader, and its path from there; the leader then follows the head.
+  bool chained = false;
+  double head_arc_m = 0.0;
+  Vec2 head_start = Vec2::Zero();
+  double head_yaw_rad = 0.0;
+  std::vector<Vec2> head_path;
   std::vector<ConvoyObstacle> obstacles;
 };
 
@@ -110,10 +123,12 @@ struct ConvoyScenarioOptions {
 
 inline constexpr const char* kConvoyLeaderId = "leader";
 inline constexpr const char* kConvoyFollowerId = "follower";
+inline constexpr const char* kConvoyHeadId = "head";  // chained episodes: the leader's leader
 
 /// The scenario of an episode as YAML for scenario::parse_scenario: the leader (reduced
-/// dynamics, path follower on the speed ramp, V2V at 10 Hz), the follower (controller
-/// external: the environment's agent drives it), the obstacles, the terrain; no recorder.
+/// dynamics, path follower on the speed ramp, V2V at 10 Hz; in a chained episode a classical
+/// follower of the head, which is the path follower), the follower (controller external: the
+/// environment's agent drives it), the obstacles, the terrain; no recorder.
 std::string convoy_scenario_yaml(const ConvoyEpisode& episode, const ConvoyScenarioOptions& o);
 
 }  // namespace syndds::learn

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "core/yaml.hpp"
 #include "learn/convoy_env.hpp"
 #include "learn/vector_env.hpp"
 
@@ -380,6 +381,74 @@ TEST(ConvoyEpisode, AWobblingLeaderWandersAroundThePlannedPath) {
     }
   }
   EXPECT_GT(largest, 0.25);
+}
+
+// Chained episodes: about the asked fraction has a head gap_m ahead of the leader on the
+// planned path, every other draw is unchanged, and the scenario makes the leader a classical
+// follower of the head (which drives the path from its start).
+TEST(ConvoyEpisode, AChainedEpisodeHasTheLeaderFollowAHead) {
+  int chained = 0, episodes = 0;
+  for (const ConvoyEpisodeKind kind : {ConvoyEpisodeKind::paper, ConvoyEpisodeKind::courses}) {
+    ConvoyEpisodeOptions plain;
+    plain.kind = kind;
+    ConvoyEpisodeOptions chain = plain;
+    chain.chain_fraction = 0.5;
+    for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+      SCOPED_TRACE("seed " + std::to_string(seed));
+      const ConvoyEpisode a = make_convoy_episode(seed, plain);
+      const ConvoyEpisode b = make_convoy_episode(seed, chain);
+      EXPECT_FALSE(a.chained);
+      EXPECT_EQ(b.path, a.path);
+      EXPECT_EQ(b.leader_start, a.leader_start);
+      EXPECT_EQ(b.follower_start, a.follower_start);
+      ASSERT_EQ(b.obstacles.size(), a.obstacles.size());
+      ++episodes;
+      if (!b.chained) continue;
+      ++chained;
+      EXPECT_DOUBLE_EQ(b.head_arc_m, b.leader_arc_m + plain.gap_m);
+      EXPECT_LE(b.head_arc_m + 20.0, b.path_length_m);
+      EXPECT_LT(distance_to_path(b.path, b.head_start), 1e-9);
+      EXPECT_EQ(b.head_path.front(), b.head_start);
+      const std::string yaml = convoy_scenario_yaml(b, ConvoyScenarioOptions{});
+      const auto s = scenario::parse_scenario(YamlNode::load_string(yaml, "chained.yaml"), yaml, {},
+                                              SYNDDS_TEST_CONFIG_DIR);
+      ASSERT_NE(s.find_vehicle(kConvoyHeadId), nullptr);
+      EXPECT_EQ(s.find_vehicle(kConvoyHeadId)->controller.type, "path_follower");
+      EXPECT_EQ(s.find_vehicle(kConvoyLeaderId)->controller.type, "follower");
+    }
+  }
+  EXPECT_GT(chained, episodes / 4);
+  EXPECT_LT(chained, 3 * episodes / 4);
+}
+
+// The classical follower's commands drive a chained episode behind a leader that follows the
+// head: no collision, the leader not lost, on the path, and the episode ends when the head
+// and the leader have stopped at the path's end.
+TEST(ConvoyEnv, AChainedEpisodeRunsToTheEnd) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail;
+  o.reward_kind = ConvoyRewardKind::track;
+  o.episode.chain_fraction = 1.0;
+  o.max_steps = 2000;
+  ConvoyEnv env(o);
+  env.reset(4);
+  ASSERT_TRUE(env.episode().chained);
+  double error_sum = 0.0;
+  int steps = 0;
+  StepResult r;
+  for (; steps < 2000; ++steps) {
+    r = env.step(env.expert_action());
+    ASSERT_FALSE(r.terminated) << "collided " << r.info.at("collided") << ", lost "
+                               << r.info.at("leader_lost") << " at step " << steps;
+    error_sum += r.info.at("path_error_m");
+    if (r.truncated) break;
+  }
+  EXPECT_EQ(r.info.at("leader_done"), 1.0) << "after " << steps << " steps";
+  // Not before the head can have driven the rest of its path at the speed cap.
+  const double head_drive_s =
+      (env.episode().path_length_m - env.episode().head_arc_m) / o.target_speed_mps;
+  EXPECT_GT(steps * 0.1, head_drive_s);
+  EXPECT_LT(error_sum / steps, 0.4);
 }
 
 // The track reward: the gap term times 1 / (1 + e / 0.5 m): 1 at the optimal gap on the path,
