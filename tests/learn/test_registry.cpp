@@ -45,6 +45,8 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_TRUE(short_env->step(brake).truncated);
   EXPECT_EQ(convoy_env_options({{"frames_per_step", "5"}}).frames_per_step, 5);
   EXPECT_EQ(convoy_env_options({}).frames_per_step, 10);
+  EXPECT_EQ(convoy_env_options({{"chain", "0.5"}}).episode.chain_fraction, 0.5);
+  EXPECT_EQ(convoy_env_options({}).episode.chain_fraction, 0.0);
 }
 
 TEST(Registry, MistakesAreNamed) {
@@ -67,6 +69,8 @@ TEST(Registry, MistakesAreNamed) {
                 .find("option frames_per_step: '2.5' is not a whole number"),
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"frames_per_step", "0"}}).find("outside"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"chain", "1.5"}}).find("option chain: '1.5' is outside"),
             std::string::npos);
   EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
             std::string::npos);
