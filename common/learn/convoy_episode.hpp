@@ -72,8 +72,8 @@ struct ConvoyEpisodeOptions {
   /// The fraction of episodes in which the vehicle followed is itself a classical follower
   /// (controller `follower`, the convoy scenarios' gap) of a head vehicle that drives the path
   /// from gap_m further on: the trail the policy follows is then a follower's, as behind the
-  /// first follower of a convoy. Drawn from a stream of its own; episodes too short for a
-  /// third vehicle stay unchained.
+  /// first follower of a convoy (its leader_path, wobbled or not, is then unused). Drawn from
+  /// a stream of its own; episodes too short for a third vehicle stay unchained.
   double chain_fraction = 0.0;
 };
 
