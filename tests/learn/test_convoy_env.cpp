@@ -349,6 +349,18 @@ TEST(ConvoyEpisode, CourseEpisodesUseTheStudysGeneratorOnTrainingSeeds) {
   EXPECT_EQ(make_convoy_episode(10, o).path, make_convoy_episode(10).path);
 }
 
+// An option drawn from a stream of its own leaves the episode's other draws as they were:
+// the planned path, both starts, the obstacles.
+static void expect_same_draws(const ConvoyEpisode& a, const ConvoyEpisode& b) {
+  EXPECT_EQ(b.path, a.path);
+  EXPECT_EQ(b.leader_start, a.leader_start);
+  EXPECT_EQ(b.follower_start, a.follower_start);
+  ASSERT_EQ(b.obstacles.size(), a.obstacles.size());
+  for (std::size_t i = 0; i < a.obstacles.size(); ++i) {
+    EXPECT_EQ(b.obstacles[i].centre, a.obstacles[i].centre);
+  }
+}
+
 // The wandering leader: every other draw of the episode unchanged, the planned path (the
 // reward's reference) unchanged, the leader's path starting where it did and staying within
 // the drawn amplitude of the planned one, on both kinds of episode; some amplitudes large.
@@ -364,13 +376,7 @@ TEST(ConvoyEpisode, AWobblingLeaderWandersAroundThePlannedPath) {
       const ConvoyEpisode a = make_convoy_episode(seed, plain);
       const ConvoyEpisode b = make_convoy_episode(seed, wobbly);
       EXPECT_EQ(a.leader_wobble_m, 0.0);
-      EXPECT_EQ(b.path, a.path);
-      EXPECT_EQ(b.leader_start, a.leader_start);
-      EXPECT_EQ(b.follower_start, a.follower_start);
-      ASSERT_EQ(b.obstacles.size(), a.obstacles.size());
-      for (std::size_t i = 0; i < a.obstacles.size(); ++i) {
-        EXPECT_EQ(b.obstacles[i].centre, a.obstacles[i].centre);
-      }
+      expect_same_draws(a, b);
       EXPECT_EQ(b.leader_path.front(), a.leader_path.front());
       EXPECT_LE(b.leader_wobble_m, 0.5);
       double farthest = 0.0;
@@ -398,10 +404,7 @@ TEST(ConvoyEpisode, AChainedEpisodeHasTheLeaderFollowAHead) {
       const ConvoyEpisode a = make_convoy_episode(seed, plain);
       const ConvoyEpisode b = make_convoy_episode(seed, chain);
       EXPECT_FALSE(a.chained);
-      EXPECT_EQ(b.path, a.path);
-      EXPECT_EQ(b.leader_start, a.leader_start);
-      EXPECT_EQ(b.follower_start, a.follower_start);
-      ASSERT_EQ(b.obstacles.size(), a.obstacles.size());
+      expect_same_draws(a, b);
       ++episodes;
       if (!b.chained) continue;
       ++chained;
