@@ -106,8 +106,7 @@ else
     fail "--security-dir without --multicast: job ended $state"
   # In real time for 4 s: a pair that exchanges no data (controller/a and vehicle/b) must still
   # finish its handshake before the run ends, and a first handshake message sent before the peer
-  # knew the sender is only resent after a while (2 s simulated, not in real time, ended after
-  # 0.24 s of wall time with one such pair unauthenticated).
+  # knew the sender is only resent after a while.
   run_job run -N 2 -n 8 "$SBATCH" "$SCENARIO" --output out --bin-dir "$BIN" --transport udp \
     --security-dir "$WORK/job/security" --log-level debug --multicast --realtime --duration 4
   [ "$state" = COMPLETED ] && [ "$exit_code" = 0:0 ] ||
