@@ -339,6 +339,49 @@ void ConvoyFollower::learn_understeer(double dt, double v) {
                            kUndersteerMin, kUndersteerMax);
 }
 
+double ConvoyFollower::keep_out_shift(double s_here) const {
+  if (keep_out_.obstacles.empty() || trail_.size() < 2) return 0.0;
+  double push_left = 0.0, push_right = 0.0;
+  for (const auto& ob : keep_out_.obstacles) {
+    // The obstacle's projection on the trail from just behind the follower (an obstacle
+    // beside its body) to past the lead-in (the trail is known only where the leader has
+    // driven: an obstacle beyond it waits its turn). One found at either end of that window
+    // is outside the shift's reach.
+    std::size_t first = trail_index_;
+    while (first > 0 && trail_s_[first] > s_here - 2.0 * ob.radius_m - 4.0) --first;
+    double best_d2 = std::numeric_limits<double>::infinity(), s_ob = 0.0, left = 0.0;
+    for (std::size_t i = first; i + 1 < trail_.size(); ++i) {
+      if (trail_s_[i] > s_here + keep_out_.lead_in_m + 2.0 * ob.radius_m) break;
+      const Vec2 a = trail_[i];
+      const Vec2 ab = trail_[i + 1] - a;
+      const double len2 = ab.squaredNorm();
+      if (len2 <= 0.0) continue;
+      const double u = std::clamp((ob.centre - a).dot(ab) / len2, 0.0, 1.0);
+      const double d2 = (a + u * ab - ob.centre).squaredNorm();
+      if (d2 < best_d2) {
+        best_d2 = d2;
+        s_ob = trail_s_[i] + u * std::sqrt(len2);
+        const Vec2 ac = ob.centre - a;
+        left = ab.x() * ac.y() - ab.y() * ac.x();  // its sign: the side
+      }
+    }
+    if (!std::isfinite(best_d2)) continue;
+    // The distance to the trail (not to a segment's line: an obstacle beyond the trail's
+    // first crumb is as far as it is from that crumb).
+    const double need = std::min(keep_out_.max_shift_m,
+                                 keep_out_.clearance_m - (std::sqrt(best_d2) - ob.radius_m));
+    if (need <= 0.0 || s_here > s_ob + ob.radius_m + 2.0) continue;
+    const double start = s_ob - ob.radius_m - keep_out_.lead_in_m;
+    const double push = need * std::clamp((s_here - start) / keep_out_.ramp_m, 0.0, 1.0);
+    if (left > 0.0) {
+      push_right = std::max(push_right, push);
+    } else {
+      push_left = std::max(push_left, push);
+    }
+  }
+  return push_left - push_right;
+}
+
 void ConvoyFollower::observe_radar(const std::vector<proto::RadarScanMsg>& scans) {
   if (config_.radar_sensor.empty()) return;
   for (const auto& scan : scans) {
@@ -386,10 +429,21 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
   learn_understeer(dt, v);
   double angle = kinematic_angle(k_ahead) + understeer_ * v * v * k_ahead;
   angle += config_.heading_gain * wrap_angle(trail_yaw(s_here) - own_->yaw);
+  const double before_cross_track = angle;
   angle -= std::atan(config_.cross_track_gain_per_s * cross_track_m_ / (v + kSoftSpeedMps));
   angle = std::clamp(angle, -max_bicycle_angle(), max_bicycle_angle());
   // The angle as the yaw rate will show it: through the same smoothing.
   steer_smoothed_ += dt / (kYawRateS + dt) * (angle - steer_smoothed_);
+  // A map's shift changes the command only (KeepOut): every estimate, the understeer learned
+  // from the commanded angle included, stays the one without the map.
+  keep_shift_ = keep_out_shift(s_here);
+  const double commanded =
+      keep_shift_ == 0.0
+          ? angle
+          : std::clamp(before_cross_track -
+                           std::atan(config_.cross_track_gain_per_s *
+                                     (cross_track_m_ - keep_shift_) / (v + kSoftSpeedMps)),
+                       -max_bicycle_angle(), max_bicycle_angle());
 
   // Spacing: bumper to bumper along the trail.
   // The leader's estimate beyond the newest crumb, signed along the leader's heading (it may
@@ -423,7 +477,7 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
   const double signal = speed_pid_.update(target_speed_ - own_->speed, dt);
 
   vehicle::DriverInputs cmd;
-  cmd.steering = steering_input(angle);
+  cmd.steering = steering_input(commanded);
   cmd.throttle = signal > 0.0 ? std::min(signal, 1.0) : 0.0;
   cmd.braking = signal < 0.0 ? std::min(-signal, 1.0) : 0.0;
   if (target_speed_ < kHoldMps && own_->speed < kHoldMps) {

@@ -113,6 +113,29 @@ struct TrailFeatures {
   double feedforward_steering = 0.0;
 };
 
+/// Obstacles the follower keeps clear of when it is given their map: the learned follower's
+/// teacher in training (learn::ConvoyEnv, option `teacher_keep_clear`), never the classical
+/// follower member of a scenario. Where the trail passes an obstacle's edge closer than
+/// clearance_m, the follower tracks the trail shifted away from that obstacle by the
+/// difference (at most max_shift_m), from lead_in_m before the obstacle (reached over
+/// ramp_m) to 2 m past it. Obstacles on the two sides push against each other: the shift is
+/// the largest push to the left less the largest push to the right. The steering command's
+/// cross-track feedback acts on the shifted trail; nothing else changes: the trail, its
+/// features, the spacing and every estimate (the understeer learned from the commanded angle
+/// included) are those without the map, so a learning environment's observation does not
+/// depend on its teacher's map.
+struct KeepOut {
+  struct Circle {
+    Vec2 centre = Vec2::Zero();
+    double radius_m = 0.0;
+  };
+  std::vector<Circle> obstacles;   // empty: no shift
+  double clearance_m = 2.5;        // obstacle edge to the trail, wanted at least
+  double max_shift_m = 1.5;
+  double lead_in_m = 8.0;          // arc length before the obstacle's extent
+  double ramp_m = 4.0;
+};
+
 struct FollowerEvent {
   std::string kind;    // leader_lost | leader_found
   std::string detail;
@@ -135,6 +158,10 @@ class ConvoyFollower {
   /// Whether the last update() took its gap from the radar.
   bool radar_in_use() const { return radar_used_; }
 
+  /// Gives the follower a map of obstacles to keep clear of (KeepOut); none by default.
+  void set_keep_out(KeepOut keep_out) { keep_out_ = std::move(keep_out); }
+  /// The sideways shift of the trail the last update() tracked (> 0: left; 0 without a map).
+  double keep_out_shift_m() const { return keep_shift_; }
   bool leader_lost() const { return lost_; }
   bool ready() const { return own_.has_value() && leader_.has_value(); }
   Vec2 position_estimate() const { return own_ ? own_->position : Vec2::Zero(); }
@@ -223,6 +250,10 @@ class ConvoyFollower {
   double desired_gap_m_ = 0.0;
   double target_speed_ = 0.0;
   double cross_track_m_ = 0.0;
+  KeepOut keep_out_;
+  double keep_shift_ = 0.0;           // the last update's keep_out_shift (derived, not state)
+  /// The shift of the trail at arc position `s_here` that keeps the map's obstacles clear.
+  double keep_out_shift(double s_here) const;
   // Newest in-lane radar detection: measurement time (< 0: none), bumper gap, range rate.
   double radar_time_s_ = -1.0;
   double radar_gap_m_ = 0.0;

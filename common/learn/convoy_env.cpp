@@ -42,11 +42,16 @@ double convoy_track_reward(double distance_m, double path_error_m, const ConvoyR
 
 ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario& scenario,
                                      const scenario::VehicleConfig& follower,
-                                     const std::string& leader_id, ConvoyObservationKind kind)
+                                     const std::string& leader_id, ConvoyObservationKind kind,
+                                     const convoy::KeepOut& teacher_keep_out)
     : vehicle_id_(follower.id),
       leader_id_(leader_id),
       member_id_(scenario::external_member(follower.id)),
-      builder_(convoy_observation_config(scenario, follower, leader_id, kind)) {}
+      builder_([&] {
+        ConvoyObservationConfig c = convoy_observation_config(scenario, follower, leader_id, kind);
+        c.teacher_keep_out = teacher_keep_out;
+        return c;
+      }()) {}
 
 ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, std::uint64_t seed) {
   ConvoyScenarioOptions so;
@@ -181,8 +186,13 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
   const record::RecorderOptions no_recorder;
   for (const auto& m : s.member_ids()) {
     if (m == scenario::external_member(kConvoyFollowerId)) {
+      convoy::KeepOut keep_out;
+      if (options_.teacher_keep_clear_m > 0.0) {
+        keep_out.clearance_m = options_.teacher_keep_clear_m;
+        for (const auto& ob : episode_.obstacles) keep_out.obstacles.push_back({ob.centre, ob.radius_m});
+      }
       auto d = std::make_unique<ConvoyDriverAgent>(s, *s.find_vehicle(kConvoyFollowerId),
-                                                   kConvoyLeaderId, options_.observation);
+                                                   kConvoyLeaderId, options_.observation, keep_out);
       driver_ = d.get();
       agents.push_back(std::move(d));
     } else if (m == scenario::sensor_member(kConvoyFollowerId)) {

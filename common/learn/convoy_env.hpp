@@ -70,6 +70,11 @@ struct ConvoyEnvOptions {
   /// as with every frame rendered (tested), which stays available for comparison.
   bool render_only_observed = true;
   double lost_distance_m = 40.0;   // terminated when the leader is farther than this
+  /// Above 0: the expert (expert_action, the trail kinds' classical command) is given the
+  /// episode's obstacles and keeps their edges this far from the trail it tracks
+  /// (convoy::KeepOut), so that imitation teaches a camera policy to steer clear of what it
+  /// sees; the observation and the reward do not change.
+  double teacher_keep_clear_m = 0.0;
   ConvoyRewardParams reward;
   ConvoyEpisodeOptions episode;
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
@@ -103,9 +108,11 @@ std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& 
 /// The external/<follower> member: observation from its inputs, the action as its command.
 class ConvoyDriverAgent final : public proto::Agent {
  public:
+  /// `teacher_keep_out`: the expert's map (ConvoyObservationConfig::teacher_keep_out).
   ConvoyDriverAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& follower,
                     const std::string& leader_id,
-                    ConvoyObservationKind kind = ConvoyObservationKind::paper);
+                    ConvoyObservationKind kind = ConvoyObservationKind::paper,
+                    const convoy::KeepOut& teacher_keep_out = {});
 
   const std::string& member_id() const override { return member_id_; }
   std::string vehicle_key() const override { return vehicle_id_; }

@@ -82,6 +82,7 @@ ConvoyObservationBuilder::ConvoyObservationBuilder(ConvoyObservationConfig confi
     : config_(std::move(config)), converter_(config_.geodetic_origin, config_.geodetic_model) {
   if (observes_trail(config_.kind)) {
     estimator_.emplace(config_.estimator, config_.vehicle, converter_);
+    estimator_->set_keep_out(config_.teacher_keep_out);
   }
 }
 

@@ -51,6 +51,10 @@ struct ConvoyObservationConfig {
   // are unused) and the vehicles' dimensions.
   convoy::FollowerConfig estimator;
   convoy::FollowerVehicle vehicle;
+  /// The teacher's map (training only): obstacles the classical command (classical_action)
+  /// keeps clear of. The observation does not see it: its numbers are the same with or
+  /// without a map.
+  convoy::KeepOut teacher_keep_out;
 };
 
 /// The observation's configuration for `follower` of `scenario` following `leader_id`: its

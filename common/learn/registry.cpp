@@ -105,6 +105,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.steer_lag_s = r.number("steer_lag", 0.0, 0.0, 10.0);
   o.episode.leader_wobble_m = r.number("leader_wobble", 0.0, 0.0, 2.0);
   o.episode.chain_fraction = r.number("chain", 0.0, 0.0, 1.0);
+  o.teacher_keep_clear_m = r.number("teacher_keep_clear", 0.0, 0.0, 10.0);
   o.episode.kind = parse_episode_kind(r.choice("episodes", "paper", {"paper", "courses", "mixed"}));
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
   o.target_speed_max_mps = r.number("target_speed_max", 0.0, 0.0, 20.0);

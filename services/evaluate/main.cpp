@@ -1,8 +1,9 @@
 // syndds_evaluate: policies side by side on a learning environment (docs/learning.md): learned
-// ones (syndds_train's policy.pt, deterministic actions) and baselines (zero, random, and for
-// convoy_follow the hand-written follower), each over the same episode seeds. Prints one row
-// per policy (mean and spread of the return, episode length, episodes ended by the
-// environment, the step-mean of the environment's info numbers) and optionally writes a CSV.
+// ones (syndds_train's policy.pt, deterministic actions) and baselines (zero, random, the
+// environment's expert, and for convoy_follow the hand-written follower), each over the same
+// episode seeds. Prints one row per policy (mean and spread of the return, episode length,
+// episodes ended by the environment, the step-mean of the environment's info numbers) and
+// optionally writes a CSV.
 #include <ATen/Parallel.h>
 #include <CLI/CLI.hpp>
 
@@ -27,8 +28,10 @@ int main(int argc, char** argv) {
   app.add_option("--env", env_name, "Environment")->required();
   app.add_option("--env-option", env_option_args, "Environment option KEY=VALUE (repeatable)");
   app.add_option("--policy", policies, "A policy file of syndds_train (repeatable)");
-  app.add_option("--baseline", baselines, "zero, random or heuristic (convoy_follow; repeatable)")
-      ->check(CLI::IsMember({"zero", "random", "heuristic"}));
+  app.add_option("--baseline", baselines,
+                 "zero, random, heuristic (convoy_follow) or expert (the teacher a trainer "
+                 "imitates: convoy_follow with a trail observation); repeatable")
+      ->check(CLI::IsMember({"zero", "random", "heuristic", "expert"}));
   app.add_option("--episodes", episodes, "Episodes per policy")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
@@ -84,6 +87,16 @@ int main(int argc, char** argv) {
           return 1;
         }
         entries.push_back({"heuristic", learn::convoy_heuristic_action});
+      }
+      if (b == "expert") {
+        env->reset(first_seed);
+        if (env->expert_action().empty()) {
+          std::cerr << "syndds_evaluate: --baseline expert: " << env_name
+                    << " has no expert with these options\n";
+          return 1;
+        }
+        learn::Env* e = env.get();
+        entries.push_back({"expert", [e](const learn::Observation&) { return e->expert_action(); }});
       }
     }
     std::ofstream out;

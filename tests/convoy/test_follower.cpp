@@ -299,6 +299,72 @@ TEST(Follower, BesideTheTrailItSteersBackByTheCrossTrackGain) {
   EXPECT_NEAR(cmd.steering, std::atan(0.5 / (v + 1.0)) / veh.max_steer_rad, 0.01);
 }
 
+// A map of obstacles (KeepOut, the learned follower's teacher): on a straight trail, the
+// follower tracks the trail shifted away from an obstacle whose edge comes closer than the
+// clearance, by the difference; obstacles on both sides push against each other; the shift
+// ramps in before an obstacle and ends past it. The trail, the cross-track estimate and the
+// trail features do not change; without a map the command is the same as ever.
+TEST(Follower, AMapOfObstaclesShiftsTheTrackedTrailAwayFromThem) {
+  const double v = 5.0;
+  const FollowerVehicle veh = test_vehicle();
+  // The follower ends at x = 35 on the trail (y = 0), the leader at x = 50.
+  struct Result {
+    double shift, steering, cross_track, feature_cross_track;
+  };
+  const auto run = [&](std::vector<KeepOut::Circle> obstacles) {
+    ConvoyFollower f(config(), veh, kConverter);
+    KeepOut keep_out;
+    keep_out.obstacles = std::move(obstacles);
+    f.set_keep_out(keep_out);
+    std::vector<FollowerEvent> events;
+    std::uint64_t seq = 0;
+    vehicle::DriverInputs cmd;
+    const StraightWorld world;
+    for (int k = 0; k <= 1000; ++k) {
+      const double t = k * 0.01;
+      std::vector<proto::V2VMessageMsg> msgs;
+      if (k % 10 == 0) msgs.push_back(world.leader(t, seq++));
+      OwnReadings own = world.own(t);
+      if (k % 10 != 0) own.gps.clear();
+      cmd = f.update(t, 0.01, own, msgs, events);
+    }
+    return Result{f.keep_out_shift_m(), cmd.steering, f.cross_track_m(),
+                  f.trail_features().cross_track_m};
+  };
+  const double wanted = KeepOut{}.clearance_m;  // 2.5 m
+  // Stanley on the shifted trail: atan(k (cross-track - shift) / (v + 1)), k = 1.
+  const auto steering_for = [&](double shift) {
+    return -std::atan(-shift / (v + 1.0)) / veh.max_steer_rad;
+  };
+
+  const Result none = run({});
+  EXPECT_EQ(none.shift, 0.0);
+  EXPECT_NEAR(none.steering, 0.0, 1e-3);
+
+  // Edge 1.5 m left of the trail: shifted 1 m to the right.
+  const Result left = run({{Vec2(35.0, 2.5), 1.0}});
+  EXPECT_NEAR(left.shift, -(wanted - 1.5), 1e-9);
+  EXPECT_NEAR(left.steering, steering_for(left.shift), 1e-3);
+  EXPECT_LT(left.steering, -0.1);  // to the right, away from it
+  EXPECT_NEAR(left.cross_track, none.cross_track, 1e-12);
+  EXPECT_NEAR(left.feature_cross_track, none.feature_cross_track, 1e-12);
+
+  // And a second, 2.0 m right of the trail, pushing back by 0.5 m.
+  const Result both = run({{Vec2(35.0, 2.5), 1.0}, {Vec2(35.0, -3.0), 1.0}});
+  EXPECT_NEAR(both.shift, (wanted - 2.0) - (wanted - 1.5), 1e-9);
+
+  // Far enough from the trail: nothing.
+  EXPECT_EQ(run({{Vec2(35.0, 4.0), 1.0}}).shift, 0.0);
+  // The ramp: the shift starts lead_in_m (8 m) before the obstacle's edge and is full ramp_m
+  // (4 m) later; it ends 2 m past the obstacle.
+  EXPECT_EQ(run({{Vec2(35.0 + 1.0 + 8.0 + 0.5, 2.5), 1.0}}).shift, 0.0);
+  EXPECT_NEAR(run({{Vec2(35.0 + 1.0 + 8.0 - 2.0, 2.5), 1.0}}).shift, -0.5, 1e-9);
+  EXPECT_NEAR(run({{Vec2(35.0 - 1.0 - 1.5, 2.5), 1.0}}).shift, -1.0, 1e-9);
+  EXPECT_EQ(run({{Vec2(35.0 - 1.0 - 2.5, 2.5), 1.0}}).shift, 0.0);
+  // A big shift is capped.
+  EXPECT_NEAR(run({{Vec2(35.0, 0.5), 1.0}}).shift, -KeepOut{}.max_shift_m, 1e-9);
+}
+
 // Closed loop with a vehicle that understeers (0.03 rad of road-wheel angle per m/s2, soft
 // ground): behind a leader on a 15 m circle, the follower learns the understeer from its own
 // compass and steering and stays on the leader's circle. Without it, it would run about

@@ -629,6 +629,59 @@ TEST(ConvoyEnv, ExpertActionIsTheClassicalFollowersCommand) {
   }
 }
 
+// The teacher's map (option teacher_keep_clear): the expert keeps the episode's obstacles
+// clear by the wanted distance, and nothing the policy sees or is paid changes. Two
+// environments on the same course episode, both driven by the expert with the map: the
+// observations and rewards are the same bit for bit, while the expert without the map would
+// command otherwise; and driven by its own expert, the follower passes the obstacles farther
+// from their edges with the map than without.
+TEST(ConvoyEnv, TheTeachersMapChangesTheExpertNotTheObservation) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail_ff;
+  o.reward_kind = ConvoyRewardKind::track;
+  o.episode.kind = ConvoyEpisodeKind::courses;
+  o.max_steps = 300;
+  ConvoyEnvOptions mapped = o;
+  mapped.teacher_keep_clear_m = 2.5;
+  const std::uint64_t seed = 3;
+  // The nearest any obstacle's edge comes to the follower's reference point.
+  const auto nearest_edge = [](const ConvoyEnv& env) {
+    const Vec2 p(env.follower_state().pose.position.x(), env.follower_state().pose.position.y());
+    double d = 1e9;
+    for (const auto& ob : env.episode().obstacles) d = std::min(d, (p - ob.centre).norm() - ob.radius_m);
+    return d;
+  };
+  {
+    ConvoyEnv plain(o), with_map(mapped);
+    Observation a = plain.reset(seed), b = with_map.reset(seed);
+    int differ = 0;
+    for (int k = 0; k < o.max_steps; ++k) {
+      ASSERT_EQ(a.vector, b.vector) << "step " << k;
+      const std::vector<float> teacher = with_map.expert_action();
+      if (teacher != plain.expert_action()) ++differ;
+      const StepResult ra = plain.step(teacher), rb = with_map.step(teacher);
+      ASSERT_EQ(ra.reward, rb.reward) << "step " << k;
+      a = ra.observation;
+      b = rb.observation;
+      if (ra.terminated || ra.truncated) break;
+    }
+    EXPECT_GT(differ, 10);
+  }
+  double nearest[2] = {1e9, 1e9};
+  for (int m = 0; m < 2; ++m) {
+    ConvoyEnv env(m == 0 ? o : mapped);
+    env.reset(seed);
+    for (int k = 0; k < o.max_steps; ++k) {
+      const StepResult r = env.step(env.expert_action());
+      nearest[m] = std::min(nearest[m], nearest_edge(env));
+      if (r.terminated || r.truncated) break;
+    }
+  }
+  std::printf("nearest obstacle edge: %.2f m without the map, %.2f m with it\n", nearest[0],
+              nearest[1]);
+  EXPECT_GT(nearest[1], nearest[0] + 0.3);
+}
+
 // The steering lag: none gives the clamped action (NaN as 0); a lag of tau moves the applied
 // steering 1 - exp(-T / tau) of the way to the clamped action per period T.
 TEST(ConvoyEnv, SteeringLagIsFirstOrderPerAction) {

@@ -6,6 +6,9 @@
 // (single process): within the factor measured in docs/learning.md.
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <map>
+
 #include "harness.hpp"
 
 using namespace syndds::test;
@@ -68,4 +71,43 @@ TEST(LearnedConvoy, CameraPolicyAgainstTheClassicalFollower) {
   std::printf("m_p_avg: camera policy %.3f m, classical follower %.3f m\n", policy, classical);
   EXPECT_LT(policy, 0.2);
   EXPECT_LT(policy, 1.2 * classical);
+}
+
+// syndds_evaluate's expert baseline: the teacher a trainer imitates, on the same episodes as
+// the other rows. It follows (its distance to the leader is far below the zero policy's,
+// which never moves off its start); an environment without an expert is refused, naming the
+// baseline.
+TEST(LearnedConvoy, EvaluateComparesTheExpertWithTheBaselines) {
+  TestRun run;
+  const auto evaluate = [&](const std::string& options, const std::string& name) {
+    const std::string cmd = kBin + "/syndds_evaluate --env convoy_follow " + options +
+                            " --env-option max_steps=150 --baseline expert --baseline zero" +
+                            " --episodes 2 --csv " + (run.dir / (name + ".csv")).string() +
+                            " > " + (run.dir / (name + ".log")).string() + " 2>&1";
+    return std::system(cmd.c_str());
+  };
+  ASSERT_EQ(evaluate("--env-option observation=trail_ff --env-option reward=track", "trail"), 0)
+      << read_file(run.dir / "trail.log");
+  // Columns: policy, ..., then the mean of every info number by name.
+  std::istringstream csv(read_file(run.dir / "trail.csv"));
+  std::string line;
+  std::getline(csv, line);
+  std::vector<std::string> names;
+  for (std::stringstream h(line); std::getline(h, line, ',');) names.push_back(line);
+  const auto column = std::find(names.begin(), names.end(), "mean_distance_m") - names.begin();
+  ASSERT_LT(column, static_cast<std::ptrdiff_t>(names.size()));
+  std::map<std::string, double> distance;
+  while (std::getline(csv, line)) {
+    std::vector<std::string> cells;
+    for (std::stringstream r(line); std::getline(r, line, ',');) cells.push_back(line);
+    distance[cells.at(0)] = std::stod(cells.at(column));
+  }
+  ASSERT_EQ(distance.size(), 2u);
+  EXPECT_LT(distance.at("expert"), 20.0);
+  EXPECT_GT(distance.at("zero"), distance.at("expert") + 5.0);
+
+  EXPECT_EQ(evaluate("", "paper"), 1 << 8);  // exit status 1
+  EXPECT_NE(read_file(run.dir / "paper.log").find("--baseline expert: convoy_follow has no expert"),
+            std::string::npos)
+      << read_file(run.dir / "paper.log");
 }

@@ -47,6 +47,8 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_EQ(convoy_env_options({}).frames_per_step, 10);
   EXPECT_EQ(convoy_env_options({{"chain", "0.5"}}).episode.chain_fraction, 0.5);
   EXPECT_EQ(convoy_env_options({}).episode.chain_fraction, 0.0);
+  EXPECT_EQ(convoy_env_options({{"teacher_keep_clear", "2.5"}}).teacher_keep_clear_m, 2.5);
+  EXPECT_EQ(convoy_env_options({}).teacher_keep_clear_m, 0.0);
 }
 
 TEST(Registry, MistakesAreNamed) {
@@ -71,6 +73,9 @@ TEST(Registry, MistakesAreNamed) {
   EXPECT_NE(error_of("convoy_follow", {{"frames_per_step", "0"}}).find("outside"),
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"chain", "1.5"}}).find("option chain: '1.5' is outside"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"teacher_keep_clear", "-1"}})
+                .find("option teacher_keep_clear: '-1' is outside"),
             std::string::npos);
   EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
             std::string::npos);
