@@ -72,8 +72,7 @@ struct ConvoyEnvOptions {
   double lost_distance_m = 40.0;   // terminated when the leader is farther than this
   /// Above 0: the expert (expert_action, the trail kinds' classical command) is given the
   /// episode's obstacles and keeps their edges this far from the trail it tracks
-  /// (convoy::KeepOut), so that imitation teaches a camera policy to steer clear of what it
-  /// sees; the observation and the reward do not change.
+  /// (convoy::KeepOut); the observation and the reward do not change.
   double teacher_keep_clear_m = 0.0;
   ConvoyRewardParams reward;
   ConvoyEpisodeOptions episode;

@@ -629,8 +629,8 @@ TEST(ConvoyEnv, ExpertActionIsTheClassicalFollowersCommand) {
   }
 }
 
-// The teacher's map (option teacher_keep_clear): the expert keeps the episode's obstacles
-// clear by the wanted distance, and nothing the policy sees or is paid changes. Two
+// The teacher's map (option teacher_keep_clear): the expert steers wider of the episode's
+// obstacles, and nothing the policy sees or is paid changes. Two
 // environments on the same course episode, both driven by the expert with the map: the
 // observations and rewards are the same bit for bit, while the expert without the map would
 // command otherwise; and driven by its own expert, the follower passes the obstacles farther
