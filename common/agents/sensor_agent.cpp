@@ -42,9 +42,16 @@ void world_bounds(const scenario::Scenario& s, double& x0, double& x1, double& y
 }
 
 // Snow-like soft soil renders white, firmer soils silt-brown, rigid ground neutral.
-std::string look_of(const scenario::TerrainConfig& t) {
-  if (t.type != "scm") return "rigid";
-  return t.scm.soil.bekker_kphi < 1.0e6 ? "snow" : "silt";
+sensors::TerrainLook look_of(const scenario::TerrainConfig& t) {
+  if (t.type == "scm") {
+    return sensors::terrain_look(t.scm.soil.bekker_kphi < 1.0e6 ? "snow" : "silt");
+  }
+  sensors::TerrainLook look = sensors::terrain_look("rigid");
+  if (t.colour) {
+    look.colour = {static_cast<float>((*t.colour)[0]), static_cast<float>((*t.colour)[1]),
+                   static_cast<float>((*t.colour)[2])};
+  }
+  return look;
 }
 
 }  // namespace
@@ -69,7 +76,7 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
     const int coarse = std::max(1, static_cast<int>(std::lround(kRenderSpacingM / g.spacing_m)));
     // Kept to draw the soil afresh when a rollback (on_member_loss: recover) takes back ruts
     // made after the checkpoint.
-    reset_terrain_ = [this, surface, g, coarse, look = sensors::terrain_look(look_of(s.terrain))] {
+    reset_terrain_ = [this, surface, g, coarse, look = look_of(s.terrain)] {
       scene_->set_terrain(sensors::sample_terrain(*surface, g.spacing_m, g.x_min_m, g.x_max_m,
                                                   g.y_min_m, g.y_max_m),
                           look, coarse);
@@ -83,12 +90,12 @@ SensorAgent::SensorAgent(const scenario::Scenario& s, const scenario::VehicleCon
                                                 h.centre_m.x() + h.size_x_m / 2,
                                                 h.centre_m.y() - h.size_y_m / 2,
                                                 h.centre_m.y() + h.size_y_m / 2),
-                        sensors::terrain_look(look_of(s.terrain)));
+                        look_of(s.terrain));
   } else {
     double x0, x1, y0, y1;
     world_bounds(s, x0, x1, y0, y1);
     scene_->set_terrain(sensors::sample_terrain(*surface, kFlatSpacingM, x0, x1, y0, y1),
-                        sensors::terrain_look(look_of(s.terrain)));
+                        look_of(s.terrain));
   }
   scene_->add_obstacles(s.obstacles);
   for (std::size_t i = 0; i < s.vehicles.size(); ++i) {

@@ -9,6 +9,7 @@
 #include "agents/controller_agent.hpp"
 #include "agents/sensor_agent.hpp"
 #include "core/yaml.hpp"
+#include "sensors/scene.hpp"
 
 namespace syndds::learn {
 namespace {
@@ -68,7 +69,21 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
   }
   so.end_time_s = kConvoyEnvHeartbeatS * options.frames_per_step * (options.max_steps + 100);
   so.seed = seed;
+  if (options.random_ground_colour) so.ground_colour = convoy_ground_colour(seed);
   return so;
+}
+
+std::array<double, 3> convoy_ground_colour(std::uint64_t seed) {
+  std::mt19937_64 rng(seed ^ 0xc0104c0104c0104cULL);
+  auto uniform = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  const sensors::Rgb grey = sensors::terrain_look("rigid").colour;
+  const sensors::Rgb brown = sensors::terrain_look("silt").colour;
+  const double share = uniform();
+  const double brightness = 0.7 + 0.6 * uniform();
+  auto mix = [&](float a, float b) {
+    return std::clamp(brightness * ((1.0 - share) * a + share * b), 0.0, 1.0);
+  };
+  return {mix(grey.r, brown.r), mix(grey.g, brown.g), mix(grey.b, brown.b)};
 }
 
 vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake) {
@@ -134,6 +149,10 @@ ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
   if (options_.config_dir.empty()) options_.config_dir = scenario::default_config_dir();
   if (options_.frames_per_step < 1 || options_.max_steps < 1) {
     throw std::invalid_argument("ConvoyEnv: frames_per_step and max_steps must be >= 1");
+  }
+  if (options_.random_ground_colour && options_.terrain != ConvoyTerrain::rigid) {
+    throw std::invalid_argument("ConvoyEnv: random_ground_colour needs the rigid terrain (the "
+                                "soils keep their own look)");
   }
 }
 

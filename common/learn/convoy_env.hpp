@@ -6,6 +6,7 @@
 // external/follower: it builds the observation from the samples it subscribes to and writes
 // the current action as its DriverCommand every frame, exactly as a policy controller would
 // over DDS. One step = one control period of 10 frames (0.1 s).
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -74,6 +75,10 @@ struct ConvoyEnvOptions {
   /// episode's obstacles and keeps their edges this far from the trail it tracks
   /// (convoy::KeepOut); the observation and the reward do not change.
   double teacher_keep_clear_m = 0.0;
+  /// Rigid terrain only: each episode's ground gets a colour of its own in the camera,
+  /// convoy_ground_colour(seed) (domain randomisation: a policy trained on the grey rigid
+  /// ground then sees the soils' brown); physics does not change.
+  bool random_ground_colour = false;
   ConvoyRewardParams reward;
   ConvoyEpisodeOptions episode;
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
@@ -82,6 +87,11 @@ struct ConvoyEnvOptions {
 /// The scenario options of the environment's episode `seed` (its run is a little longer than
 /// max_steps control periods).
 ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, std::uint64_t seed);
+
+/// The ground colour of episode `seed` with random_ground_colour: a mix of the rigid ground's
+/// grey and the soil's brown (sensors::terrain_look "rigid" and "silt"), the share uniform in
+/// [0, 1], times a brightness uniform in [0.7, 1.3], from a stream of its own.
+std::array<double, 3> convoy_ground_colour(std::uint64_t seed);
 
 /// The driver inputs of a convoy action: steering in [-1, 1] (positive left) and one
 /// throttle/brake value in [-1, 1] (positive throttle, negative brake), clamped; NaN is 0

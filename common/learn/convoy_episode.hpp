@@ -3,7 +3,9 @@
 // path in a 90 x 90 m area, the follower's and the leader's start on it, eight obstacles beside
 // it, and the scenario (YAML for the normal loader) that runs them. Pure functions of the seed:
 // no simulation here, so the tests can check every variant cheaply.
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -119,6 +121,8 @@ struct ConvoyScenarioOptions {
   double end_time_s = 70.0;
   double scm_spacing_m = 0.2;     // coarse soil grid over the area only
   std::uint64_t seed = 1;         // the scenario seed (sensor noise, ...)
+  /// Rigid terrain: the ground's colour in the camera (scenario terrain.colour); unset: grey.
+  std::optional<std::array<double, 3>> ground_colour;
 };
 
 inline constexpr const char* kConvoyLeaderId = "leader";

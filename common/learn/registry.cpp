@@ -106,12 +106,17 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.episode.leader_wobble_m = r.number("leader_wobble", 0.0, 0.0, 2.0);
   o.episode.chain_fraction = r.number("chain", 0.0, 0.0, 1.0);
   o.teacher_keep_clear_m = r.number("teacher_keep_clear", 0.0, 0.0, 10.0);
+  o.random_ground_colour = r.choice("ground_colour", "fixed", {"fixed", "random"}) == "random";
   o.episode.kind = parse_episode_kind(r.choice("episodes", "paper", {"paper", "courses", "mixed"}));
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
   o.target_speed_max_mps = r.number("target_speed_max", 0.0, 0.0, 20.0);
   if (o.target_speed_max_mps > 0.0 && o.target_speed_max_mps < o.target_speed_mps) {
     throw std::invalid_argument("environment convoy_follow, option target_speed_max: below "
                                 "target_speed");
+  }
+  if (o.random_ground_colour && o.terrain != ConvoyTerrain::rigid) {
+    throw std::invalid_argument("environment convoy_follow, option ground_colour: random is for "
+                                "terrain=rigid (the soils keep their own look)");
   }
   o.frames_per_step = r.whole("frames_per_step", o.frames_per_step, 1, 100);
   o.max_steps = r.whole("max_steps", o.max_steps, 1, 100000);

@@ -161,6 +161,13 @@ TerrainConfig parse_terrain(const YamlNode& node, const std::string& config_dir,
     t.friction = std::tan(deg_to_rad(t.scm.soil.friction_angle_deg));
     return t;
   }
+  if (auto c = m.optional("colour")) {
+    const auto rgb = c->as_doubles(3);
+    for (double v : rgb) {
+      if (!(v >= 0.0 && v <= 1.0)) c->fail("colour components must be in [0, 1]");
+    }
+    t.colour = std::array<double, 3>{rgb[0], rgb[1], rgb[2]};
+  }
   if (t.type == "rigid") {
     t.friction = m.number("friction", 0.8, 0.01, 2.0);
     t.height_m = m.number("height_m", 0.0, -1e4, 1e4);

@@ -6,6 +6,7 @@
 // coordinator and syndds_plan load a scenario in constant memory per sensor and soil patch.
 // The processes that simulate build those from these structs (make_terrain and
 // load_scenario below, in the library syndds_scenario).
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -93,6 +94,9 @@ struct TerrainConfig {
   double height_m = 0.0;       // rigid: plane height
   terrain::HeightmapSpec heightmap;  // type heightmap (the image is decoded by make_terrain)
   scm::ScmParams scm;                // type scm
+  /// rigid and heightmap: the ground's colour in the cameras (linear RGB in [0, 1]) instead of
+  /// the type's grey; nothing else (physics, the lidar's reflectance) changes.
+  std::optional<std::array<double, 3>> colour;
   bool deformable() const { return type == "scm"; }
 };
 

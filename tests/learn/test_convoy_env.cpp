@@ -14,6 +14,7 @@
 
 #include "core/yaml.hpp"
 #include "learn/convoy_env.hpp"
+#include "sensors/scene.hpp"
 #include "learn/vector_env.hpp"
 
 using namespace syndds;
@@ -680,6 +681,68 @@ TEST(ConvoyEnv, TheTeachersMapChangesTheExpertNotTheObservation) {
   std::printf("nearest obstacle edge: %.2f m without the map, %.2f m with it\n", nearest[0],
               nearest[1]);
   EXPECT_GT(nearest[1], nearest[0] + 0.3);
+}
+
+// Random ground colours: each episode's ground has a colour of its own between the rigid
+// ground's grey and the soil's brown, drawn from the seed; the image changes (the bottom rows
+// look at the ground), the vector observation, the reward and the episode's end do not.
+TEST(ConvoyEnv, ARandomGroundColourChangesTheImageNotThePhysics) {
+  const auto grey = sensors::terrain_look("rigid").colour;
+  const auto brown = sensors::terrain_look("silt").colour;
+  int brownish = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const auto c = convoy_ground_colour(seed);
+    EXPECT_EQ(c, convoy_ground_colour(seed));
+    for (double v : c) {
+      EXPECT_GE(v, 0.0);
+      EXPECT_LE(v, 1.0);
+    }
+    // Between the two in hue: red above blue, as much as brown's at most.
+    const double b = c[0] + c[1] + c[2];
+    EXPECT_GE(c[0] / b, grey.r / (grey.r + grey.g + grey.b) - 1e-9);
+    EXPECT_LE(c[0] / b, brown.r / (brown.r + brown.g + brown.b) + 1e-9);
+    brownish += c[2] / b < 0.25 ? 1 : 0;
+  }
+  EXPECT_GT(brownish, 2);
+  EXPECT_LT(brownish, 18);
+  EXPECT_NE(convoy_ground_colour(1), convoy_ground_colour(2));
+
+  ConvoyEnvOptions o = test_options();
+  o.camera = true;
+  o.observation = ConvoyObservationKind::trail;
+  ConvoyEnvOptions coloured = o;
+  coloured.random_ground_colour = true;
+  const std::uint64_t seed = 5;
+  ConvoyEnv plain(o), env(coloured);
+  Observation a = plain.reset(seed), b = env.reset(seed);
+  ASSERT_EQ(a.vector, b.vector);
+  // The bottom row sees the ground just ahead of the bumper.
+  const auto pixel = [](const Observation& ob, int row, int col, int ch) {
+    return static_cast<int>(ob.image[(static_cast<std::size_t>(row) * 80 + col) * 3 + ch]);
+  };
+  const auto c = convoy_ground_colour(seed);
+  const int row = 44, col = 40;
+  std::printf("ground colour (%.3f, %.3f, %.3f); bottom centre pixel plain (%d, %d, %d), "
+              "coloured (%d, %d, %d)\n",
+              c[0], c[1], c[2], pixel(a, row, col, 0), pixel(a, row, col, 1), pixel(a, row, col, 2),
+              pixel(b, row, col, 0), pixel(b, row, col, 1), pixel(b, row, col, 2));
+  // Grey ground: equal channels; the coloured ground's channels in the colour's order.
+  EXPECT_EQ(pixel(a, row, col, 0), pixel(a, row, col, 2));
+  EXPECT_GT(pixel(b, row, col, 0), pixel(b, row, col, 2) + 10);
+  for (int k = 0; k < 40; ++k) {
+    const std::vector<float> action = {0.3f * std::sin(0.3f * k), 0.4f};
+    const StepResult ra = plain.step(action), rb = env.step(action);
+    ASSERT_EQ(ra.observation.vector, rb.observation.vector) << "step " << k;
+    ASSERT_EQ(ra.reward, rb.reward) << "step " << k;
+    ASSERT_EQ(ra.terminated, rb.terminated);
+    ASSERT_EQ(ra.truncated, rb.truncated);
+    ASSERT_NE(ra.observation.image, rb.observation.image) << "step " << k;
+    if (ra.terminated || ra.truncated) break;
+  }
+  // The soils keep their own look: refused there.
+  ConvoyEnvOptions soft = coloured;
+  soft.terrain = ConvoyTerrain::scm_soft;
+  EXPECT_THROW(ConvoyEnv{soft}, std::invalid_argument);
 }
 
 // The steering lag: none gives the clamped action (NaN as 0); a lag of tau moves the applied

@@ -49,6 +49,9 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_EQ(convoy_env_options({}).episode.chain_fraction, 0.0);
   EXPECT_EQ(convoy_env_options({{"teacher_keep_clear", "2.5"}}).teacher_keep_clear_m, 2.5);
   EXPECT_EQ(convoy_env_options({}).teacher_keep_clear_m, 0.0);
+  EXPECT_TRUE(convoy_env_options({{"ground_colour", "random"}}).random_ground_colour);
+  EXPECT_FALSE(convoy_env_options({{"ground_colour", "fixed"}}).random_ground_colour);
+  EXPECT_FALSE(convoy_env_options({}).random_ground_colour);
 }
 
 TEST(Registry, MistakesAreNamed) {
@@ -76,6 +79,12 @@ TEST(Registry, MistakesAreNamed) {
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"teacher_keep_clear", "-1"}})
                 .find("option teacher_keep_clear: '-1' is outside"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"ground_colour", "pink"}})
+                .find("option ground_colour: 'pink' is not one of fixed, random"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"ground_colour", "random"}, {"terrain", "scm_soft"}})
+                .find("option ground_colour: random is for terrain=rigid"),
             std::string::npos);
   EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
             std::string::npos);

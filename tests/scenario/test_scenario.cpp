@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
 
@@ -99,6 +100,26 @@ TEST(Scenario, OverridesApplyAndChangeTheFingerprint) {
   EXPECT_EQ(b.time.final_frame(), 250);
   EXPECT_NE(a.fingerprint, b.fingerprint);
   EXPECT_EQ(a.fingerprint, parse(kMinimal).fingerprint);
+}
+
+// terrain.colour: the ground's colour in the cameras, for rigid (and height-map) ground; a
+// component outside [0, 1] is an error naming the key; the soil's block does not take it.
+TEST(Scenario, TerrainColourIsForRigidGround) {
+  EXPECT_FALSE(parse(kMinimal).terrain.colour.has_value());
+  const auto s = parse(kMinimal + "terrain: {type: rigid, colour: [0.4, 0.3, 0.2]}\n");
+  ASSERT_TRUE(s.terrain.colour.has_value());
+  EXPECT_EQ(*s.terrain.colour, (std::array<double, 3>{0.4, 0.3, 0.2}));
+  EXPECT_NE(s.fingerprint, parse(kMinimal + "terrain: {type: rigid}\n").fingerprint);
+  std::string err = error_of(kMinimal + "terrain: {type: rigid, colour: [0.4, 1.3, 0.2]}\n");
+  EXPECT_NE(err.find("test.yaml:9:"), std::string::npos) << err;
+  EXPECT_NE(err.find("terrain.colour: colour components must be in [0, 1]"), std::string::npos)
+      << err;
+  err = error_of(kMinimal + "terrain: {type: rigid, colour: [0.4, 0.3]}\n");
+  EXPECT_NE(err.find("terrain.colour"), std::string::npos) << err;
+  err = error_of(kMinimal +
+                 "terrain: {type: scm, preset: soft, spacing_m: 0.1, colour: [0.4, 0.3, 0.2],\n"
+                 "          area: {x_min_m: -5, x_max_m: 5, y_min_m: -5, y_max_m: 5}}\n");
+  EXPECT_NE(err.find("unknown key 'colour'"), std::string::npos) << err;
 }
 
 TEST(Scenario, UnknownKeyIsAnErrorWithLine) {
