@@ -19,9 +19,9 @@
 // - Spacing, bumper to bumper along the trail: desired gap = standstill + time gap * own speed
 //   + the difference of the braking distances (own v^2 / 2 b_own less the leader's v_L^2 / 2 d_L
 //   at its measured deceleration d_L, when positive); target speed = the leader's speed
-//   predicted `anticipation_s` ahead from its acceleration + gap_gain * (gap - desired); in a
-//   bend no faster than the lateral acceleration limit allows; a speed PID to one throttle /
-//   brake signal.
+//   predicted `anticipation_s` ahead from its acceleration + gap_gain * (gap - desired),
+//   clamped to [0, max_speed_mps] (no limit in bends: the leader's speed sets it); a speed PID
+//   to one throttle / brake signal.
 // - Radar (optional, `radar.sensor`): the nearest detection of the follower's own forward
 //   radar that lies in its lane (abs(y) <= lane_half_width_m in the radar frame), within
 //   gate_m of the V2V gap, measured at most max_age_s ago, replaces the V2V gap (carried to now
