@@ -41,7 +41,8 @@ void world_bounds(const scenario::Scenario& s, double& x0, double& x1, double& y
   y1 += kWorldMarginM;
 }
 
-// Snow-like soft soil renders white, firmer soils silt-brown, rigid ground neutral.
+// Snow-like soft soil renders white, firmer soils silt-brown, rigid ground neutral grey or the
+// scenario's terrain.colour.
 sensors::TerrainLook look_of(const scenario::TerrainConfig& t) {
   if (t.type == "scm") {
     return sensors::terrain_look(t.scm.soil.bekker_kphi < 1.0e6 ? "snow" : "silt");
