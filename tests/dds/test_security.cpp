@@ -179,12 +179,14 @@ TEST(Security, ParticipantsCreatedConcurrentlyAllAuthenticateThroughTheLock) {
   const std::uint64_t calls_before = sdds::security_race_lock_calls();
   const std::vector<std::string> ids = {"vehicle/a", "vehicle/b", "controller/a", "controller/b",
                                         "recorder"};
+  // The reader's callback writes `heard` under `mutex`: both are declared first, so that they
+  // are destroyed last, after the reader (whose deletion waits for a running callback).
   struct Peer {
+    std::mutex mutex;
+    std::set<std::string> heard;
     std::unique_ptr<sdds::Participant> participant;
     std::unique_ptr<sdds::Writer<msg::MemberAnnounce>> writer;
     std::unique_ptr<sdds::Reader<msg::MemberAnnounce>> reader;
-    std::mutex mutex;
-    std::set<std::string> heard;
   };
   std::vector<Peer> peers(ids.size());
   std::vector<std::thread> threads;
