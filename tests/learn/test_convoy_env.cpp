@@ -14,8 +14,8 @@
 
 #include "core/yaml.hpp"
 #include "learn/convoy_env.hpp"
-#include "sensors/scene.hpp"
 #include "learn/vector_env.hpp"
+#include "sensors/scene.hpp"
 
 using namespace syndds;
 using namespace syndds::learn;
@@ -697,7 +697,7 @@ TEST(ConvoyEnv, ARandomGroundColourChangesTheImageNotThePhysics) {
       EXPECT_GE(v, 0.0);
       EXPECT_LE(v, 1.0);
     }
-    // Between the two in hue: red above blue, as much as brown's at most.
+    // Between the two in hue: red's share of the three between grey's and brown's.
     const double b = c[0] + c[1] + c[2];
     EXPECT_GE(c[0] / b, grey.r / (grey.r + grey.g + grey.b) - 1e-9);
     EXPECT_LE(c[0] / b, brown.r / (brown.r + brown.g + brown.b) + 1e-9);
