@@ -339,10 +339,27 @@ void ConvoyFollower::learn_understeer(double dt, double v) {
                            kUndersteerMin, kUndersteerMax);
 }
 
+bool KeepOut::in_view(const Circle& ob, const Vec2& position, double yaw) const {
+  if (view_half_angle_rad <= 0.0) return true;
+  const Vec2 heading(std::cos(yaw), std::sin(yaw));
+  const Vec2 rel = ob.centre - (position + view_ahead_m * heading);
+  const double ahead = rel.dot(heading);
+  const double side = std::abs(heading.x() * rel.y() - heading.y() * rel.x());
+  if (ahead <= -ob.radius_m) return false;
+  // The circle meets the wedge when its centre is inside it or within its radius of the
+  // wedge's edge (the ray from the camera at the half angle).
+  const double c = std::cos(view_half_angle_rad), s = std::sin(view_half_angle_rad);
+  if (side * c <= ahead * s) return true;  // centre inside
+  const double along = ahead * c + side * s;  // projection on the edge ray
+  const double off = along > 0.0 ? std::abs(side * c - ahead * s) : rel.norm();
+  return off < ob.radius_m;
+}
+
 double ConvoyFollower::keep_out_shift(double s_here) const {
   if (keep_out_.obstacles.empty() || trail_.size() < 2) return 0.0;
   double push_left = 0.0, push_right = 0.0;
   for (const auto& ob : keep_out_.obstacles) {
+    if (!keep_out_.in_view(ob, own_->position, own_->yaw)) continue;
     // The obstacle's projection on the trail from just behind the follower (an obstacle
     // beside its body) to past the lead-in (the trail is known only where the leader has
     // driven: an obstacle beyond it waits its turn). One found at either end of that window

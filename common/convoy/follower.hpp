@@ -134,6 +134,17 @@ struct KeepOut {
   double max_shift_m = 1.5;
   double lead_in_m = 8.0;          // arc length before the obstacle's extent
   double ramp_m = 4.0;
+  /// What the follower sees of the map. view_half_angle_rad <= 0: every obstacle, wherever it
+  /// is. Above 0: only the obstacles a camera view_ahead_m ahead of the follower's reference
+  /// point, looking along its heading, sees now (any part of the circle within
+  /// +-view_half_angle_rad of the heading, in front of the camera), both from the follower's
+  /// own estimate of its position and heading: a teacher whose shift a student can read
+  /// from that camera's current image.
+  double view_half_angle_rad = 0.0;
+  double view_ahead_m = 0.0;
+  /// Whether `ob` is within that view from a follower at `position` heading `yaw` (always
+  /// true when view_half_angle_rad <= 0).
+  bool in_view(const Circle& ob, const Vec2& position, double yaw) const;
 };
 
 struct FollowerEvent {

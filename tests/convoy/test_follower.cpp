@@ -365,6 +365,67 @@ TEST(Follower, AMapOfObstaclesShiftsTheTrackedTrailAwayFromThem) {
   EXPECT_NEAR(run({{Vec2(35.0, 0.5), 1.0}}).shift, -KeepOut{}.max_shift_m, 1e-9);
 }
 
+// What a follower with a camera sees of the map (KeepOut::in_view): a 90 degree view from a
+// camera 2.4 m ahead of the reference point, along the heading. A circle counts when any part
+// of it is inside the wedge and in front of the camera.
+TEST(Follower, TheMapsViewIsTheCamerasWedge) {
+  KeepOut k;
+  const Vec2 at(10.0, 5.0);
+  const double yaw = std::numbers::pi / 2.0;  // heading north: ahead is +y, left is -x
+  const auto seen = [&](double ahead, double left, double radius) {
+    // The circle `ahead` m in front of the camera and `left` m to its left.
+    return k.in_view({at + Vec2(0.0, 2.4 + ahead) + Vec2(-left, 0.0), radius}, at, yaw);
+  };
+  // Without a view every obstacle counts, wherever it is.
+  EXPECT_TRUE(seen(-20.0, 0.0, 1.0));
+  k.view_half_angle_rad = std::numbers::pi / 4.0;
+  k.view_ahead_m = 2.4;
+  EXPECT_TRUE(seen(5.0, 0.0, 0.5));     // straight ahead
+  EXPECT_TRUE(seen(5.0, 4.9, 0.1));     // just inside the edge on the left ...
+  EXPECT_TRUE(seen(5.0, -4.9, 0.1));    // ... and on the right
+  EXPECT_FALSE(seen(5.0, 5.2, 0.1));    // just outside
+  EXPECT_TRUE(seen(5.0, 5.2, 0.5));     // its centre outside, its edge inside (0.14 m away)
+  EXPECT_FALSE(seen(2.0, 3.5, 1.0));    // beside the bonnet: 1.06 m from the edge
+  EXPECT_TRUE(seen(2.0, 3.5, 1.1));
+  EXPECT_FALSE(seen(-1.5, 0.0, 1.0));   // behind the camera
+  EXPECT_TRUE(seen(-0.5, 0.0, 1.0));    // its front half before it
+  EXPECT_FALSE(seen(-0.8, 0.5, 0.9));   // behind and beside: the camera is its nearest point
+  EXPECT_TRUE(seen(-0.8, 0.5, 1.0));    // (0.94 m away)
+}
+
+// A teacher whose map is limited to the camera's view keeps clear only of what it sees now:
+// the obstacle of the map test above (edge 1.5 m left of the trail, centre level with the
+// follower's reference point) is beside the vehicle, out of a forward camera's view, so no
+// shift; the same obstacle 5 m further on is in view and shifts the trail as a whole map does.
+TEST(Follower, AMapLimitedToTheCamerasViewShiftsOnlyForWhatItSees) {
+  const FollowerVehicle veh = test_vehicle();
+  const auto shift = [&](double view_half_angle, Vec2 centre) {
+    ConvoyFollower f(config(), veh, kConverter);
+    KeepOut keep_out;
+    keep_out.obstacles = {{centre, 1.0}};
+    keep_out.view_half_angle_rad = view_half_angle;
+    keep_out.view_ahead_m = 2.4;
+    f.set_keep_out(keep_out);
+    std::vector<FollowerEvent> events;
+    std::uint64_t seq = 0;
+    const StraightWorld world;
+    for (int k = 0; k <= 1000; ++k) {
+      const double t = k * 0.01;
+      std::vector<proto::V2VMessageMsg> msgs;
+      if (k % 10 == 0) msgs.push_back(world.leader(t, seq++));
+      OwnReadings own = world.own(t);
+      if (k % 10 != 0) own.gps.clear();
+      f.update(t, 0.01, own, msgs, events);
+    }
+    return f.keep_out_shift_m();
+  };
+  const double wanted = KeepOut{}.clearance_m;
+  EXPECT_NEAR(shift(0.0, Vec2(35.0, 2.5)), -(wanted - 1.5), 1e-9);
+  EXPECT_EQ(shift(std::numbers::pi / 4.0, Vec2(35.0, 2.5)), 0.0);
+  EXPECT_NEAR(shift(0.0, Vec2(40.0, 2.5)), -(wanted - 1.5), 1e-9);
+  EXPECT_NEAR(shift(std::numbers::pi / 4.0, Vec2(40.0, 2.5)), -(wanted - 1.5), 1e-9);
+}
+
 // Closed loop with a vehicle that understeers (0.03 rad of road-wheel angle per m/s2, soft
 // ground): behind a leader on a 15 m circle, the follower learns the understeer from its own
 // compass and steering and stays on the leader's circle. Without it, it would run about
