@@ -13,12 +13,29 @@ EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t
   EvaluationSummary s;
   std::map<std::string, double> info_sum;
   std::int64_t all_steps = 0;
+  const Box actions = env.action_space();
+  std::vector<double> sq(actions.size(), 0.0), active_sq(actions.size(), 0.0);
+  std::vector<std::int64_t> active(actions.size(), 0);
+  std::int64_t taught_steps = 0;
   for (int k = 0; k < episodes; ++k) {
     EpisodeSummary e;
     e.seed = first_seed + static_cast<std::uint64_t>(k);
     Observation o = env.reset(e.seed);
     while (e.steps < max_steps) {
-      const StepResult r = env.step(policy(o));
+      const std::vector<float> a = policy(o);
+      const std::vector<float> teacher = env.expert_action();
+      if (teacher.size() == actions.size() && a.size() == actions.size()) {
+        ++taught_steps;
+        for (std::size_t i = 0; i < a.size(); ++i) {
+          const double d = static_cast<double>(a[i]) - static_cast<double>(teacher[i]);
+          sq[i] += d * d;
+          if (teacher[i] != 0.0f) {
+            active_sq[i] += d * d;
+            ++active[i];
+          }
+        }
+      }
+      const StepResult r = env.step(a);
       ++e.steps;
       e.total_reward += r.reward;
       for (const auto& [key, v] : r.info) info_sum[key] += v;
@@ -42,6 +59,16 @@ EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t
   s.mean_steps = static_cast<double>(all_steps) / n;
   for (const auto& [key, sum] : info_sum) {
     s.mean_info[key] = sum / static_cast<double>(std::max<std::int64_t>(1, all_steps));
+  }
+  if (taught_steps > 0) {
+    for (std::size_t i = 0; i < actions.size(); ++i) {
+      const std::string name = i < actions.names.size() ? actions.names[i] : "action_" + std::to_string(i);
+      EvaluationSummary::TeacherDistance t;
+      t.rms = std::sqrt(sq[i] / static_cast<double>(taught_steps));
+      t.active_steps = active[i];
+      t.active_rms = active[i] > 0 ? std::sqrt(active_sq[i] / static_cast<double>(active[i])) : 0.0;
+      s.to_teacher[name] = t;
+    }
   }
   return s;
 }

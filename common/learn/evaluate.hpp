@@ -29,6 +29,17 @@ struct EvaluationSummary {
   double mean_steps = 0.0;
   int terminated = 0;       // episodes the environment ended
   std::map<std::string, double> mean_info;  // mean over every step of every episode
+  /// How far the actions were from the environment's expert (Env::expert_action) in the
+  /// states the policy visited, per action dimension (by its name in the action space): the
+  /// root mean square of the difference over every step ("rms"), and over the steps where
+  /// the expert's value was not 0 ("active": e.g. a memory only a few states need). Empty
+  /// when the environment has no expert.
+  struct TeacherDistance {
+    double rms = 0.0;
+    double active_rms = 0.0;
+    std::int64_t active_steps = 0;
+  };
+  std::map<std::string, TeacherDistance> to_teacher;
 };
 
 /// Runs `episodes` episodes seeded first_seed, first_seed + 1, ..., each to its end or

@@ -114,9 +114,15 @@ int main(int argc, char** argv) {
       if (!header) {
         std::printf("%-40s %10s %8s %8s %10s", "policy", "return", "std", "steps", "terminated");
         for (const auto& [k, v] : s.mean_info) std::printf(" %16s", k.c_str());
+        for (const auto& [k, t] : s.to_teacher) {
+          std::printf(" %24s %24s", ("teacher_rms_" + k).c_str(), ("teacher_active_rms_" + k).c_str());
+        }
         std::printf("\n");
         if (out.is_open()) {
           for (const auto& [k, v] : s.mean_info) out << ",mean_" << k;
+          for (const auto& [k, t] : s.to_teacher) {
+            out << ",teacher_rms_" << k << ",teacher_active_rms_" << k << ",teacher_active_steps_" << k;
+          }
           out << "\n";
         }
         header = true;
@@ -124,12 +130,16 @@ int main(int argc, char** argv) {
       std::printf("%-40s %10.1f %8.1f %8.1f %10d", e.name.c_str(), s.mean_return, s.std_return,
                   s.mean_steps, s.terminated);
       for (const auto& [k, v] : s.mean_info) std::printf(" %16.3f", v);
+      for (const auto& [k, t] : s.to_teacher) std::printf(" %24.4f %24.4f", t.rms, t.active_rms);
       std::printf("\n");
       std::fflush(stdout);
       if (out.is_open()) {
         out << e.name << "," << episodes << "," << first_seed << "," << s.mean_return << ","
             << s.std_return << "," << s.mean_steps << "," << s.terminated;
         for (const auto& [k, v] : s.mean_info) out << "," << v;
+        for (const auto& [k, t] : s.to_teacher) {
+          out << "," << t.rms << "," << t.active_rms << "," << t.active_steps;
+        }
         out << "\n";
       }
     }

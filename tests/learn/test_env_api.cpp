@@ -129,6 +129,44 @@ TEST(DoubleIntegrator, DoingNothingAccumulatesTheQuadraticCost) {
 
 // evaluate(): episodes seeded first_seed, first_seed + 1, ...; the mean and spread of their
 // returns; zero and random baselines.
+namespace {
+
+// The double integrator with an expert who asks for 0.5 on every other step and 0 between.
+class HalfTaught final : public Env {
+ public:
+  ObservationSpace observation_space() const override { return env_.observation_space(); }
+  Box action_space() const override { return env_.action_space(); }
+  Observation reset(std::uint64_t seed) override {
+    steps_ = 0;
+    return env_.reset(seed);
+  }
+  StepResult step(std::span<const float> action) override {
+    ++steps_;
+    return env_.step(action);
+  }
+  std::vector<float> expert_action() const override { return {steps_ % 2 ? 0.5f : 0.0f}; }
+
+ private:
+  DoubleIntegrator env_;
+  int steps_ = 0;
+};
+
+}  // namespace
+
+// The distance to the teacher in the states the policy visits, per action: over every step
+// and over the steps where the teacher's value is not 0; none without a teacher.
+TEST(Evaluate, TheDistanceToTheTeacherPerAction) {
+  HalfTaught env;
+  const EvaluationSummary s = evaluate(env, zero_policy(env.action_space()), 40, 3);
+  ASSERT_EQ(s.to_teacher.size(), 1u);
+  const auto& t = s.to_teacher.at("force_n");
+  EXPECT_NEAR(t.rms, std::sqrt(0.25 * 0.5), 1e-12);  // 0.5 on half of the 300 steps
+  EXPECT_NEAR(t.active_rms, 0.5, 1e-12);
+  EXPECT_EQ(t.active_steps, 150);
+  DoubleIntegrator plain;
+  EXPECT_TRUE(evaluate(plain, zero_policy(plain.action_space()), 40, 1).to_teacher.empty());
+}
+
 TEST(Evaluate, EpisodesWithConsecutiveSeedsAndTheirStatistics) {
   DoubleIntegrator env;
   const auto zero = zero_policy(env.action_space());
