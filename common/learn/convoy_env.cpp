@@ -137,10 +137,10 @@ void ConvoyDriverAgent::step(const proto::FrameContext& ctx, const proto::FrameS
       vehicle_id_, member_id_, ctx.frame, convoy_driver_inputs(steering_, throttle_brake_)));
 }
 
-void ConvoyDriverAgent::set_action(double steering, double throttle_brake) {
+void ConvoyDriverAgent::set_action(double steering, double throttle_brake, double memory) {
   steering_ = steering;  // clamped when written (convoy_driver_inputs)
   throttle_brake_ = throttle_brake;
-  builder_.note_action(steering, throttle_brake);
+  builder_.note_action(steering, throttle_brake, memory);
 }
 
 // ---- ConvoyEnv ------------------------------------------------------------------------------
@@ -154,6 +154,9 @@ ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
     throw std::invalid_argument("ConvoyEnv: random_ground_colour needs the rigid terrain (the "
                                 "soils keep their own look)");
   }
+  if (options_.teacher_view_camera && !options_.camera) {
+    throw std::invalid_argument("ConvoyEnv: teacher_view_camera needs the camera");
+  }
 }
 
 ConvoyEnv::~ConvoyEnv() = default;
@@ -164,9 +167,7 @@ ObservationSpace ConvoyEnv::observation_space() const {
   return s;
 }
 
-Box ConvoyEnv::action_space() const {
-  return Box{{-1.0f, -1.0f}, {1.0f, 1.0f}, {"steering", "throttle_brake"}};
-}
+Box ConvoyEnv::action_space() const { return convoy_action_space(options_.observation); }
 
 void ConvoyEnv::run_frame() {
   stepper_->step();
@@ -209,6 +210,12 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
       if (options_.teacher_keep_clear_m > 0.0) {
         keep_out.clearance_m = options_.teacher_keep_clear_m;
         for (const auto& ob : episode_.obstacles) keep_out.obstacles.push_back({ob.centre, ob.radius_m});
+        if (options_.teacher_view_camera) {
+          const auto& follower = *s.find_vehicle(kConvoyFollowerId);
+          const auto& camera = follower.sensors->rig.cameras.front();
+          keep_out.view_half_angle_rad = 0.5 * camera.intrinsics.hfov_rad;
+          keep_out.view_ahead_m = camera.mount.pose.position.x();
+        }
       }
       auto d = std::make_unique<ConvoyDriverAgent>(s, *s.find_vehicle(kConvoyFollowerId),
                                                    kConvoyLeaderId, options_.observation, keep_out);
@@ -263,15 +270,16 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
 
 StepResult ConvoyEnv::step(std::span<const float> action) {
   if (!running_) throw std::logic_error("ConvoyEnv::step before reset or after the episode ended");
-  if (action.size() != 2) {
-    throw std::invalid_argument("ConvoyEnv::step: expected 2 action values, got " +
-                                std::to_string(action.size()));
+  const std::size_t expected = action_space().size();
+  if (action.size() != expected) {
+    throw std::invalid_argument("ConvoyEnv::step: expected " + std::to_string(expected) +
+                                " action values, got " + std::to_string(action.size()));
   }
   const double period_s = options_.frames_per_step * scenario_->time.heartbeat_s;
   const double steering = convoy_lagged_steering(
       convoy_driver_inputs(driver_->steering(), 0.0).steering, action[0], options_.steer_lag_s,
       period_s);
-  driver_->set_action(steering, action[1]);
+  driver_->set_action(steering, action[1], expected > 2 ? action[2] : 0.0);
   for (int f = 0; f < options_.frames_per_step && !collided_; ++f) run_frame();
   ++steps_;
 

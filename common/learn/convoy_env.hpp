@@ -75,6 +75,10 @@ struct ConvoyEnvOptions {
   /// episode's obstacles and keeps their edges this far from the trail it tracks
   /// (convoy::KeepOut); the observation and the reward do not change.
   double teacher_keep_clear_m = 0.0;
+  /// With teacher_keep_clear_m: the expert keeps clear only of the obstacles the follower's
+  /// camera sees at the moment (KeepOut::view_half_angle_rad from the rig's first camera), so
+  /// that its shift is a function of what the policy observes now (needs `camera`).
+  bool teacher_view_camera = false;
   /// Rigid terrain only: each episode's ground gets a colour of its own in the camera,
   /// convoy_ground_colour(seed) (domain randomisation: a policy trained on the grey rigid
   /// ground then sees the soils' brown); physics does not change.
@@ -132,8 +136,8 @@ class ConvoyDriverAgent final : public proto::Agent {
             proto::FrameSamples& outputs) override;
 
   /// steering in [-1, 1] (positive left), throttle_brake in [-1, 1] (positive throttle,
-  /// negative brake); clamped.
-  void set_action(double steering, double throttle_brake);
+  /// negative brake); clamped. `memory`: the memory action of a kind with one (has_memory).
+  void set_action(double steering, double throttle_brake, double memory = 0.0);
   /// The steering of the command (as set, before clamping).
   double steering() const { return steering_; }
   const ConvoyObservationBuilder& observations() const { return builder_; }

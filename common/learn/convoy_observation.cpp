@@ -41,7 +41,22 @@ void held_io(Archive& a, std::optional<Msg>& held) {
 
 bool observes_trail(ConvoyObservationKind kind) {
   return kind == ConvoyObservationKind::trail || kind == ConvoyObservationKind::trail_action ||
-         kind == ConvoyObservationKind::trail_ff;
+         kind == ConvoyObservationKind::trail_ff || kind == ConvoyObservationKind::trail_ff_memory;
+}
+
+bool has_memory(ConvoyObservationKind kind) {
+  return kind == ConvoyObservationKind::trail_ff_memory;
+}
+
+Box convoy_action_space(ConvoyObservationKind kind) {
+  Box b{{-1.0f, -1.0f}, {1.0f, 1.0f}, {"steering", "throttle_brake"}};
+  if (has_memory(kind)) {
+    b.low.push_back(-1.0f);
+    b.high.push_back(1.0f);
+    b.names.push_back("memory");
+    b.explore = {true, true, false};
+  }
+  return b;
 }
 
 ConvoyObservationKind parse_observation_kind(const std::string& name) {
@@ -49,8 +64,10 @@ ConvoyObservationKind parse_observation_kind(const std::string& name) {
   if (name == "trail") return ConvoyObservationKind::trail;
   if (name == "trail_action") return ConvoyObservationKind::trail_action;
   if (name == "trail_ff") return ConvoyObservationKind::trail_ff;
+  if (name == "trail_ff_memory") return ConvoyObservationKind::trail_ff_memory;
   throw std::invalid_argument("observation '" + name +
-                              "' is not one of paper, trail, trail_action, trail_ff");
+                              "' is not one of paper, trail, trail_action, trail_ff, "
+                              "trail_ff_memory");
 }
 
 ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scenario,
@@ -94,10 +111,15 @@ Box ConvoyObservationBuilder::vector_space(ConvoyObservationKind kind) {
           {"cross_track_m", "heading_error_sin", "heading_error_cos", "curvature_0m_per_m",
            "curvature_5m_per_m", "curvature_10m_per_m", "speed_mps", "leader_speed_mps",
            "leader_accel_mps2", "gap_m", "leader_forward_m", "leader_left_m"}};
-    if (kind == ConvoyObservationKind::trail_ff) {
+    if (kind == ConvoyObservationKind::trail_ff || has_memory(kind)) {
       b.low.push_back(-1.0f);
       b.high.push_back(1.0f);
       b.names.push_back("feedforward_steering");
+    }
+    if (has_memory(kind)) {
+      b.low.push_back(-1.0f);
+      b.high.push_back(1.0f);
+      b.names.push_back("memory");
     }
     if (kind == ConvoyObservationKind::trail_action) {
       for (const char* name : {"previous_steering", "previous_throttle_brake"}) {
@@ -123,6 +145,11 @@ void ConvoyObservationBuilder::consume(const proto::FrameContext& ctx,
         ctx.sim_time_s - ctx.heartbeat_s, ctx.heartbeat_s, own, s.v2v_messages, events);
     classical_action_ = {static_cast<float>(command.steering),
                          static_cast<float>(command.throttle - command.braking)};
+    if (has_memory(config_.kind)) {
+      const double largest = config_.teacher_keep_out.max_shift_m;
+      classical_action_.push_back(
+          largest > 0.0 ? static_cast<float>(estimator_->keep_out_shift_m() / largest) : 0.0f);
+    }
   }
   take_newest(s.gps_fixes, config_.follower_id, fix_);
   take_newest(s.magnetometers, config_.follower_id, compass_);
@@ -183,9 +210,10 @@ Observation ConvoyObservationBuilder::observation() const {
                 static_cast<float>(f.gap_m),
                 static_cast<float>(f.leader_forward_m),
                 static_cast<float>(f.leader_left_m)};
-    if (config_.kind == ConvoyObservationKind::trail_ff) {
+    if (config_.kind == ConvoyObservationKind::trail_ff || has_memory(config_.kind)) {
       o.vector.push_back(static_cast<float>(f.feedforward_steering));
     }
+    if (has_memory(config_.kind)) o.vector.push_back(static_cast<float>(memory_));
     if (config_.kind == ConvoyObservationKind::trail_action) {
       o.vector.push_back(static_cast<float>(previous_steering_));
       o.vector.push_back(static_cast<float>(previous_throttle_brake_));
@@ -208,10 +236,12 @@ Observation ConvoyObservationBuilder::observation() const {
   return o;
 }
 
-void ConvoyObservationBuilder::note_action(double steering, double throttle_brake) {
+void ConvoyObservationBuilder::note_action(double steering, double throttle_brake,
+                                           double memory) {
   const auto applied = [](double v) { return std::isnan(v) ? 0.0 : std::clamp(v, -1.0, 1.0); };
   previous_steering_ = applied(steering);
   previous_throttle_brake_ = applied(throttle_brake);
+  memory_ = has_memory(config_.kind) ? applied(memory) : 0.0;
 }
 
 template <typename Archive>
@@ -233,6 +263,7 @@ void ConvoyObservationBuilder::state_io(Archive& a) {
     a.io(previous_steering_);
     a.io(previous_throttle_brake_);
   }
+  if (has_memory(config_.kind)) a.io(memory_);
   a.end();
 }
 

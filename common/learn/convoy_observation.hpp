@@ -30,10 +30,20 @@ namespace syndds::learn {
 ///   much it changes its command;
 /// - trail_ff: trail's numbers and the estimator's feed-forward steering (the curvature just
 ///   ahead turned into a steering input with the understeer the estimator learns from the
-///   own steering and compass: how much more this ground needs).
-enum class ConvoyObservationKind { paper, trail, trail_action, trail_ff };
+///   own steering and compass: how much more this ground needs);
+/// - trail_ff_memory: trail_ff's numbers and the policy's memory: a third action, which only
+///   comes back in the next observation (clamped to [-1, 1], 0 before the first action), so
+///   that a feed-forward policy can carry what it saw (an obstacle that has left the camera's
+///   view) from one step to the next. Its teacher value is the map teacher's shift over its
+///   largest (KeepOut, 0 without a map).
+enum class ConvoyObservationKind { paper, trail, trail_action, trail_ff, trail_ff_memory };
 /// Whether a kind runs the trail estimator.
 bool observes_trail(ConvoyObservationKind kind);
+/// Whether a kind has the memory action (trail_ff_memory).
+bool has_memory(ConvoyObservationKind kind);
+/// The convoy action of a kind: [steering, throttle_brake] in [-1, 1], and for a kind with a
+/// memory the memory in [-1, 1], which a trainer does not explore in (Box::explore).
+Box convoy_action_space(ConvoyObservationKind kind);
 /// std::invalid_argument naming `name` if it is none of them.
 ConvoyObservationKind parse_observation_kind(const std::string& name);
 
@@ -84,14 +94,16 @@ class ConvoyObservationBuilder {
   /// The observation from the newest readings. Throws std::logic_error before ready().
   Observation observation() const;
   /// The trail kinds: the classical follower's command for now (its estimator is the classical
-  /// follower, run on the same readings) as a convoy action [steering, throttle_brake]; the
+  /// follower, run on the same readings) as a convoy action [steering, throttle_brake] (and,
+  /// with a memory, the teacher's keep-out shift over its largest: what to remember); the
   /// teacher a trainer may imitate (ConvoyEnv::expert_action). Empty for the paper kind and
   /// before the estimator's first update; not checkpointed (the next frame recomputes it).
   std::vector<float> classical_action() const { return classical_action_; }
   /// The action the controller applies from now on (clamped to [-1, 1], NaN as 0, as
   /// convoy_driver_inputs applies it); the trail_action kind observes it. Before the first:
   /// steering 0, brake 1 (the brake the controllers hold until they act).
-  void note_action(double steering, double throttle_brake);
+  /// `memory`: the memory action (kinds with one; ignored by the others), clamped likewise.
+  void note_action(double steering, double throttle_brake, double memory = 0.0);
 
   /// Checkpoints (docs/checkpoints.md): the newest reading of each kind held, every field.
   void save_state(core::StateWriter& w) const;
@@ -112,6 +124,7 @@ class ConvoyObservationBuilder {
   std::vector<float> classical_action_;               // the estimator's newest command
   double previous_steering_ = 0.0;                    // note_action's
   double previous_throttle_brake_ = -1.0;
+  double memory_ = 0.0;                               // note_action's (memory kinds)
 };
 
 }  // namespace syndds::learn

@@ -28,7 +28,13 @@ struct Box {
   std::vector<float> low;
   std::vector<float> high;
   std::vector<std::string> names;  // one per dimension (documentation, CSV headers)
+  /// Actions only: the dimensions a trainer explores in (samples around its mean). Empty:
+  /// every one. A dimension that is not explored is acted on as the policy's mean: e.g. a
+  /// memory the environment only hands back in the next observation, whose noise would be
+  /// noise in the policy's own inputs, not exploration of the world.
+  std::vector<bool> explore = {};
   std::size_t size() const { return low.size(); }
+  bool explored(std::size_t i) const { return explore.empty() || explore.at(i); }
 };
 
 struct ImageSpec {

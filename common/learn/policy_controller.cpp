@@ -91,9 +91,13 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
                       ", the vehicle's sensors give " + describe(expected) +
                       " (a camera policy needs the vehicle's first camera at its image size)");
   }
-  if (policy_.action_space().size() != 2) {
+  const std::size_t actions = convoy_action_space(trained_.observation).size();
+  if (policy_.action_space().size() != actions) {
     throw ConfigError(where_ + "the policy has " + std::to_string(policy_.action_space().size()) +
-                      " actions; a convoy follower's are 2 (steering, throttle/brake)");
+                      " actions; a convoy follower on its observation has " +
+                      std::to_string(actions) +
+                      (actions == 2 ? " (steering, throttle/brake)"
+                                    : " (steering, throttle/brake, memory)"));
   }
   // The scenario's period_s, else the policy's own: frames_per_step frames of the
   // environment's 0.01 s heartbeat.
@@ -124,7 +128,7 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
     steering_ = convoy_lagged_steering(convoy_driver_inputs(steering_, 0.0).steering, a[0],
                                        trained_.steer_lag_s, action_period_s_);
     throttle_brake_ = a[1];
-    builder_.note_action(steering_, throttle_brake_);
+    builder_.note_action(steering_, throttle_brake_, a.size() > 2 ? a[2] : 0.0);
     since_action_ = 0;
     ++actions_;
   }

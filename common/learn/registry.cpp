@@ -97,7 +97,8 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
                    : ConvoyDynamics::reduced;
   o.camera = r.flag("camera", false);
   o.observation = parse_observation_kind(
-      r.choice("observation", "paper", {"paper", "trail", "trail_action", "trail_ff"}));
+      r.choice("observation", "paper",
+               {"paper", "trail", "trail_action", "trail_ff", "trail_ff_memory"}));
   o.reward_kind = r.choice("reward", "paper", {"paper", "track"}) == "track"
                       ? ConvoyRewardKind::track
                       : ConvoyRewardKind::paper;
@@ -106,6 +107,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.episode.leader_wobble_m = r.number("leader_wobble", 0.0, 0.0, 2.0);
   o.episode.chain_fraction = r.number("chain", 0.0, 0.0, 1.0);
   o.teacher_keep_clear_m = r.number("teacher_keep_clear", 0.0, 0.0, 10.0);
+  o.teacher_view_camera = r.choice("teacher_view", "map", {"map", "camera"}) == "camera";
   o.random_ground_colour = r.choice("ground_colour", "fixed", {"fixed", "random"}) == "random";
   o.episode.kind = parse_episode_kind(r.choice("episodes", "paper", {"paper", "courses", "mixed"}));
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
@@ -117,6 +119,10 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   if (o.random_ground_colour && o.terrain != ConvoyTerrain::rigid) {
     throw std::invalid_argument("environment convoy_follow, option ground_colour: random is for "
                                 "terrain=rigid (the soils keep their own look)");
+  }
+  if (o.teacher_view_camera && !o.camera) {
+    throw std::invalid_argument("environment convoy_follow, option teacher_view: camera needs "
+                                "camera=true (the teacher sees what that camera sees)");
   }
   o.frames_per_step = r.whole("frames_per_step", o.frames_per_step, 1, 100);
   o.max_steps = r.whole("max_steps", o.max_steps, 1, 100000);

@@ -44,7 +44,10 @@ py::object to_python(const Observation& o, const ObservationSpace& space) {
 }
 
 py::dict box_dict(const Box& b) {
-  return py::dict("low"_a = to_array(b.low), "high"_a = to_array(b.high), "names"_a = b.names);
+  std::vector<bool> explore(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) explore[i] = b.explored(i);
+  return py::dict("low"_a = to_array(b.low), "high"_a = to_array(b.high), "names"_a = b.names,
+                  "explore"_a = explore);
 }
 
 py::dict space_dict(const ObservationSpace& s) {

@@ -683,6 +683,76 @@ TEST(ConvoyEnv, TheTeachersMapChangesTheExpertNotTheObservation) {
   EXPECT_GT(nearest[1], nearest[0] + 0.3);
 }
 
+// trail_ff_memory: a third action, the memory, which comes back clamped in the next
+// observation's last number and moves nothing else: two environments driven with the same
+// steering and pedal but different memories see the same other numbers and earn the same
+// rewards. The teacher's memory is its map's shift over the largest shift (0 without a map),
+// and a trainer does not explore in it.
+TEST(ConvoyEnv, TheMemoryComesBackInTheNextObservationAndMovesNothing) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail_ff_memory;
+  o.reward_kind = ConvoyRewardKind::track;
+  o.episode.kind = ConvoyEpisodeKind::courses;
+  o.teacher_keep_clear_m = 2.5;
+  o.max_steps = 200;
+  ConvoyEnv a(o), b(o);
+  const Box actions = a.action_space();
+  ASSERT_EQ(actions.size(), 3u);
+  EXPECT_EQ(actions.names[2], "memory");
+  EXPECT_TRUE(actions.explored(0));
+  EXPECT_TRUE(actions.explored(1));
+  EXPECT_FALSE(actions.explored(2));
+  const Box space = a.observation_space().vector;
+  ASSERT_EQ(space.size(), 14u);
+  EXPECT_EQ(space.names[12], "feedforward_steering");
+  EXPECT_EQ(space.names[13], "memory");
+  Observation oa = a.reset(3), ob = b.reset(3);
+  EXPECT_EQ(oa.vector[13], 0.0f);
+  const std::vector<float> other = {0.5f, -4.0f, std::nanf("")};  // b's memories, in turn
+  const std::vector<float> other_applied = {0.5f, -1.0f, 0.0f};
+  int shifted = 0;
+  for (int k = 0; k < o.max_steps; ++k) {
+    const std::vector<float> teacher = a.expert_action();
+    ASSERT_EQ(teacher.size(), 3u);
+    EXPECT_LE(std::abs(teacher[2]), 1.0f);
+    if (teacher[2] != 0.0f) ++shifted;
+    std::vector<float> for_b = teacher;
+    for_b[2] = other[static_cast<std::size_t>(k) % other.size()];
+    const StepResult ra = a.step(teacher), rb = b.step(for_b);
+    ASSERT_EQ(std::vector<float>(ra.observation.vector.begin(), ra.observation.vector.begin() + 13),
+              std::vector<float>(rb.observation.vector.begin(), rb.observation.vector.begin() + 13))
+        << "step " << k;
+    ASSERT_EQ(ra.reward, rb.reward) << "step " << k;
+    EXPECT_EQ(ra.observation.vector[13], teacher[2]) << "step " << k;
+    EXPECT_EQ(rb.observation.vector[13], other_applied[static_cast<std::size_t>(k) % other.size()])
+        << "step " << k;
+    if (ra.terminated || ra.truncated) break;
+  }
+  EXPECT_GT(shifted, 10);  // seed 3's course passes obstacles within the clearance
+  // Without a map the teacher remembers nothing.
+  o.teacher_keep_clear_m = 0.0;
+  ConvoyEnv plain(o);
+  plain.reset(3);
+  for (int k = 0; k < 50; ++k) {
+    const std::vector<float> teacher = plain.expert_action();
+    ASSERT_EQ(teacher.size(), 3u);
+    EXPECT_EQ(teacher[2], 0.0f);
+    plain.step(teacher);
+  }
+  // A step with the wrong number of actions names both.
+  EXPECT_THROW(
+      {
+        try {
+          plain.step(std::vector<float>{0.0f, 0.0f});
+        } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("expected 3 action values, got 2"),
+                    std::string::npos);
+          throw;
+        }
+      },
+      std::invalid_argument);
+}
+
 // Random ground colours: each episode's ground has a colour of its own between the rigid
 // ground's grey and the soil's brown, drawn from the seed; the image changes (the bottom rows
 // look at the ground), the vector observation, the reward and the episode's end do not.

@@ -47,7 +47,9 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
     bool found = false;
     for (auto& p : trainer.model().named_parameters()) {
       if (p.key() == "actor.4.bias" || p.key() == "mean.bias") {
-        p.value().copy_(torch::tensor({0.1f, 0.6f}));
+        // A memory policy's memory is 0.3 at first: it comes back in its observation.
+        p.value().copy_(has_memory(options.observation) ? torch::tensor({0.1f, 0.6f, 0.3f})
+                                                        : torch::tensor({0.1f, 0.6f}));
         found = true;
       }
     }
@@ -62,6 +64,9 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
     env_options = "observation=trail_action";
   }
   if (options.observation == ConvoyObservationKind::trail_ff) env_options = "observation=trail_ff";
+  if (options.observation == ConvoyObservationKind::trail_ff_memory) {
+    env_options = "observation=trail_ff_memory";
+  }
   if (options.steer_lag_s > 0.0) {
     env_options += (env_options.empty() ? "" : " ") + std::string("steer_lag=") +
                    std::to_string(options.steer_lag_s);
@@ -196,6 +201,12 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailActionObservatio
 // is the same in the controller as in the environment.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheTrailFfObservation) {
   drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_ff));
+}
+
+// trail_ff_memory: the controller hands the policy's memory back in the next observation, as
+// the environment does (the network's other outputs depend on it).
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheMemoryObservation) {
+  drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_ff_memory));
 }
 
 // A policy trained with a steering lag: the controller applies the same lag (from the policy's
@@ -409,6 +420,11 @@ TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailActionObservation) {
 // The learned understeer behind trail_ff's feed-forward is in the estimator's checkpoint.
 TEST(PolicyController, AResumedRunIsByteIdenticalOnTheTrailFfObservation) {
   a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_ff));
+}
+
+// The memory the policy last wrote is in the checkpoint too.
+TEST(PolicyController, AResumedRunIsByteIdenticalOnTheMemoryObservation) {
+  a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_ff_memory));
 }
 
 TEST(PolicyController, AResumedRunIsByteIdenticalWithASteeringLag) {

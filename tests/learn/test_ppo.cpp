@@ -432,6 +432,71 @@ TEST(Ppo, ImitationBringsThePolicyToTheExpert) {
   EXPECT_THROW(no_expert.update(), std::invalid_argument);
 }
 
+namespace {
+
+// The double integrator with a second action that is not explored (Box::explore), recording
+// every action it is given.
+class DoubleIntegratorWithMemory final : public Env {
+ public:
+  explicit DoubleIntegratorWithMemory(std::vector<std::vector<float>>* seen) : seen_(seen) {}
+  ObservationSpace observation_space() const override { return env_.observation_space(); }
+  Box action_space() const override {
+    Box b = env_.action_space();
+    b.low.push_back(-1.0f);
+    b.high.push_back(1.0f);
+    b.names.push_back("memory");
+    b.explore = {true, false};
+    return b;
+  }
+  Observation reset(std::uint64_t seed) override { return env_.reset(seed); }
+  StepResult step(std::span<const float> action) override {
+    seen_->emplace_back(action.begin(), action.end());
+    return env_.step(action.first(1));
+  }
+
+ private:
+  DoubleIntegrator env_;
+  std::vector<std::vector<float>>* seen_;
+};
+
+}  // namespace
+
+// A dimension the action space does not explore is acted on as the policy's mean: in a fresh
+// policy's rollout (log-std 0: noise of standard deviation 1 in the explored dimension, a mean
+// head initialised near 0) it stays near 0 while the explored one spreads; the policy file
+// keeps the flags, and a sampled action of the loaded policy has noise only where explored.
+TEST(Ppo, ADimensionThatIsNotExploredIsActedOnAsTheMean) {
+  std::vector<std::vector<float>> seen;  // the copy runs on this thread (threads = 1)
+  TrainerOptions o = small_options(1, 1, 400);
+  Trainer trainer([&seen] { return std::make_unique<DoubleIntegratorWithMemory>(&seen); }, o);
+  trainer.update();
+  ASSERT_GE(seen.size(), 400u);
+  double sum2 = 0.0, memory_max = 0.0;
+  for (const auto& a : seen) {
+    sum2 += a[0] * a[0];
+    memory_max = std::max(memory_max, std::abs(static_cast<double>(a[1])));
+  }
+  const double spread = std::sqrt(sum2 / static_cast<double>(seen.size()));
+  std::printf("explored: RMS %.3f; not explored: largest %.4f\n", spread, memory_max);
+  EXPECT_GT(spread, 0.5);
+  EXPECT_LT(memory_max, 0.1);
+
+  const fs::path dir = syndds::test::learn_test_dir();
+  trainer.save_policy((dir / "policy.pt").string());
+  Policy policy;
+  policy.load((dir / "policy.pt").string());
+  ASSERT_EQ(policy.action_space().explore, (std::vector<bool>{true, false}));
+  policy.seed(5);
+  DoubleIntegratorWithMemory env(&seen);
+  const Observation obs = env.reset(7);
+  const std::vector<float> mean = policy.act(obs, true);
+  const std::vector<float> a = policy.act(obs, false), b = policy.act(obs, false);
+  EXPECT_NE(a[0], b[0]);
+  EXPECT_EQ(a[1], mean[1]);
+  EXPECT_EQ(b[1], mean[1]);
+  fs::remove_all(dir);
+}
+
 // A run with imitation resumes bit for bit (the expert's actions come back with the replayed
 // episodes, the weight's schedule from the update count), and a checkpoint refuses a run with
 // another imitation schedule, which would silently train otherwise.

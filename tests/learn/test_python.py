@@ -17,6 +17,7 @@ class SingleEnvironment(unittest.TestCase):
         self.assertEqual(env.observation_space.shape, (2,))
         self.assertEqual(env.action_space.shape, (1,))
         self.assertEqual(env.action_space.names, ["force_n"])
+        self.assertEqual(env.action_space.explore, [True])
         obs, info = env.reset(seed=3)
         self.assertIsInstance(obs, np.ndarray)
         self.assertEqual(obs.dtype, np.float32)
@@ -92,6 +93,15 @@ class CameraFollower(unittest.TestCase):
         obs, reward, terminated, truncated, info = env.step(np.array([0.0, 0.3], np.float32))
         self.assertIn("path_error_m", info)
         self.assertEqual(obs["image"].shape, (45, 80, 3))
+
+    def test_the_memory_observation_has_an_action_not_to_explore(self):
+        env = syndds.make("convoy_follow", observation="trail_ff_memory")
+        self.assertEqual(env.action_space.names, ["steering", "throttle_brake", "memory"])
+        self.assertEqual(env.action_space.explore, [True, True, False])
+        obs, _ = env.reset(seed=3)
+        self.assertEqual(obs[-1], 0.0)
+        obs, *_ = env.step(np.array([0.0, 0.3, 0.25], np.float32))
+        self.assertEqual(obs[-1], np.float32(0.25))
 
     def test_an_unknown_observation_is_an_error_naming_it(self):
         with self.assertRaisesRegex(ValueError, "option observation: 'radar' is not one of"):

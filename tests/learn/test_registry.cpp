@@ -49,6 +49,10 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_EQ(convoy_env_options({}).episode.chain_fraction, 0.0);
   EXPECT_EQ(convoy_env_options({{"teacher_keep_clear", "2.5"}}).teacher_keep_clear_m, 2.5);
   EXPECT_EQ(convoy_env_options({}).teacher_keep_clear_m, 0.0);
+  EXPECT_FALSE(convoy_env_options({}).teacher_view_camera);
+  EXPECT_TRUE(convoy_env_options({{"teacher_view", "camera"}, {"camera", "true"}}).teacher_view_camera);
+  EXPECT_EQ(convoy_env_options({{"observation", "trail_ff_memory"}}).observation,
+            ConvoyObservationKind::trail_ff_memory);
   EXPECT_TRUE(convoy_env_options({{"ground_colour", "random"}}).random_ground_colour);
   EXPECT_FALSE(convoy_env_options({{"ground_colour", "fixed"}}).random_ground_colour);
   EXPECT_FALSE(convoy_env_options({}).random_ground_colour);
@@ -85,6 +89,12 @@ TEST(Registry, MistakesAreNamed) {
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"ground_colour", "random"}, {"terrain", "scm_soft"}})
                 .find("option ground_colour: random is for terrain=rigid"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"teacher_view", "camera"}})
+                .find("option teacher_view: camera needs camera=true"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"teacher_view", "lidar"}})
+                .find("option teacher_view: 'lidar' is not one of map, camera"),
             std::string::npos);
   EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
             std::string::npos);

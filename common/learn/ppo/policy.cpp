@@ -46,6 +46,11 @@ void save_policy_file(const std::string& path, const ActorCritic& model,
                                         static_cast<std::int64_t>(image.channels)}));
   archive.write("action_low", floats(actions.low));
   archive.write("action_high", floats(actions.high));
+  if (!actions.explore.empty()) {  // written only when some dimension is not explored
+    std::vector<float> explore;
+    for (const bool e : actions.explore) explore.push_back(e ? 1.0f : 0.0f);
+    archive.write("action_explore", floats(explore));
+  }
   std::string lines;  // key=value per line
   for (const auto& [k, v] : metadata) {
     if (k.find_first_of("=\n") != std::string::npos || v.find('\n') != std::string::npos) {
@@ -86,6 +91,11 @@ void Policy::load(const std::string& path) {
   actions_.low = ppo::floats(ppo::read(archive, "action_low"));
   actions_.high = ppo::floats(ppo::read(archive, "action_high"));
   actions_.names.clear();
+  actions_.explore.clear();
+  torch::Tensor explore;
+  if (archive.try_read("action_explore", explore)) {
+    for (const float e : ppo::floats(explore)) actions_.explore.push_back(e != 0.0f);
+  }
   metadata_.clear();
   c10::IValue meta;
   if (archive.try_read("metadata", meta)) {
@@ -126,8 +136,11 @@ std::vector<float> Policy::act(const Observation& observation, bool deterministi
   const ppo::ActorCriticOutput out = model_->forward(vec, img);
   torch::Tensor a = out.mean;
   if (!deterministic) {
-    a = a + torch::exp(model_->log_std) *
-                at::normal(0.0, 1.0, a.sizes(), generator_, torch::kFloat32);
+    torch::Tensor noise = at::normal(0.0, 1.0, a.sizes(), generator_, torch::kFloat32);
+    for (std::size_t j = 0; j < actions_.size(); ++j) {
+      if (!actions_.explored(j)) noise[0][static_cast<std::int64_t>(j)] = 0.0f;
+    }
+    a = a + torch::exp(model_->log_std) * noise;
   }
   std::vector<float> action = ppo::floats(a);
   for (std::size_t j = 0; j < action.size(); ++j) {

@@ -17,10 +17,12 @@
 namespace syndds::learn::ppo {
 namespace {
 
+// `explored`: [A] of 1 for the explored dimensions, 0 for the others (Box::explore), which
+// count neither in the probability nor in the entropy.
 torch::Tensor log_prob(const torch::Tensor& action, const torch::Tensor& mean,
-                       const torch::Tensor& log_std) {
+                       const torch::Tensor& log_std, const torch::Tensor& explored) {
   const torch::Tensor z = (action - mean) * torch::exp(-log_std);
-  return (-0.5 * z * z - log_std - 0.5 * std::log(2.0 * std::numbers::pi)).sum(-1);
+  return ((-0.5 * z * z - log_std - 0.5 * std::log(2.0 * std::numbers::pi)) * explored).sum(-1);
 }
 
 torch::Tensor doubles(const std::vector<double>& v) {
@@ -103,6 +105,9 @@ Trainer::Trainer(EnvFactory factory, TrainerOptions options)
   if (options_.return_window < 1) throw std::invalid_argument("return_window must be >= 1");
   at::set_num_threads(options_.torch_threads);
   steps_ = (p.steps_per_update + options_.copies - 1) / options_.copies;
+  std::vector<float> explored(action_space_.size());
+  for (std::size_t i = 0; i < explored.size(); ++i) explored[i] = action_space_.explored(i) ? 1.0f : 0.0f;
+  explored_ = torch::tensor(explored);
   torch::manual_seed(options_.seed);  // the networks' initial weights
   model_ = make_actor_critic(options_.network, observation_space_, action_space_);
   optimizer_ = std::make_unique<torch::optim::Adam>(
@@ -175,8 +180,8 @@ UpdateStats Trainer::update() {
       const ActorCriticOutput out = model_->forward(vec, img);
       const torch::Tensor noise =
           at::normal(0.0, 1.0, {K, a_size}, generator_, torch::kFloat32);
-      action = out.mean + torch::exp(model_->log_std) * noise;
-      logp = log_prob(action, out.mean, model_->log_std);
+      action = out.mean + torch::exp(model_->log_std) * noise * explored_;
+      logp = log_prob(action, out.mean, model_->log_std, explored_);
       value = out.value.to(torch::kFloat64).contiguous();
     }
     obs_steps.push_back(vec);
@@ -271,7 +276,8 @@ UpdateStats Trainer::update() {
       const torch::Tensor idx = perm.slice(0, start, std::min<std::int64_t>(start + p.minibatch, m));
       const ActorCriticOutput out = model_->forward(
           obs.index_select(0, idx), images.defined() ? images.index_select(0, idx) : images);
-      const torch::Tensor logp = log_prob(actions.index_select(0, idx), out.mean, model_->log_std);
+      const torch::Tensor logp =
+          log_prob(actions.index_select(0, idx), out.mean, model_->log_std, explored_);
       const torch::Tensor log_ratio = logp - old_logp.index_select(0, idx);
       const torch::Tensor ratio = torch::exp(log_ratio);
       torch::Tensor adv = advantages.index_select(0, idx);
@@ -287,7 +293,7 @@ UpdateStats Trainer::update() {
       }
       vl = 0.5 * vl.mean();
       const torch::Tensor ent =
-          (model_->log_std + 0.5 * (1.0 + std::log(2.0 * std::numbers::pi))).sum();
+          ((model_->log_std + 0.5 * (1.0 + std::log(2.0 * std::numbers::pi))) * explored_).sum();
       torch::Tensor loss = pg + p.value_coef * vl - p.entropy_coef * ent;
       torch::Tensor il;
       if (experts.defined()) {

@@ -134,6 +134,7 @@ class Trainer {
   VectorEnv envs_;
   ObservationSpace observation_space_;
   Box action_space_;
+  torch::Tensor explored_;  // [A]: 1 where action_space_.explored(i), else 0
   std::shared_ptr<ActorCritic> model_;
   std::unique_ptr<torch::optim::Adam> optimizer_;
   RunningNormalizer normalizer_;

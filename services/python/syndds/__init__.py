@@ -25,12 +25,15 @@ __all__ = ["Box", "Dict", "make", "make_vector", "env_names"]
 class Box:
     """A box of numbers (Gymnasium's Box: low, high, shape, dtype, sample, contains)."""
 
-    def __init__(self, low, high, dtype=_np.float32, names=None):
+    def __init__(self, low, high, dtype=_np.float32, names=None, explore=None):
         self.low = _np.asarray(low, dtype=dtype)
         self.high = _np.asarray(high, dtype=dtype)
         self.shape = self.low.shape
         self.dtype = _np.dtype(dtype)
         self.names = list(names or [])
+        # Actions: the dimensions a learner should explore in; the others (a memory the
+        # environment only hands back) are best acted on as the policy's mean.
+        self.explore = list(explore) if explore is not None else [True] * self.low.size
 
     def sample(self, rng=None):
         rng = rng or _np.random.default_rng()
@@ -75,7 +78,7 @@ class _Wrapped:
         self._env = env
         self.observation_space = _observation_space(env.observation_space_dict)
         a = env.action_space_dict
-        self.action_space = Box(a["low"], a["high"], names=a["names"])
+        self.action_space = Box(a["low"], a["high"], names=a["names"], explore=a["explore"])
 
     def reset(self, seed=None, options=None):
         return self._env.reset(seed)
