@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
@@ -318,6 +319,26 @@ TEST(Ppo, AStageStartsFromTheNetworkOfTheLastOne) {
   Trainer(env_factory("convoy_follow"), small_options(1, 1, 150)).save_policy(convoy);
   Trainer third(double_integrator(), small_options(1, 1, 150));
   EXPECT_THROW(third.initialize_from_policy(convoy), std::invalid_argument);
+  fs::remove_all(dir);
+}
+
+// A missing file, or one that is not a policy, is an error naming the file, one line long
+// (libtorch's own message carries a stack trace).
+TEST(Policy, AFileThatIsNotAPolicyIsNamedInOneLine) {
+  const fs::path dir = syndds::test::learn_test_dir();
+  const std::string missing = (dir / "missing.pt").string(), text = (dir / "text.pt").string();
+  std::ofstream(text) << "not a policy\n";
+  for (const std::string& file : {missing, text}) {
+    Policy policy;
+    try {
+      policy.load(file);
+      ADD_FAILURE() << file << " loaded";
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(file), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
   fs::remove_all(dir);
 }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
 #include <stdexcept>
 
 #include "learn/ppo/trainer.hpp"
@@ -76,7 +77,12 @@ namespace syndds::learn {
 
 void Policy::load(const std::string& path) {
   torch::serialize::InputArchive archive;
-  archive.load_from(path);
+  if (!std::ifstream(path)) throw std::runtime_error("cannot read " + path);
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error& e) {  // its what() carries a stack trace: the message alone
+    throw std::runtime_error(path + " is not a policy file: " + e.what_without_backtrace());
+  }
   observations_.vector.low = ppo::floats(ppo::read(archive, "observation_low"));
   observations_.vector.high = ppo::floats(ppo::read(archive, "observation_high"));
   observations_.vector.names.clear();
