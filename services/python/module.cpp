@@ -105,6 +105,7 @@ class PyEnv {
 
   py::dict observation_space() const { return space_dict(space_); }
   py::dict action_space() const { return box_dict(env_->action_space()); }
+  py::array_t<float> expert_action() const { return to_array(env_->expert_action()); }
 
  private:
   std::unique_ptr<Env> env_;
@@ -165,6 +166,19 @@ class PyVectorEnv {
   int size() const { return env_.size(); }
   py::dict observation_space() const { return space_dict(space_); }
   py::dict action_space() const { return box_dict(env_.action_space()); }
+  // (K, A) floats, or (K, 0) when the environment has no teacher.
+  py::array_t<float> expert_actions() {
+    const auto k = static_cast<std::size_t>(env_.size());
+    std::vector<std::vector<float>> each(k);
+    for (std::size_t i = 0; i < k; ++i) each[i] = env_.copy(static_cast<int>(i)).expert_action();
+    const std::size_t n = each.empty() ? 0 : each.front().size();
+    py::array_t<float> out({k, n});
+    for (std::size_t i = 0; i < k; ++i) {
+      if (each[i].size() != n) throw py::value_error("expert_action: copies disagree on its size");
+      std::memcpy(out.mutable_data(i), each[i].data(), n * sizeof(float));
+    }
+    return out;
+  }
 
  private:
   // Observations of all copies stacked: (K, n) floats, and (K, H, W, 3) bytes with a camera.
@@ -198,6 +212,8 @@ PYBIND11_MODULE(_syndds, m) {
       .def(py::init<const std::string&, const py::dict&>(), "name"_a, "options"_a = py::dict())
       .def("reset", &PyEnv::reset, "seed"_a = py::none())
       .def("step", &PyEnv::step, "action"_a)
+      .def("expert_action", &PyEnv::expert_action,
+           "The teacher's action for the current state (empty without one)")
       .def_property_readonly("observation_space_dict", &PyEnv::observation_space)
       .def_property_readonly("action_space_dict", &PyEnv::action_space);
   py::class_<PyVectorEnv>(m, "VectorEnv")
@@ -205,6 +221,8 @@ PYBIND11_MODULE(_syndds, m) {
            "threads"_a = 1, "options"_a = py::dict())
       .def("reset", &PyVectorEnv::reset, "seed"_a)
       .def("step", &PyVectorEnv::step, "actions"_a)
+      .def("expert_action", &PyVectorEnv::expert_actions,
+           "Each copy's teacher action for its current state: (copies, actions)")
       .def_property_readonly("num_envs", &PyVectorEnv::size)
       .def_property_readonly("observation_space_dict", &PyVectorEnv::observation_space)
       .def_property_readonly("action_space_dict", &PyVectorEnv::action_space);

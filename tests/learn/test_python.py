@@ -103,6 +103,19 @@ class CameraFollower(unittest.TestCase):
         obs, *_ = env.step(np.array([0.0, 0.3, 0.25], np.float32))
         self.assertEqual(obs[-1], np.float32(0.25))
 
+    def test_the_teacher_is_there_for_imitation(self):
+        env = syndds.make("convoy_follow", observation="trail_ff")
+        env.reset(seed=3)
+        for _ in range(5):
+            teacher = env.expert_action()
+            self.assertEqual(teacher.shape, (2,))
+            self.assertTrue(env.action_space.contains(teacher))
+            env.step(teacher)
+        self.assertEqual(syndds.make("double_integrator").expert_action().shape, (0,))
+        envs = syndds.make_vector("convoy_follow", copies=2, observation="trail_ff")
+        envs.reset(seed=1)
+        self.assertEqual(envs.expert_action().shape, (2, 2))
+
     def test_an_unknown_observation_is_an_error_naming_it(self):
         with self.assertRaisesRegex(ValueError, "option observation: 'radar' is not one of"):
             syndds.make("convoy_follow", observation="radar")

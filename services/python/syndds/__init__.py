@@ -86,6 +86,12 @@ class _Wrapped:
     def step(self, action):
         return self._env.step(action)
 
+    def expert_action(self):
+        """The environment's teacher for the current state (e.g. the classical convoy follower
+        on a trail observation), for imitation; never part of the observation. Empty when
+        the environment has none; a vector environment gives one row per copy."""
+        return self._env.expert_action()
+
     def close(self):
         pass
 
