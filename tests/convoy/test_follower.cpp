@@ -82,6 +82,24 @@ struct StraightWorld {
   }
 };
 
+// 10 s of StraightWorld at 100 Hz (GPS and V2V at 10 Hz): the follower ends at x = 35 on
+// the trail (y = 0), the leader at x = 50. Returns the last command.
+vehicle::DriverInputs drive_straight_world(ConvoyFollower& f) {
+  std::vector<FollowerEvent> events;
+  std::uint64_t seq = 0;
+  vehicle::DriverInputs cmd;
+  const StraightWorld world;
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = k * 0.01;
+    std::vector<proto::V2VMessageMsg> msgs;
+    if (k % 10 == 0) msgs.push_back(world.leader(t, seq++));
+    OwnReadings own = world.own(t);
+    if (k % 10 != 0) own.gps.clear();
+    cmd = f.update(t, 0.01, own, msgs, events);
+  }
+  return cmd;
+}
+
 // The kinematic road-wheel angle that drives the mid-wheelbase point on radius r.
 double kinematic_angle(double r, double wheelbase) {
   return std::atan(wheelbase / std::sqrt(r * r - 0.25 * wheelbase * wheelbase));
@@ -316,18 +334,7 @@ TEST(Follower, AMapOfObstaclesShiftsTheTrackedTrailAwayFromThem) {
     KeepOut keep_out;
     keep_out.obstacles = std::move(obstacles);
     f.set_keep_out(keep_out);
-    std::vector<FollowerEvent> events;
-    std::uint64_t seq = 0;
-    vehicle::DriverInputs cmd;
-    const StraightWorld world;
-    for (int k = 0; k <= 1000; ++k) {
-      const double t = k * 0.01;
-      std::vector<proto::V2VMessageMsg> msgs;
-      if (k % 10 == 0) msgs.push_back(world.leader(t, seq++));
-      OwnReadings own = world.own(t);
-      if (k % 10 != 0) own.gps.clear();
-      cmd = f.update(t, 0.01, own, msgs, events);
-    }
+    const vehicle::DriverInputs cmd = drive_straight_world(f);
     return Result{f.keep_out_shift_m(), cmd.steering, f.cross_track_m(),
                   f.trail_features().cross_track_m};
   };
@@ -406,17 +413,7 @@ TEST(Follower, AMapLimitedToTheCamerasViewShiftsOnlyForWhatItSees) {
     keep_out.view_half_angle_rad = view_half_angle;
     keep_out.view_ahead_m = 2.4;
     f.set_keep_out(keep_out);
-    std::vector<FollowerEvent> events;
-    std::uint64_t seq = 0;
-    const StraightWorld world;
-    for (int k = 0; k <= 1000; ++k) {
-      const double t = k * 0.01;
-      std::vector<proto::V2VMessageMsg> msgs;
-      if (k % 10 == 0) msgs.push_back(world.leader(t, seq++));
-      OwnReadings own = world.own(t);
-      if (k % 10 != 0) own.gps.clear();
-      f.update(t, 0.01, own, msgs, events);
-    }
+    drive_straight_world(f);
     return f.keep_out_shift_m();
   };
   const double wanted = KeepOut{}.clearance_m;
