@@ -71,7 +71,7 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("--env-option", env_option_args, "Environment option KEY=VALUE (repeatable)");
   app.add_option("--updates", updates, "Updates in all (a resumed run goes on to this count)")
-      ->check(CLI::Range(1, 1 << 30))
+      ->check(CLI::Range(0, 1 << 30))
       ->capture_default_str();
   app.add_option("--steps-per-update", ppo.steps_per_update,
                  "Interactions per update, summed over the copies")
@@ -122,7 +122,29 @@ int main(int argc, char** argv) {
                  "Start from this policy.pt of an earlier stage (curriculum, e.g. the reduced "
                  "model's policy for training on the full model)")
       ->excludes("--resume");
+  learn::ppo::CloneOptions clone;
+  app.add_option("--clone-steps", clone.steps,
+                 "Behaviour cloning before the first update: interactions driven by the "
+                 "environment's expert (summed over the copies) whose expert actions the "
+                 "policy's mean is fitted to; 0: none. DIR/clone.csv gets the RMS distance to "
+                 "the expert per action and epoch, on the training and the held-out episodes")
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40))
+      ->capture_default_str();
+  app.add_option("--clone-epochs", clone.epochs, "Passes over the cloning data")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--clone-minibatch", clone.minibatch, "Minibatch size of the cloning")
+      ->check(CLI::Range(2, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--clone-holdout", clone.holdout,
+                 "Share of each copy's cloning episodes held out (measured, never fitted)")
+      ->check(CLI::Range(0.0, 0.99))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (updates == 0 && clone.steps == 0) {
+    std::cerr << "syndds_train: --updates 0 needs --clone-steps (nothing to train)\n";
+    return 1;
+  }
 
   learn::EnvOptions env_options;
   try {
@@ -185,6 +207,51 @@ int main(int argc, char** argv) {
       }
       std::printf("starting from the network of %s\n", init_from.c_str());
     }
+    if (clone.steps > 0 && resume) {
+      std::printf("--clone-steps: the checkpoint's run cloned before its first update; not again\n");
+    } else if (clone.steps > 0) {
+      const learn::Box actions = factory()->action_space();
+      std::string header = "epoch";
+      for (const char* kind : {"train_rms_", "holdout_rms_", "holdout_zero_rms_"}) {
+        for (const auto& name : actions.names) header += "," + std::string(kind) + name;
+      }
+      std::ofstream clone_csv(dir / "clone.csv", std::ios::binary | std::ios::trunc);
+      clone_csv << header << "\n";
+      std::printf("cloning the expert: %lld interactions, %d epochs\n",
+                  static_cast<long long>(clone.steps), clone.epochs);
+      std::fflush(stdout);
+      const auto csv_field = [](const std::vector<double>& v, std::size_t i) {
+        return v.empty() ? std::string("nan") : number(v[i]);
+      };
+      const learn::ppo::CloneStats cs = trainer.clone(clone, [&](const learn::ppo::CloneEpoch& e) {
+        std::printf("clone epoch %d/%d  RMS to the expert, training / held out (a policy of 0):",
+                    e.epoch, clone.epochs);
+        clone_csv << e.epoch;
+        for (std::size_t i = 0; i < actions.size(); ++i) {
+          std::printf("  %s %s / %s (%s)", actions.names[i].c_str(), number(e.train_rms[i]).c_str(),
+                      csv_field(e.holdout_rms, i).c_str(), csv_field(e.holdout_zero_rms, i).c_str());
+          clone_csv << ',' << number(e.train_rms[i]);
+        }
+        for (std::size_t i = 0; i < actions.size(); ++i) clone_csv << ',' << csv_field(e.holdout_rms, i);
+        for (std::size_t i = 0; i < actions.size(); ++i) {
+          clone_csv << ',' << csv_field(e.holdout_zero_rms, i);
+        }
+        clone_csv << "\n";
+        clone_csv.flush();
+        std::printf("\n");
+        std::fflush(stdout);
+      });
+      if (!clone_csv) {
+        std::cerr << "syndds_train: cannot write " << (dir / "clone.csv").string() << "\n";
+        return 1;
+      }
+      std::printf("cloned on %lld samples (%lld more held out; %lld episodes) in %s collecting and "
+                  "%s fitting\n",
+                  static_cast<long long>(cs.train_samples),
+                  static_cast<long long>(cs.holdout_samples), static_cast<long long>(cs.episodes),
+                  duration(cs.collect_s).c_str(), duration(cs.learn_s).c_str());
+      trainer.save_checkpoint(checkpoint.string());
+    }
     std::ofstream out(csv, std::ios::binary | std::ios::trunc);
     if (!out || !(out << rows) || !out.flush()) {
       std::cerr << "syndds_train: cannot write " << csv.string() << "\n";
@@ -226,6 +293,10 @@ int main(int argc, char** argv) {
                                    {"updates", std::to_string(trainer.updates())},
                                    {"interactions", std::to_string(trainer.interactions())}};
     if (!init_from.empty()) metadata["init_from"] = fs::path(init_from).filename().string();
+    if (clone.steps > 0) {
+      metadata["clone"] = std::to_string(clone.steps) + " interactions, " +
+                          std::to_string(clone.epochs) + " epochs";
+    }
     if (options.imitation_weight > 0.0) {
       metadata["imitation"] = "weight " + number(options.imitation_weight) + " over " +
                               std::to_string(options.imitation_updates) + " updates";
@@ -239,7 +310,9 @@ int main(int argc, char** argv) {
     std::printf("wrote %s, %s, %s, %s\n", csv.string().c_str(), checkpoint.string().c_str(),
                 (dir / "policy.pt").string().c_str(), (dir / "policy.json").string().c_str());
     const std::string script = std::string(SYNDDS_SOURCE_TOOLS_DIR) + "/training_curve.py";
-    if (std::system("/usr/bin/python3 -c 'import matplotlib' > /dev/null 2>&1") == 0) {
+    if (trainer.updates() == 0) {
+      std::printf("no training_curve.png: no updates\n");
+    } else if (std::system("/usr/bin/python3 -c 'import matplotlib' > /dev/null 2>&1") == 0) {
       const std::string cmd = "/usr/bin/python3 '" + script + "' '" + dir.string() + "'";
       if (std::system(cmd.c_str()) != 0) {
         std::cerr << "syndds_train: " << script << " failed\n";

@@ -564,3 +564,62 @@ TEST(Ppo, AnImitationRunResumesBitForBitAndOnlyWithItsSchedule) {
   }
   fs::remove_all(dir);
 }
+
+// Behaviour cloning: the experts drive, the policy's mean is fitted to their actions, and what
+// the held-out episodes measure comes down far below a policy of 0 (which the held-out
+// targets' own RMS is); the split follows the episodes; a clone is repeatable bit for bit, and
+// a run checkpointed right after it resumes exactly as the straight run goes on.
+TEST(Ppo, CloningFitsTheExpertAndMeasuresOnEpisodesItHoldsOut) {
+  const auto factory = [] { return std::make_unique<TaughtDoubleIntegrator>(); };
+  const TrainerOptions o = small_options(2, 1, 200);
+  CloneOptions c;
+  c.steps = 3000;
+  c.epochs = 40;
+  c.minibatch = 64;
+  c.holdout = 0.2;
+  Trainer cloned(factory, o);
+  const double before = distance_to_expert(cloned);
+  std::vector<CloneEpoch> seen;
+  const CloneStats s = cloned.clone(c, [&](const CloneEpoch& e) { seen.push_back(e); });
+  // 1500 steps per copy, 15 episodes of 100: episodes 4, 9 and 14 of each copy are held out.
+  EXPECT_EQ(s.train_samples, 2400);
+  EXPECT_EQ(s.holdout_samples, 600);
+  EXPECT_EQ(s.episodes, 30);
+  ASSERT_EQ(s.epochs.size(), 40u);
+  ASSERT_EQ(seen.size(), 40u);
+  EXPECT_EQ(seen.back().holdout_rms, s.epochs.back().holdout_rms);
+  ASSERT_EQ(s.epochs.back().holdout_zero_rms.size(), 1u);
+  const double zero = s.epochs.back().holdout_zero_rms[0];
+  const double first = s.epochs.front().holdout_rms[0], last = s.epochs.back().holdout_rms[0];
+  const double after = distance_to_expert(cloned);
+  std::printf("held-out RMS: a policy of 0 %.4f, epoch 1 %.4f, epoch 40 %.4f; squared distance "
+              "on fresh episodes %.4f before, %.4f after\n",
+              zero, first, last, before, after);
+  EXPECT_LT(last, 0.5 * first);
+  EXPECT_LT(last, 0.2 * zero);
+  EXPECT_LT(after, 0.05 * before);
+
+  // Repeatable, and resumable right after cloning.
+  const fs::path dir = syndds::test::learn_test_dir();
+  const std::string checkpoint = (dir / "checkpoint.pt").string();
+  Trainer again(factory, o);
+  const CloneStats s2 = again.clone(c);
+  EXPECT_EQ(s2.epochs.back().holdout_rms, s.epochs.back().holdout_rms);
+  expect_identical(parameters(cloned), parameters(again));
+  again.save_checkpoint(checkpoint);
+  Trainer resumed(factory, o);
+  resumed.load_checkpoint(checkpoint);
+  const UpdateStats a = again.update(), b = resumed.update();
+  EXPECT_EQ(a.policy_loss, b.policy_loss);
+  expect_identical(parameters(again), parameters(resumed));
+  fs::remove_all(dir);
+
+  // Only before the first update, only with an expert, only with sound options.
+  EXPECT_THROW(again.clone(c), std::logic_error);
+  Trainer no_expert(double_integrator(), o);
+  EXPECT_THROW(no_expert.clone(c), std::invalid_argument);
+  CloneOptions bad = c;
+  bad.holdout = 1.0;
+  Trainer fresh(factory, o);
+  EXPECT_THROW(fresh.clone(bad), std::invalid_argument);
+}

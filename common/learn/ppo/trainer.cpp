@@ -11,6 +11,7 @@
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include "learn/ppo/policy.hpp"
 
@@ -348,6 +349,154 @@ UpdateStats Trainer::update() {
   stats.clip_fraction = clipped / batches;
   stats.imitation_loss = experts.defined() ? imitation_loss / batches : nan;
   stats.imitation_weight = imitation;
+  return stats;
+}
+
+std::uint64_t clone_seed(std::uint64_t seed) { return seed ^ 0x9e3779b97f4a7c15ULL; }
+
+CloneStats Trainer::clone(const CloneOptions& c,
+                          const std::function<void(const CloneEpoch&)>& progress) {
+  if (updates_ > 0) throw std::logic_error("Trainer::clone: only before the first update");
+  if (c.steps < 1) throw std::invalid_argument("cloning needs steps >= 1");
+  if (c.epochs < 1) throw std::invalid_argument("cloning needs epochs >= 1");
+  if (c.minibatch < 2) throw std::invalid_argument("cloning needs a minibatch >= 2");
+  if (!(c.holdout >= 0.0 && c.holdout < 1.0)) {
+    throw std::invalid_argument("cloning's held-out share must be in [0, 1)");
+  }
+  const int K = options_.copies;
+  const auto a_size = static_cast<std::int64_t>(action_space_.size());
+  const auto d_size = static_cast<std::size_t>(normalizer_.size());
+  const std::size_t image_bytes = observation_space_.image ? observation_space_.image->bytes() : 0;
+  CloneStats stats;
+  const auto t0 = std::chrono::steady_clock::now();
+
+  // Collection: the experts drive; each sample goes to the training or the held-out set by the
+  // number of its episode within its copy.
+  struct Samples {
+    std::vector<float> vectors, experts;
+    std::vector<std::uint8_t> images;
+    std::int64_t size = 0;
+  } train, hold;
+  const auto held_out = [&](std::int64_t e) {
+    return std::floor(static_cast<double>(e + 1) * c.holdout) >
+           std::floor(static_cast<double>(e) * c.holdout);
+  };
+  std::vector<Observation> obs = envs_.reset(clone_seed(options_.seed));
+  std::vector<std::int64_t> episode(static_cast<std::size_t>(K), 0);
+  const std::int64_t steps = (c.steps + K - 1) / K;
+  for (std::int64_t t = 0; t < steps; ++t) {
+    normalizer_.update(spans(obs));
+    std::vector<std::vector<float>> experts(static_cast<std::size_t>(K));
+    for (int k = 0; k < K; ++k) {
+      const auto ku = static_cast<std::size_t>(k);
+      experts[ku] = envs_.copy(k).expert_action();
+      if (experts[ku].size() != static_cast<std::size_t>(a_size)) {
+        throw std::invalid_argument("Trainer: cloning needs an expert action of " +
+                                    std::to_string(a_size) + " values, the environment gave " +
+                                    std::to_string(experts[ku].size()));
+      }
+      Samples& s = held_out(episode[ku]) ? hold : train;
+      s.vectors.insert(s.vectors.end(), obs[ku].vector.begin(), obs[ku].vector.end());
+      s.images.insert(s.images.end(), obs[ku].image.begin(), obs[ku].image.end());
+      s.experts.insert(s.experts.end(), experts[ku].begin(), experts[ku].end());
+      ++s.size;
+    }
+    VectorStepResult res = envs_.step(experts);
+    for (int k = 0; k < K; ++k) {
+      const auto ku = static_cast<std::size_t>(k);
+      if (res.results[ku].terminated || res.results[ku].truncated) {
+        ++episode[ku];
+        ++stats.episodes;
+      }
+      obs[ku] = std::move(res.results[ku].observation);
+    }
+  }
+  if (train.size < 2) throw std::invalid_argument("cloning collected fewer than 2 training samples");
+  const auto t1 = std::chrono::steady_clock::now();
+
+  // The sets as tensors, normalised alike by the normaliser that saw them all.
+  const auto tensors = [&](Samples& s) {
+    torch::Tensor vec = torch::empty({s.size, static_cast<std::int64_t>(d_size)}, torch::kFloat32);
+    float* dst = vec.data_ptr<float>();
+    for (std::int64_t i = 0; i < s.size; ++i) {
+      const std::vector<float> z = normalizer_.normalize(std::span<const float>(
+          s.vectors.data() + static_cast<std::size_t>(i) * d_size, d_size));
+      dst = std::copy(z.begin(), z.end(), dst);
+    }
+    torch::Tensor img;
+    if (image_bytes > 0) {
+      const ImageSpec& spec = *observation_space_.image;
+      img = torch::from_blob(s.images.data(), {s.size, spec.height, spec.width, spec.channels},
+                             torch::kUInt8)
+                .clone();
+    }
+    torch::Tensor exp = torch::from_blob(s.experts.data(), {s.size, a_size}, torch::kFloat32).clone();
+    s = Samples{};
+    return std::tuple{vec, img, exp};
+  };
+  stats.train_samples = train.size;
+  stats.holdout_samples = hold.size;
+  const auto [train_vec, train_img, train_exp] = tensors(train);
+  const auto [hold_vec, hold_img, hold_exp] = tensors(hold);
+  const auto rms = [&](const torch::Tensor& sum_squares, std::int64_t n) {
+    std::vector<double> out = doubles(sum_squares);
+    for (double& v : out) v = std::sqrt(v / static_cast<double>(n));
+    return out;
+  };
+  const std::vector<double> zero_rms =
+      stats.holdout_samples > 0
+          ? rms(hold_exp.to(torch::kFloat64).pow(2).sum(0), stats.holdout_samples)
+          : std::vector<double>{};
+  const auto select = [](const torch::Tensor& t, const torch::Tensor& idx) {
+    return t.defined() ? t.index_select(0, idx) : t;
+  };
+
+  torch::optim::Adam adam(model_->parameters(), torch::optim::AdamOptions(options_.ppo.learning_rate)
+                                                    .eps(options_.ppo.adam_epsilon));
+  const std::int64_t m = stats.train_samples;
+  for (int epoch = 1; epoch <= c.epochs; ++epoch) {
+    CloneEpoch e;
+    e.epoch = epoch;
+    e.holdout_zero_rms = zero_rms;
+    torch::Tensor squares = torch::zeros({a_size}, torch::kFloat64);
+    const torch::Tensor perm = torch::randperm(m, generator_, torch::kInt64);
+    for (std::int64_t start = 0; start < m; start += c.minibatch) {
+      const torch::Tensor idx = perm.slice(0, start, std::min<std::int64_t>(start + c.minibatch, m));
+      const torch::Tensor diff =
+          model_->forward(train_vec.index_select(0, idx), select(train_img, idx)).mean -
+          train_exp.index_select(0, idx);
+      const torch::Tensor loss = diff.pow(2).sum(-1).mean();
+      adam.zero_grad();
+      loss.backward();
+      adam.step();
+      squares += diff.detach().to(torch::kFloat64).pow(2).sum(0);
+    }
+    e.train_rms = rms(squares, m);
+    if (stats.holdout_samples > 0) {
+      torch::NoGradGuard no_grad;
+      torch::Tensor hs = torch::zeros({a_size}, torch::kFloat64);
+      for (std::int64_t start = 0; start < stats.holdout_samples; start += 1024) {
+        const torch::Tensor idx = torch::arange(
+            start, std::min<std::int64_t>(start + 1024, stats.holdout_samples), torch::kInt64);
+        hs += (model_->forward(hold_vec.index_select(0, idx), select(hold_img, idx)).mean -
+               hold_exp.index_select(0, idx))
+                  .to(torch::kFloat64)
+                  .pow(2)
+                  .sum(0);
+      }
+      e.holdout_rms = rms(hs, stats.holdout_samples);
+    }
+    if (progress) progress(e);
+    stats.epochs.push_back(std::move(e));
+  }
+  stats.collect_s = std::chrono::duration<double>(t1 - t0).count();
+  stats.learn_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+
+  // PPO starts on the episodes of a run without cloning.
+  observations_ = envs_.reset(options_.seed);
+  for (auto& a : episode_actions_) a.clear();
+  std::fill(episode_returns_.begin(), episode_returns_.end(), 0.0);
+  std::fill(discounted_returns_.begin(), discounted_returns_.end(), 0.0);
   return stats;
 }
 

@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -97,12 +98,55 @@ Gae compute_gae(const std::vector<double>& rewards, const std::vector<double>& v
                 const std::vector<bool>& truncated, int steps, int copies, double gamma,
                 double lambda);
 
+/// Behaviour cloning before PPO (Pomerleau 1989; the "BC pretraining" of imitation-learning
+/// libraries): the copies are driven by their environments' expert_action() for `steps`
+/// interactions (summed over the copies) on episodes of their own (the vector environment reset
+/// with clone_seed(seed), so PPO's episodes are those of a run without cloning), then the
+/// policy's mean is fitted to the expert's actions by `epochs` passes of mean squared error in
+/// shuffled minibatches (Adam at the PPO learning rate, an optimiser of its own). Every
+/// `holdout`-th share of each copy's episodes is held out: never fitted, only measured. The
+/// observation normaliser first takes in every collected observation, and then normalises them
+/// all alike. Deterministic for fixed options, as PPO is.
+struct CloneOptions {
+  std::int64_t steps = 0;
+  int epochs = 10;
+  int minibatch = 256;
+  double holdout = 0.2;  // in [0, 1)
+};
+
+/// One pass over the cloning data: RMS distance to the expert per action dimension.
+struct CloneEpoch {
+  int epoch = 0;  // 1-based
+  std::vector<double> train_rms;
+  std::vector<double> holdout_rms;  // empty without held-out episodes
+  std::vector<double> holdout_zero_rms;  // the held-out expert actions' own RMS (a policy of 0)
+};
+
+struct CloneStats {
+  std::int64_t train_samples = 0;
+  std::int64_t holdout_samples = 0;
+  std::int64_t episodes = 0;  // episodes finished during the collection
+  std::vector<CloneEpoch> epochs;
+  double collect_s = 0.0;  // wall times (not deterministic)
+  double learn_s = 0.0;
+};
+
+/// The seed the copies are reset with for cloning.
+std::uint64_t clone_seed(std::uint64_t seed);
+
 class Trainer {
  public:
   Trainer(EnvFactory factory, TrainerOptions options);
 
   /// Collects one rollout and updates the networks.
   UpdateStats update();
+
+  /// Behaviour cloning (CloneOptions); only before the first update. `progress` is called after
+  /// each epoch. Afterwards the copies are reset as at construction. std::logic_error after an
+  /// update, std::invalid_argument if the environment has no expert or the options are out of
+  /// range.
+  CloneStats clone(const CloneOptions& clone,
+                   const std::function<void(const CloneEpoch&)>& progress = {});
 
   int updates() const { return updates_; }
   std::int64_t interactions() const { return interactions_; }
