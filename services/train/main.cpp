@@ -130,7 +130,13 @@ int main(int argc, char** argv) {
                  "the expert per action and epoch, on the training and the held-out episodes")
       ->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40))
       ->capture_default_str();
-  app.add_option("--clone-epochs", clone.epochs, "Passes over the cloning data")
+  app.add_option("--clone-iterations", clone.iterations,
+                 "DAgger: iterations of --clone-steps each; the first is driven by the expert, "
+                 "the later ones by the policy (its mean action), every state labelled by the "
+                 "expert, and each refits on all the data so far")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--clone-epochs", clone.epochs, "Passes over the cloning data per iteration")
       ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();
   app.add_option("--clone-minibatch", clone.minibatch, "Minibatch size of the cloning")
@@ -211,22 +217,23 @@ int main(int argc, char** argv) {
       std::printf("--clone-steps: the checkpoint's run cloned before its first update; not again\n");
     } else if (clone.steps > 0) {
       const learn::Box actions = factory()->action_space();
-      std::string header = "epoch";
+      std::string header = "iteration,epoch";
       for (const char* kind : {"train_rms_", "holdout_rms_", "holdout_zero_rms_"}) {
         for (const auto& name : actions.names) header += "," + std::string(kind) + name;
       }
       std::ofstream clone_csv(dir / "clone.csv", std::ios::binary | std::ios::trunc);
       clone_csv << header << "\n";
-      std::printf("cloning the expert: %lld interactions, %d epochs\n",
+      std::printf("cloning the expert: %d x %lld interactions, %d epochs each\n", clone.iterations,
                   static_cast<long long>(clone.steps), clone.epochs);
       std::fflush(stdout);
       const auto csv_field = [](const std::vector<double>& v, std::size_t i) {
         return v.empty() ? std::string("nan") : number(v[i]);
       };
       const learn::ppo::CloneStats cs = trainer.clone(clone, [&](const learn::ppo::CloneEpoch& e) {
-        std::printf("clone epoch %d/%d  RMS to the expert, training / held out (a policy of 0):",
-                    e.epoch, clone.epochs);
-        clone_csv << e.epoch;
+        std::printf("clone iteration %d/%d epoch %d/%d  RMS to the expert, training / held out "
+                    "(a policy of 0):",
+                    e.iteration, clone.iterations, e.epoch, clone.epochs);
+        clone_csv << e.iteration << ',' << e.epoch;
         for (std::size_t i = 0; i < actions.size(); ++i) {
           std::printf("  %s %s / %s (%s)", actions.names[i].c_str(), number(e.train_rms[i]).c_str(),
                       csv_field(e.holdout_rms, i).c_str(), csv_field(e.holdout_zero_rms, i).c_str());
@@ -294,7 +301,8 @@ int main(int argc, char** argv) {
                                    {"interactions", std::to_string(trainer.interactions())}};
     if (!init_from.empty()) metadata["init_from"] = fs::path(init_from).filename().string();
     if (clone.steps > 0) {
-      metadata["clone"] = std::to_string(clone.steps) + " interactions, " +
+      metadata["clone"] = std::to_string(clone.iterations) + " x " +
+                          std::to_string(clone.steps) + " interactions, " +
                           std::to_string(clone.epochs) + " epochs";
     }
     if (options.imitation_weight > 0.0) {

@@ -623,3 +623,59 @@ TEST(Ppo, CloningFitsTheExpertAndMeasuresOnEpisodesItHoldsOut) {
   Trainer fresh(factory, o);
   EXPECT_THROW(fresh.clone(bad), std::invalid_argument);
 }
+
+namespace {
+
+// The taught double integrator, recording for every step whether the action it was given was
+// its expert's.
+class WatchedDoubleIntegrator final : public Env {
+ public:
+  explicit WatchedDoubleIntegrator(std::vector<bool>* experts_given) : given_(experts_given) {}
+  ObservationSpace observation_space() const override { return env_.observation_space(); }
+  Box action_space() const override { return env_.action_space(); }
+  Observation reset(std::uint64_t seed) override { return env_.reset(seed); }
+  StepResult step(std::span<const float> action) override {
+    given_->push_back(action[0] == env_.expert_action()[0]);
+    return env_.step(action);
+  }
+  std::vector<float> expert_action() const override { return env_.expert_action(); }
+
+ private:
+  TaughtDoubleIntegrator env_;
+  std::vector<bool>* given_;
+};
+
+}  // namespace
+
+// DAgger's iterations: the first is driven by the expert, the later ones by the policy (whose
+// actions are not the expert's), the data aggregates over the iterations and every fit is on
+// all of it; the policy ends close to the expert.
+TEST(Ppo, CloningIterationsAreDrivenByThePolicyAndFitOnEverything) {
+  std::vector<bool> given;  // one copy, stepped on this thread
+  TrainerOptions o = small_options(1, 1, 200);
+  CloneOptions c;
+  c.steps = 1000;
+  c.epochs = 20;
+  c.minibatch = 64;
+  c.iterations = 3;
+  Trainer trainer([&given] { return std::make_unique<WatchedDoubleIntegrator>(&given); }, o);
+  const CloneStats s = trainer.clone(c);
+  ASSERT_EQ(given.size(), 3000u);
+  const auto expert_steps = [&](std::size_t from) {
+    return std::count(given.begin() + static_cast<std::ptrdiff_t>(from),
+                      given.begin() + static_cast<std::ptrdiff_t>(from + 1000), true);
+  };
+  EXPECT_EQ(expert_steps(0), 1000);
+  EXPECT_LT(expert_steps(1000), 100);
+  EXPECT_LT(expert_steps(2000), 100);
+  EXPECT_EQ(s.train_samples + s.holdout_samples, 3000);
+  EXPECT_EQ(s.episodes, 30);
+  ASSERT_EQ(s.epochs.size(), 60u);
+  EXPECT_EQ(s.epochs[20].iteration, 2);
+  EXPECT_EQ(s.epochs[20].epoch, 1);
+  const double last = s.epochs.back().holdout_rms[0];
+  std::printf("held-out RMS after 3 iterations: %.4f (a policy of 0: %.4f)\n", last,
+              s.epochs.back().holdout_zero_rms[0]);
+  EXPECT_LT(last, 0.2 * s.epochs.back().holdout_zero_rms[0]);
+  EXPECT_LT(distance_to_expert(trainer), 0.01);
+}

@@ -360,20 +360,21 @@ CloneStats Trainer::clone(const CloneOptions& c,
   if (c.steps < 1) throw std::invalid_argument("cloning needs steps >= 1");
   if (c.epochs < 1) throw std::invalid_argument("cloning needs epochs >= 1");
   if (c.minibatch < 2) throw std::invalid_argument("cloning needs a minibatch >= 2");
+  if (c.iterations < 1) throw std::invalid_argument("cloning needs iterations >= 1");
   if (!(c.holdout >= 0.0 && c.holdout < 1.0)) {
     throw std::invalid_argument("cloning's held-out share must be in [0, 1)");
   }
   const int K = options_.copies;
   const auto a_size = static_cast<std::int64_t>(action_space_.size());
   const auto d_size = static_cast<std::size_t>(normalizer_.size());
-  const std::size_t image_bytes = observation_space_.image ? observation_space_.image->bytes() : 0;
   CloneStats stats;
   const auto t0 = std::chrono::steady_clock::now();
+  double collect_s = 0.0;
 
-  // Collection: the experts drive; each sample goes to the training or the held-out set by the
-  // number of its episode within its copy.
+  // Every iteration's samples, in the training or the held-out set by the number of their
+  // episode within their copy and iteration.
   struct Samples {
-    std::vector<float> vectors, experts;
+    std::vector<float> vectors, experts;  // raw observation vectors
     std::vector<std::uint8_t> images;
     std::int64_t size = 0;
   } train, hold;
@@ -381,40 +382,13 @@ CloneStats Trainer::clone(const CloneOptions& c,
     return std::floor(static_cast<double>(e + 1) * c.holdout) >
            std::floor(static_cast<double>(e) * c.holdout);
   };
-  std::vector<Observation> obs = envs_.reset(clone_seed(options_.seed));
-  std::vector<std::int64_t> episode(static_cast<std::size_t>(K), 0);
-  const std::int64_t steps = (c.steps + K - 1) / K;
-  for (std::int64_t t = 0; t < steps; ++t) {
-    normalizer_.update(spans(obs));
-    std::vector<std::vector<float>> experts(static_cast<std::size_t>(K));
-    for (int k = 0; k < K; ++k) {
-      const auto ku = static_cast<std::size_t>(k);
-      experts[ku] = envs_.copy(k).expert_action();
-      if (experts[ku].size() != static_cast<std::size_t>(a_size)) {
-        throw std::invalid_argument("Trainer: cloning needs an expert action of " +
-                                    std::to_string(a_size) + " values, the environment gave " +
-                                    std::to_string(experts[ku].size()));
-      }
-      Samples& s = held_out(episode[ku]) ? hold : train;
-      s.vectors.insert(s.vectors.end(), obs[ku].vector.begin(), obs[ku].vector.end());
-      s.images.insert(s.images.end(), obs[ku].image.begin(), obs[ku].image.end());
-      s.experts.insert(s.experts.end(), experts[ku].begin(), experts[ku].end());
-      ++s.size;
-    }
-    VectorStepResult res = envs_.step(experts);
-    for (int k = 0; k < K; ++k) {
-      const auto ku = static_cast<std::size_t>(k);
-      if (res.results[ku].terminated || res.results[ku].truncated) {
-        ++episode[ku];
-        ++stats.episodes;
-      }
-      obs[ku] = std::move(res.results[ku].observation);
-    }
-  }
-  if (train.size < 2) throw std::invalid_argument("cloning collected fewer than 2 training samples");
-  const auto t1 = std::chrono::steady_clock::now();
-
-  // The sets as tensors, normalised alike by the normaliser that saw them all.
+  const auto rms = [&](const torch::Tensor& sum_squares, std::int64_t n) {
+    std::vector<double> out = doubles(sum_squares);
+    for (double& v : out) v = std::sqrt(v / static_cast<double>(n));
+    return out;
+  };
+  // A set as tensors, its vectors normalised by the normaliser as it is now (which has seen
+  // every sample); the images and expert actions are views of the set's storage.
   const auto tensors = [&](Samples& s) {
     torch::Tensor vec = torch::empty({s.size, static_cast<std::int64_t>(d_size)}, torch::kFloat32);
     float* dst = vec.data_ptr<float>();
@@ -424,73 +398,123 @@ CloneStats Trainer::clone(const CloneOptions& c,
       dst = std::copy(z.begin(), z.end(), dst);
     }
     torch::Tensor img;
-    if (image_bytes > 0) {
+    if (observation_space_.image) {
       const ImageSpec& spec = *observation_space_.image;
       img = torch::from_blob(s.images.data(), {s.size, spec.height, spec.width, spec.channels},
-                             torch::kUInt8)
-                .clone();
+                             torch::kUInt8);
     }
-    torch::Tensor exp = torch::from_blob(s.experts.data(), {s.size, a_size}, torch::kFloat32).clone();
-    s = Samples{};
+    torch::Tensor exp = torch::from_blob(s.experts.data(), {s.size, a_size}, torch::kFloat32);
     return std::tuple{vec, img, exp};
   };
-  stats.train_samples = train.size;
-  stats.holdout_samples = hold.size;
-  const auto [train_vec, train_img, train_exp] = tensors(train);
-  const auto [hold_vec, hold_img, hold_exp] = tensors(hold);
-  const auto rms = [&](const torch::Tensor& sum_squares, std::int64_t n) {
-    std::vector<double> out = doubles(sum_squares);
-    for (double& v : out) v = std::sqrt(v / static_cast<double>(n));
-    return out;
-  };
-  const std::vector<double> zero_rms =
-      stats.holdout_samples > 0
-          ? rms(hold_exp.to(torch::kFloat64).pow(2).sum(0), stats.holdout_samples)
-          : std::vector<double>{};
   const auto select = [](const torch::Tensor& t, const torch::Tensor& idx) {
     return t.defined() ? t.index_select(0, idx) : t;
   };
-
   torch::optim::Adam adam(model_->parameters(), torch::optim::AdamOptions(options_.ppo.learning_rate)
                                                     .eps(options_.ppo.adam_epsilon));
-  const std::int64_t m = stats.train_samples;
-  for (int epoch = 1; epoch <= c.epochs; ++epoch) {
-    CloneEpoch e;
-    e.epoch = epoch;
-    e.holdout_zero_rms = zero_rms;
-    torch::Tensor squares = torch::zeros({a_size}, torch::kFloat64);
-    const torch::Tensor perm = torch::randperm(m, generator_, torch::kInt64);
-    for (std::int64_t start = 0; start < m; start += c.minibatch) {
-      const torch::Tensor idx = perm.slice(0, start, std::min<std::int64_t>(start + c.minibatch, m));
-      const torch::Tensor diff =
-          model_->forward(train_vec.index_select(0, idx), select(train_img, idx)).mean -
-          train_exp.index_select(0, idx);
-      const torch::Tensor loss = diff.pow(2).sum(-1).mean();
-      adam.zero_grad();
-      loss.backward();
-      adam.step();
-      squares += diff.detach().to(torch::kFloat64).pow(2).sum(0);
-    }
-    e.train_rms = rms(squares, m);
-    if (stats.holdout_samples > 0) {
-      torch::NoGradGuard no_grad;
-      torch::Tensor hs = torch::zeros({a_size}, torch::kFloat64);
-      for (std::int64_t start = 0; start < stats.holdout_samples; start += 1024) {
-        const torch::Tensor idx = torch::arange(
-            start, std::min<std::int64_t>(start + 1024, stats.holdout_samples), torch::kInt64);
-        hs += (model_->forward(hold_vec.index_select(0, idx), select(hold_img, idx)).mean -
-               hold_exp.index_select(0, idx))
-                  .to(torch::kFloat64)
-                  .pow(2)
-                  .sum(0);
+
+  for (int iteration = 1; iteration <= c.iterations; ++iteration) {
+    // Collection: the experts drive the first iteration, the policy's mean action the later
+    // ones (DAgger); the expert labels every state.
+    const auto tc = std::chrono::steady_clock::now();
+    std::vector<Observation> obs =
+        envs_.reset(clone_seed(options_.seed) + static_cast<std::uint64_t>(iteration - 1));
+    std::vector<std::int64_t> episode(static_cast<std::size_t>(K), 0);
+    const std::int64_t steps = (c.steps + K - 1) / K;
+    for (std::int64_t t = 0; t < steps; ++t) {
+      normalizer_.update(spans(obs));
+      std::vector<std::vector<float>> experts(static_cast<std::size_t>(K));
+      for (int k = 0; k < K; ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        experts[ku] = envs_.copy(k).expert_action();
+        if (experts[ku].size() != static_cast<std::size_t>(a_size)) {
+          throw std::invalid_argument("Trainer: cloning needs an expert action of " +
+                                      std::to_string(a_size) + " values, the environment gave " +
+                                      std::to_string(experts[ku].size()));
+        }
+        Samples& s = held_out(episode[ku]) ? hold : train;
+        s.vectors.insert(s.vectors.end(), obs[ku].vector.begin(), obs[ku].vector.end());
+        s.images.insert(s.images.end(), obs[ku].image.begin(), obs[ku].image.end());
+        s.experts.insert(s.experts.end(), experts[ku].begin(), experts[ku].end());
+        ++s.size;
       }
-      e.holdout_rms = rms(hs, stats.holdout_samples);
+      std::vector<std::vector<float>> actions;
+      if (iteration == 1) {
+        actions = std::move(experts);
+      } else {
+        torch::NoGradGuard no_grad;
+        const auto current = pointers(obs);
+        const torch::Tensor mean =
+            model_->forward(vector_tensor(current), image_tensor(current)).mean.contiguous();
+        for (int k = 0; k < K; ++k) {
+          const float* m = mean.data_ptr<float>() + static_cast<std::int64_t>(k) * a_size;
+          actions.emplace_back(m, m + a_size);
+        }
+      }
+      VectorStepResult res = envs_.step(actions);
+      for (int k = 0; k < K; ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        if (res.results[ku].terminated || res.results[ku].truncated) {
+          ++episode[ku];
+          ++stats.episodes;
+        }
+        obs[ku] = std::move(res.results[ku].observation);
+      }
     }
-    if (progress) progress(e);
-    stats.epochs.push_back(std::move(e));
+    collect_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - tc).count();
+    if (train.size < 2) {
+      throw std::invalid_argument("cloning collected fewer than 2 training samples");
+    }
+
+    // Fitting, on everything collected so far.
+    stats.train_samples = train.size;
+    stats.holdout_samples = hold.size;
+    const auto [train_vec, train_img, train_exp] = tensors(train);
+    const auto [hold_vec, hold_img, hold_exp] = tensors(hold);
+    const std::vector<double> zero_rms =
+        hold.size > 0 ? rms(hold_exp.to(torch::kFloat64).pow(2).sum(0), hold.size)
+                      : std::vector<double>{};
+    const std::int64_t m = train.size;
+    for (int epoch = 1; epoch <= c.epochs; ++epoch) {
+      CloneEpoch e;
+      e.iteration = iteration;
+      e.epoch = epoch;
+      e.holdout_zero_rms = zero_rms;
+      torch::Tensor squares = torch::zeros({a_size}, torch::kFloat64);
+      const torch::Tensor perm = torch::randperm(m, generator_, torch::kInt64);
+      for (std::int64_t start = 0; start < m; start += c.minibatch) {
+        const torch::Tensor idx =
+            perm.slice(0, start, std::min<std::int64_t>(start + c.minibatch, m));
+        const torch::Tensor diff =
+            model_->forward(train_vec.index_select(0, idx), select(train_img, idx)).mean -
+            train_exp.index_select(0, idx);
+        const torch::Tensor loss = diff.pow(2).sum(-1).mean();
+        adam.zero_grad();
+        loss.backward();
+        adam.step();
+        squares += diff.detach().to(torch::kFloat64).pow(2).sum(0);
+      }
+      e.train_rms = rms(squares, m);
+      if (hold.size > 0) {
+        torch::NoGradGuard no_grad;
+        torch::Tensor hs = torch::zeros({a_size}, torch::kFloat64);
+        for (std::int64_t start = 0; start < hold.size; start += 1024) {
+          const torch::Tensor idx = torch::arange(
+              start, std::min<std::int64_t>(start + 1024, hold.size), torch::kInt64);
+          hs += (model_->forward(hold_vec.index_select(0, idx), select(hold_img, idx)).mean -
+                 hold_exp.index_select(0, idx))
+                    .to(torch::kFloat64)
+                    .pow(2)
+                    .sum(0);
+        }
+        e.holdout_rms = rms(hs, hold.size);
+      }
+      if (progress) progress(e);
+      stats.epochs.push_back(std::move(e));
+    }
   }
-  stats.collect_s = std::chrono::duration<double>(t1 - t0).count();
-  stats.learn_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  stats.collect_s = collect_s;
+  stats.learn_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - collect_s;
 
   // PPO starts on the episodes of a run without cloning.
   observations_ = envs_.reset(options_.seed);

@@ -99,31 +99,37 @@ Gae compute_gae(const std::vector<double>& rewards, const std::vector<double>& v
                 double lambda);
 
 /// Behaviour cloning before PPO (Pomerleau 1989; the "BC pretraining" of imitation-learning
-/// libraries): the copies are driven by their environments' expert_action() for `steps`
-/// interactions (summed over the copies) on episodes of their own (the vector environment reset
-/// with clone_seed(seed), so PPO's episodes are those of a run without cloning), then the
-/// policy's mean is fitted to the expert's actions by `epochs` passes of mean squared error in
-/// shuffled minibatches (Adam at the PPO learning rate, an optimiser of its own). Every
-/// `holdout`-th share of each copy's episodes is held out: never fitted, only measured. The
-/// observation normaliser first takes in every collected observation, and then normalises them
-/// all alike. Deterministic for fixed options, as PPO is.
+/// libraries), optionally with DAgger's iterations (Ross, Gordon and Bagnell 2011). Iteration
+/// 1: the copies are driven by their environments' expert_action() for `steps` interactions
+/// (summed over the copies); iterations 2.. : driven by the policy's mean action, each state
+/// labelled with the expert's action (so that the policy learns in the states it reaches
+/// itself, e.g. with its own memory in the observation). Each iteration resets the copies on
+/// episodes of its own (clone_seed(seed) + iteration - 1; PPO's episodes stay those of a run
+/// without cloning), then fits the policy's mean to the expert's actions of everything
+/// collected so far by `epochs` passes of mean squared error in shuffled minibatches (Adam at
+/// the PPO learning rate, an optimiser of its own). Every `holdout`-th share of each copy's
+/// episodes is held out: never fitted, only measured. The observation normaliser takes in
+/// every collected observation, and each fit normalises them all alike. Deterministic for
+/// fixed options, as PPO is.
 struct CloneOptions {
-  std::int64_t steps = 0;
-  int epochs = 10;
+  std::int64_t steps = 0;  // per iteration
+  int epochs = 10;         // per iteration
   int minibatch = 256;
   double holdout = 0.2;  // in [0, 1)
+  int iterations = 1;
 };
 
 /// One pass over the cloning data: RMS distance to the expert per action dimension.
 struct CloneEpoch {
-  int epoch = 0;  // 1-based
+  int iteration = 0;  // 1-based
+  int epoch = 0;      // 1-based, within the iteration
   std::vector<double> train_rms;
   std::vector<double> holdout_rms;  // empty without held-out episodes
   std::vector<double> holdout_zero_rms;  // the held-out expert actions' own RMS (a policy of 0)
 };
 
 struct CloneStats {
-  std::int64_t train_samples = 0;
+  std::int64_t train_samples = 0;  // in all iterations
   std::int64_t holdout_samples = 0;
   std::int64_t episodes = 0;  // episodes finished during the collection
   std::vector<CloneEpoch> epochs;
