@@ -426,6 +426,10 @@ CloneStats Trainer::clone(const CloneOptions& c,
       for (int k = 0; k < K; ++k) {
         const auto ku = static_cast<std::size_t>(k);
         experts[ku] = envs_.copy(k).expert_action();
+        if (experts[ku].empty()) {
+          throw std::invalid_argument("Trainer: cloning needs an expert, and this environment "
+                                      "has none (Env::expert_action)");
+        }
         if (experts[ku].size() != static_cast<std::size_t>(a_size)) {
           throw std::invalid_argument("Trainer: cloning needs an expert action of " +
                                       std::to_string(a_size) + " values, the environment gave " +
