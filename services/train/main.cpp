@@ -214,7 +214,7 @@ int main(int argc, char** argv) {
       std::printf("starting from the network of %s\n", init_from.c_str());
     }
     if (clone.steps > 0 && resume) {
-      std::printf("--clone-steps: the checkpoint's run cloned before its first update; not again\n");
+      std::printf("--clone-steps: not on --resume (a run clones only before its first update)\n");
     } else if (clone.steps > 0) {
       const learn::Box actions = factory()->action_space();
       std::string header = "iteration,epoch";
