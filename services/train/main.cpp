@@ -146,6 +146,11 @@ int main(int argc, char** argv) {
                  "Share of each copy's cloning episodes held out (measured, never fitted)")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
+  app.add_option("--clone-colour-jitter", clone.colour_jitter,
+                 "Cloning's image augmentation: each training image's channels scaled by "
+                 "factors in [1-J, 1+J] and offset by up to 128 J; 0: the images as rendered")
+      ->check(CLI::Range(0.0, 0.99))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (updates == 0 && clone.steps == 0) {
     std::cerr << "syndds_train: --updates 0 needs --clone-steps (nothing to train)\n";
@@ -304,6 +309,9 @@ int main(int argc, char** argv) {
       metadata["clone"] = std::to_string(clone.iterations) + " x " +
                           std::to_string(clone.steps) + " interactions, " +
                           std::to_string(clone.epochs) + " epochs";
+      if (clone.colour_jitter > 0.0) {
+        metadata["clone"] += ", colour jitter " + number(clone.colour_jitter);
+      }
     }
     if (options.imitation_weight > 0.0) {
       metadata["imitation"] = "weight " + number(options.imitation_weight) + " over " +

@@ -364,6 +364,9 @@ CloneStats Trainer::clone(const CloneOptions& c,
   if (!(c.holdout >= 0.0 && c.holdout < 1.0)) {
     throw std::invalid_argument("cloning's held-out share must be in [0, 1)");
   }
+  if (!(c.colour_jitter >= 0.0 && c.colour_jitter < 1.0)) {
+    throw std::invalid_argument("cloning's colour jitter must be in [0, 1)");
+  }
   const int K = options_.copies;
   const auto a_size = static_cast<std::int64_t>(action_space_.size());
   const auto d_size = static_cast<std::size_t>(normalizer_.size());
@@ -408,6 +411,18 @@ CloneStats Trainer::clone(const CloneOptions& c,
   };
   const auto select = [](const torch::Tensor& t, const torch::Tensor& idx) {
     return t.defined() ? t.index_select(0, idx) : t;
+  };
+  // A training minibatch's images, with their colours jittered (CloneOptions::colour_jitter);
+  // the networks take the pixels as values in [0, 255] of any type.
+  const auto jitter = [&](const torch::Tensor& img) {
+    if (!img.defined() || c.colour_jitter <= 0.0) return img;
+    const std::int64_t n = img.size(0), channels = img.size(3);
+    const double j = c.colour_jitter;
+    const torch::Tensor gain =
+        at::empty({n, 1, 1, channels}, torch::kFloat32).uniform_(1.0 - j, 1.0 + j, generator_);
+    const torch::Tensor offset =
+        at::empty({n, 1, 1, 1}, torch::kFloat32).uniform_(-128.0 * j, 128.0 * j, generator_);
+    return (img.to(torch::kFloat32) * gain + offset).clamp(0.0, 255.0);
   };
   torch::optim::Adam adam(model_->parameters(), torch::optim::AdamOptions(options_.ppo.learning_rate)
                                                     .eps(options_.ppo.adam_epsilon));
@@ -489,7 +504,7 @@ CloneStats Trainer::clone(const CloneOptions& c,
         const torch::Tensor idx =
             perm.slice(0, start, std::min<std::int64_t>(start + c.minibatch, m));
         const torch::Tensor diff =
-            model_->forward(train_vec.index_select(0, idx), select(train_img, idx)).mean -
+            model_->forward(train_vec.index_select(0, idx), jitter(select(train_img, idx))).mean -
             train_exp.index_select(0, idx);
         const torch::Tensor loss = diff.pow(2).sum(-1).mean();
         adam.zero_grad();

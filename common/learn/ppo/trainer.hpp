@@ -109,14 +109,20 @@ Gae compute_gae(const std::vector<double>& rewards, const std::vector<double>& v
 /// collected so far by `epochs` passes of mean squared error in shuffled minibatches (Adam at
 /// the PPO learning rate, an optimiser of its own). Every `holdout`-th share of each copy's
 /// episodes is held out: never fitted, only measured. The observation normaliser takes in
-/// every collected observation, and each fit normalises them all alike. Deterministic for
-/// fixed options, as PPO is.
+/// every collected observation, and each fit normalises them all alike. With colour_jitter
+/// j > 0 every image of every training minibatch is fitted with its colours changed (data
+/// augmentation against a camera branch that tells episodes apart by their colours): each
+/// channel scaled by a factor drawn uniformly from [1 - j, 1 + j], then an offset drawn
+/// uniformly from [-128 j, 128 j] added to all channels, clamped to [0, 255]. The held-out
+/// images and the policy's driving in later iterations see the images as rendered.
+/// Deterministic for fixed options, as PPO is.
 struct CloneOptions {
   std::int64_t steps = 0;  // per iteration
   int epochs = 10;         // per iteration
   int minibatch = 256;
   double holdout = 0.2;  // in [0, 1)
   int iterations = 1;
+  double colour_jitter = 0.0;  // in [0, 1); 0: the images as rendered
 };
 
 /// One pass over the cloning data: RMS distance to the expert per action dimension.
