@@ -111,7 +111,7 @@ Gae compute_gae(const std::vector<double>& rewards, const std::vector<double>& v
 /// episodes is held out: never fitted, only measured. The observation normaliser takes in
 /// every collected observation, and each fit normalises them all alike. With colour_jitter
 /// j > 0 every image of every training minibatch is fitted with its colours changed (data
-/// augmentation against a camera branch that tells episodes apart by their colours): each
+/// augmentation): each
 /// channel scaled by a factor drawn uniformly from [1 - j, 1 + j], then an offset drawn
 /// uniformly from [-128 j, 128 j] added to all channels, clamped to [0, 255]. The held-out
 /// images and the policy's driving in later iterations see the images as rendered.
