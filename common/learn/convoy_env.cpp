@@ -70,7 +70,15 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
   so.end_time_s = kConvoyEnvHeartbeatS * options.frames_per_step * (options.max_steps + 100);
   so.seed = seed;
   if (options.random_ground_colour) so.ground_colour = convoy_ground_colour(seed);
+  if (options.friction_min > 0.0) so.friction = convoy_ground_friction(seed, options.friction_min);
   return so;
+}
+
+double convoy_ground_friction(std::uint64_t seed, double friction_min) {
+  constexpr double kRigidFriction = 0.8;
+  std::mt19937_64 rng(seed ^ 0xf41c7104f41c7104ULL);
+  const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  return friction_min + u * (kRigidFriction - friction_min);
 }
 
 std::array<double, 3> convoy_ground_colour(std::uint64_t seed) {
@@ -84,6 +92,16 @@ std::array<double, 3> convoy_ground_colour(std::uint64_t seed) {
     return std::clamp(brightness * ((1.0 - share) * a + share * b), 0.0, 1.0);
   };
   return {mix(grey.r, brown.r), mix(grey.g, brown.g), mix(grey.b, brown.b)};
+}
+
+double convoy_steering_command(const ConvoyEnvOptions& options, std::span<const float> seen,
+                               double action) {
+  if (!options.steering_residual) return action;
+  if (seen.size() <= kFeedforwardIndex) {
+    throw std::invalid_argument("convoy_steering_command: the observation has no feed-forward "
+                                "steering");
+  }
+  return seen[kFeedforwardIndex] + action;
 }
 
 vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brake) {
@@ -156,6 +174,15 @@ ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
   }
   if (options_.teacher_view_camera && !options_.camera) {
     throw std::invalid_argument("ConvoyEnv: teacher_view_camera needs the camera");
+  }
+  if (options_.steering_residual && !has_feedforward(options_.observation)) {
+    throw std::invalid_argument("ConvoyEnv: steering_residual needs an observation with the "
+                                "feed-forward steering (trail_ff, trail_ff_memory)");
+  }
+  if (options_.friction_min != 0.0 &&
+      (options_.terrain != ConvoyTerrain::rigid || !(options_.friction_min > 0.0) ||
+       options_.friction_min > 0.8)) {
+    throw std::invalid_argument("ConvoyEnv: friction_min is for the rigid terrain, in (0, 0.8]");
   }
 }
 
@@ -265,7 +292,9 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
       return base + fps * j < next;
     });
   }
-  return driver_->observations().observation();
+  Observation o = driver_->observations().observation();
+  seen_ = o.vector;
+  return o;
 }
 
 StepResult ConvoyEnv::step(std::span<const float> action) {
@@ -276,8 +305,9 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
                                 " action values, got " + std::to_string(action.size()));
   }
   const double period_s = options_.frames_per_step * scenario_->time.heartbeat_s;
+  const double command = convoy_steering_command(options_, seen_, action[0]);
   const double steering = convoy_lagged_steering(
-      convoy_driver_inputs(driver_->steering(), 0.0).steering, action[0], options_.steer_lag_s,
+      convoy_driver_inputs(driver_->steering(), 0.0).steering, command, options_.steer_lag_s,
       period_s);
   driver_->set_action(steering, action[1], expected > 2 ? action[2] : 0.0);
   for (int f = 0; f < options_.frames_per_step && !collided_; ++f) run_frame();
@@ -285,6 +315,7 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
 
   StepResult r;
   r.observation = driver_->observations().observation();
+  seen_ = r.observation.vector;
   const Vec3 rel = leader_state_.pose.position - follower_state_.pose.position;
   const double distance = std::hypot(rel.x(), rel.y());
   const double heading_diff =
@@ -337,6 +368,8 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
 std::vector<float> ConvoyEnv::expert_action() const {
   if (!driver_) return {};
   std::vector<float> a = driver_->observations().classical_action();
+  // The command minus what the action is added to (0 unless steering_residual).
+  if (!a.empty()) a[0] -= static_cast<float>(convoy_steering_command(options_, seen_, 0.0));
   for (float& v : a) v = std::clamp(v, -1.0f, 1.0f);
   return a;
 }

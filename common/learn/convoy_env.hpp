@@ -9,6 +9,7 @@
 #include <array>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "agents/sensor_agent.hpp"
@@ -65,6 +66,12 @@ struct ConvoyEnvOptions {
   /// constant, applied once per action (convoy_lagged_steering; the policy controller applies
   /// the same); 0: directly.
   double steer_lag_s = 0.0;
+  /// The action's steering is a correction to the estimator's feed-forward steering in the
+  /// observation the policy saw: the command is feedforward_steering + action (clamped);
+  /// the expert's action is its command minus that feed-forward (convoy_steering_command;
+  /// the policy controller applies the same). Needs a kind with the feed-forward (trail_ff,
+  /// trail_ff_memory). Off: the action is the command.
+  bool steering_residual = false;
   int max_steps = 500;             // truncated after this many steps (50 s)
   /// The camera variant renders only the frames an observation will hold (the newest at each
   /// step's end; 1 of the camera's 3 per step at 30 Hz): observations are the same bit for bit
@@ -83,6 +90,12 @@ struct ConvoyEnvOptions {
   /// convoy_ground_colour(seed) (domain randomisation: a policy trained on the grey rigid
   /// ground then sees the soils' brown); physics does not change.
   bool random_ground_colour = false;
+  /// Rigid terrain only, 0: the ground's friction coefficient is 0.8 in every episode. Above 0:
+  /// each episode's is convoy_ground_friction(seed, friction_min), uniform in
+  /// [friction_min, 0.8] (domain randomisation: a policy trained on rigid ground then has seen
+  /// the vehicle slide and run wide in bends, as it does on soil); the rest of the episode's
+  /// draws do not change.
+  double friction_min = 0.0;
   ConvoyRewardParams reward;
   ConvoyEpisodeOptions episode;
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
@@ -97,6 +110,10 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
 /// [0, 1], times a brightness uniform in [0.7, 1.3], from a stream of its own.
 std::array<double, 3> convoy_ground_colour(std::uint64_t seed);
 
+/// The rigid ground's friction coefficient of episode `seed` with friction_min above 0:
+/// uniform in [friction_min, 0.8], from a stream of its own.
+double convoy_ground_friction(std::uint64_t seed, double friction_min);
+
 /// The driver inputs of a convoy action: steering in [-1, 1] (positive left) and one
 /// throttle/brake value in [-1, 1] (positive throttle, negative brake), clamped; NaN is 0
 /// (straight ahead, coasting).
@@ -106,6 +123,12 @@ vehicle::DriverInputs convoy_driver_inputs(double steering, double throttle_brak
 /// applied for the last period_s): the clamped action (NaN as 0) without a lag (lag_s <= 0),
 /// else previous + (1 - exp(-period_s / lag_s)) (clamped action - previous).
 double convoy_lagged_steering(double previous, double action, double lag_s, double period_s);
+
+/// The steering command of a convoy action's steering `action` given the observation vector
+/// the policy saw: the action itself, or with options.steering_residual the observation's
+/// feed-forward steering plus it (unclamped: convoy_lagged_steering clamps).
+double convoy_steering_command(const ConvoyEnvOptions& options, std::span<const float> seen,
+                               double action);
 
 /// A hand-written follower on the convoy observation (the baseline a learned policy has to
 /// beat): steer toward the leader (2 x its bearing off the nose), pedal by the gap to the
@@ -171,6 +194,8 @@ class ConvoyEnv final : public Env {
   /// Ground truth of the last frame (valid after reset).
   const proto::VehicleStateMsg& follower_state() const { return follower_state_; }
   const proto::VehicleStateMsg& leader_state() const { return leader_state_; }
+  /// The steering the last step applied (after the residual, the clamp and the lag).
+  double applied_steering() const { return last_steering_; }
   /// Camera frames the follower's rig has made this episode (0 without a camera).
   std::uint64_t camera_frames() const { return sensor_ ? sensor_->frames_rendered() : 0; }
 
@@ -187,6 +212,7 @@ class ConvoyEnv final : public Env {
   proto::VehicleStateMsg leader_state_;
   proto::VehicleStateMsg head_state_;  // chained episodes: the leader's leader
   double last_steering_ = 0.0;  // the previous step's (clamped) steering
+  std::vector<float> seen_;     // the vector of the observation returned last
   bool collided_ = false;
   bool leader_contact_ = false;  // the collision was with the leader
   int steps_ = 0;

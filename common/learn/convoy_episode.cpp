@@ -303,7 +303,7 @@ std::string convoy_scenario_yaml(const ConvoyEpisode& e, const ConvoyScenarioOpt
   y << "world: {x_min_m: " << num(e.world_min.x()) << ", x_max_m: " << num(e.world_max.x())
     << ", y_min_m: " << num(e.world_min.y()) << ", y_max_m: " << num(e.world_max.y()) << "}\n";
   if (o.terrain == ConvoyTerrain::rigid) {
-    y << "terrain: {type: rigid, friction: 0.8";
+    y << "terrain: {type: rigid, friction: " << num(o.friction);
     if (o.ground_colour) {
       y << ", colour: [" << num((*o.ground_colour)[0]) << ", " << num((*o.ground_colour)[1])
         << ", " << num((*o.ground_colour)[2]) << "]";

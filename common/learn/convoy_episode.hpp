@@ -123,6 +123,8 @@ struct ConvoyScenarioOptions {
   std::uint64_t seed = 1;         // the scenario seed (sensor noise, ...)
   /// Rigid terrain: the ground's colour in the camera (scenario terrain.colour); unset: grey.
   std::optional<std::array<double, 3>> ground_colour;
+  /// Rigid terrain: the ground's Coulomb friction coefficient (scenario terrain.friction).
+  double friction = 0.8;
 };
 
 inline constexpr const char* kConvoyLeaderId = "leader";

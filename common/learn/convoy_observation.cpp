@@ -103,6 +103,10 @@ ConvoyObservationBuilder::ConvoyObservationBuilder(ConvoyObservationConfig confi
   }
 }
 
+bool has_feedforward(ConvoyObservationKind kind) {
+  return kind == ConvoyObservationKind::trail_ff || has_memory(kind);
+}
+
 Box ConvoyObservationBuilder::vector_space(ConvoyObservationKind kind) {
   if (observes_trail(kind)) {
     Box b{{-50.0f, -1.0f, -1.0f, -1.0f, -1.0f, -1.0f, -5.0f, -5.0f, -20.0f, -200.0f, -200.0f,
@@ -111,7 +115,7 @@ Box ConvoyObservationBuilder::vector_space(ConvoyObservationKind kind) {
           {"cross_track_m", "heading_error_sin", "heading_error_cos", "curvature_0m_per_m",
            "curvature_5m_per_m", "curvature_10m_per_m", "speed_mps", "leader_speed_mps",
            "leader_accel_mps2", "gap_m", "leader_forward_m", "leader_left_m"}};
-    if (kind == ConvoyObservationKind::trail_ff || has_memory(kind)) {
+    if (has_feedforward(kind)) {
       b.low.push_back(-1.0f);
       b.high.push_back(1.0f);
       b.names.push_back("feedforward_steering");

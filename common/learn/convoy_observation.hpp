@@ -46,6 +46,10 @@ bool has_memory(ConvoyObservationKind kind);
 Box convoy_action_space(ConvoyObservationKind kind);
 /// std::invalid_argument naming `name` if it is none of them.
 ConvoyObservationKind parse_observation_kind(const std::string& name);
+/// Whether a kind's vector has the estimator's feed-forward steering (trail_ff,
+/// trail_ff_memory), and where: kFeedforwardIndex.
+bool has_feedforward(ConvoyObservationKind kind);
+inline constexpr std::size_t kFeedforwardIndex = 12;
 
 struct ConvoyObservationConfig {
   ConvoyObservationKind kind = ConvoyObservationKind::paper;

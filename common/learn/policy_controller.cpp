@@ -124,8 +124,10 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
                                  proto::FrameSamples& outputs) {
   // The observation as it stood after the previous frame (as the environment returns it).
   if (builder_.ready() && (actions_ == 0 || since_action_ >= period_frames_)) {
-    const std::vector<float> a = policy_.act(builder_.observation(), true);
-    steering_ = convoy_lagged_steering(convoy_driver_inputs(steering_, 0.0).steering, a[0],
+    const Observation seen = builder_.observation();
+    const std::vector<float> a = policy_.act(seen, true);
+    steering_ = convoy_lagged_steering(convoy_driver_inputs(steering_, 0.0).steering,
+                                       convoy_steering_command(trained_, seen.vector, a[0]),
                                        trained_.steer_lag_s, action_period_s_);
     throttle_brake_ = a[1];
     builder_.note_action(steering_, throttle_brake_, a.size() > 2 ? a[2] : 0.0);

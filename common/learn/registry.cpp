@@ -104,11 +104,13 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
                       : ConvoyRewardKind::paper;
   o.reward.steer_change = r.number("steer_change", 0.0, 0.0, 10.0);
   o.steer_lag_s = r.number("steer_lag", 0.0, 0.0, 10.0);
+  o.steering_residual = r.choice("steering", "command", {"command", "residual"}) == "residual";
   o.episode.leader_wobble_m = r.number("leader_wobble", 0.0, 0.0, 2.0);
   o.episode.chain_fraction = r.number("chain", 0.0, 0.0, 1.0);
   o.teacher_keep_clear_m = r.number("teacher_keep_clear", 0.0, 0.0, 10.0);
   o.teacher_view_camera = r.choice("teacher_view", "map", {"map", "camera"}) == "camera";
   o.random_ground_colour = r.choice("ground_colour", "fixed", {"fixed", "random"}) == "random";
+  o.friction_min = r.number("friction_min", 0.0, 0.0, 0.8);
   o.episode.kind = parse_episode_kind(r.choice("episodes", "paper", {"paper", "courses", "mixed"}));
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
   o.target_speed_max_mps = r.number("target_speed_max", 0.0, 0.0, 20.0);
@@ -119,6 +121,15 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   if (o.random_ground_colour && o.terrain != ConvoyTerrain::rigid) {
     throw std::invalid_argument("environment convoy_follow, option ground_colour: random is for "
                                 "terrain=rigid (the soils keep their own look)");
+  }
+  if (o.friction_min > 0.0 && o.terrain != ConvoyTerrain::rigid) {
+    throw std::invalid_argument("environment convoy_follow, option friction_min: is for "
+                                "terrain=rigid (the soils have their own shear strength)");
+  }
+  if (o.steering_residual && !has_feedforward(o.observation)) {
+    throw std::invalid_argument("environment convoy_follow, option steering: residual needs an "
+                                "observation with the feed-forward steering (trail_ff, "
+                                "trail_ff_memory)");
   }
   if (o.teacher_view_camera && !o.camera) {
     throw std::invalid_argument("environment convoy_follow, option teacher_view: camera needs "

@@ -815,6 +815,124 @@ TEST(ConvoyEnv, ARandomGroundColourChangesTheImageNotThePhysics) {
   EXPECT_THROW(ConvoyEnv{soft}, std::invalid_argument);
 }
 
+// Random ground friction: each episode's rigid ground has a friction coefficient of its own in
+// [friction_min, 0.8], drawn from the seed and written into the episode's scenario; the same
+// actions then drive a different course (the tires' grip changes), while the episode's other
+// draws (the paths, the obstacles, the leader's speed) do not.
+TEST(ConvoyEnv, ARandomGroundFrictionChangesTheGripNotTheEpisode) {
+  double lowest = 1.0, highest = 0.0;
+  for (std::uint64_t seed = 1; seed <= 50; ++seed) {
+    const double mu = convoy_ground_friction(seed, 0.45);
+    EXPECT_EQ(mu, convoy_ground_friction(seed, 0.45));
+    EXPECT_GE(mu, 0.45);
+    EXPECT_LE(mu, 0.8);
+    lowest = std::min(lowest, mu);
+    highest = std::max(highest, mu);
+  }
+  EXPECT_LT(lowest, 0.5);   // 50 uniform draws span the range
+  EXPECT_GT(highest, 0.75);
+
+  ConvoyEnvOptions o = test_options();
+  o.dynamics = ConvoyDynamics::full;
+  ConvoyEnvOptions slippery = o;
+  slippery.friction_min = 0.3;
+  const std::uint64_t seed = 5;
+  const ConvoyScenarioOptions plain_so = convoy_scenario_options(o, seed);
+  const ConvoyScenarioOptions slippery_so = convoy_scenario_options(slippery, seed);
+  EXPECT_EQ(plain_so.friction, 0.8);
+  EXPECT_EQ(slippery_so.friction, convoy_ground_friction(seed, 0.3));
+  EXPECT_EQ(plain_so.target_speed_mps, slippery_so.target_speed_mps);
+  const ConvoyEpisode e = make_convoy_episode(seed, o.episode);
+  const std::string plain_yaml = convoy_scenario_yaml(e, plain_so);
+  EXPECT_NE(plain_yaml.find("terrain: {type: rigid, friction: 0.8}"), std::string::npos);
+  const std::string slippery_yaml = convoy_scenario_yaml(e, slippery_so);
+  EXPECT_EQ(slippery_yaml.find("friction: 0.8}"), std::string::npos);
+  EXPECT_NE(slippery_yaml.find("terrain: {type: rigid, friction: 0."), std::string::npos);
+
+  // The same actions (straight, then full lock) drive differently on less grip.
+  ConvoyEnv plain(o), env(slippery);
+  Observation a = plain.reset(seed), b = env.reset(seed);
+  ASSERT_EQ(a.vector.size(), b.vector.size());
+  for (std::size_t i = 0; i < a.vector.size(); ++i) {
+    EXPECT_NEAR(a.vector[i], b.vector[i], 1e-3) << i;  // the start differs only by settling
+  }
+  bool differ = false;
+  for (int k = 0; k < 60 && !differ; ++k) {
+    const std::vector<float> action = {k < 20 ? 0.0f : 1.0f, 0.6f};
+    const StepResult ra = plain.step(action), rb = env.step(action);
+    for (std::size_t i = 0; i < ra.observation.vector.size(); ++i) {
+      differ = differ || std::abs(ra.observation.vector[i] - rb.observation.vector[i]) > 0.05;
+    }
+    if (ra.terminated || ra.truncated || rb.terminated || rb.truncated) break;
+  }
+  EXPECT_TRUE(differ);
+
+  ConvoyEnvOptions soft = slippery;
+  soft.terrain = ConvoyTerrain::scm_soft;
+  EXPECT_THROW(ConvoyEnv{soft}, std::invalid_argument);
+  ConvoyEnvOptions too_high = o;
+  too_high.friction_min = 0.9;
+  EXPECT_THROW(ConvoyEnv{too_high}, std::invalid_argument);
+}
+
+// Residual steering: the action is added to the feed-forward steering of the observation the
+// policy saw. The expert's action is its command minus that feed-forward, so the expert drives
+// the same episode in both forms; a policy of 0 steers by the feed-forward alone.
+TEST(ConvoyEnv, ResidualSteeringAddsTheActionToTheFeedforward) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail_ff;
+  ConvoyEnvOptions r = o;
+  r.steering_residual = true;
+  ASSERT_EQ(ConvoyObservationBuilder::vector_space(o.observation).names.at(kFeedforwardIndex),
+            "feedforward_steering");
+  const std::vector<float> seen(13, 0.25f);
+  EXPECT_EQ(convoy_steering_command(o, seen, 0.5), 0.5);
+  EXPECT_EQ(convoy_steering_command(r, seen, 0.5), 0.75);
+
+  const std::uint64_t seed = 7;
+  ConvoyEnv plain(o), residual(r);
+  Observation a = plain.reset(seed), b = residual.reset(seed);
+  double largest_feedforward = 0.0, largest_gap = 0.0;
+  for (int k = 0; k < 150; ++k) {
+    const std::vector<float> ea = plain.expert_action(), eb = residual.expert_action();
+    for (std::size_t i = 0; i < a.vector.size(); ++i) {
+      ASSERT_NEAR(a.vector[i], b.vector[i], 1e-3 * (1.0 + std::abs(a.vector[i])))
+          << "step " << k << ", " << i;
+    }
+    const float ff = b.vector[kFeedforwardIndex];
+    largest_feedforward = std::max(largest_feedforward, std::abs(static_cast<double>(ff)));
+    EXPECT_NEAR(eb[0], std::clamp(ea[0] - ff, -1.0f, 1.0f), 1e-6) << "step " << k;
+    EXPECT_NEAR(eb[1], ea[1], 1e-3);
+    // The residual env applies ff + (command - ff), the plain one the command: the same to a
+    // float's rounding, which a stable follower does not amplify.
+    largest_gap = std::max(largest_gap, std::abs(static_cast<double>(ff) + eb[0] - ea[0]));
+    const StepResult ra = plain.step(ea);
+    const StepResult rb = residual.step(eb);
+    ASSERT_EQ(ra.terminated, rb.terminated);
+    a = ra.observation;
+    b = rb.observation;
+    if (ra.terminated || ra.truncated) break;
+  }
+  std::printf("largest |feed-forward| %.3f, |ff + residual - command| %.2e\n", largest_feedforward,
+              largest_gap);
+  EXPECT_GT(largest_feedforward, 0.05);  // the episode has bends
+
+  // A policy of 0 steers by the feed-forward alone (no lag: the applied steering is it).
+  ConvoyEnv zero(r);
+  Observation z = zero.reset(seed);
+  for (int k = 0; k < 30; ++k) {
+    const float ff = z.vector[kFeedforwardIndex];
+    const StepResult rz = zero.step(std::vector<float>{0.0f, 0.3f});
+    EXPECT_EQ(zero.applied_steering(), std::clamp(static_cast<double>(ff), -1.0, 1.0));
+    z = rz.observation;
+    if (rz.terminated || rz.truncated) break;
+  }
+
+  ConvoyEnvOptions no_feedforward = r;
+  no_feedforward.observation = ConvoyObservationKind::trail;
+  EXPECT_THROW(ConvoyEnv{no_feedforward}, std::invalid_argument);
+}
+
 // The steering lag: none gives the clamped action (NaN as 0); a lag of tau moves the applied
 // steering 1 - exp(-T / tau) of the way to the clamped action per period T.
 TEST(ConvoyEnv, SteeringLagIsFirstOrderPerAction) {

@@ -71,6 +71,9 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
     env_options += (env_options.empty() ? "" : " ") + std::string("steer_lag=") +
                    std::to_string(options.steer_lag_s);
   }
+  if (options.steering_residual) {
+    env_options += (env_options.empty() ? "" : " ") + std::string("steering=residual");
+  }
   if (options.frames_per_step != ConvoyEnvOptions{}.frames_per_step) {
     env_options += (env_options.empty() ? "" : " ") + std::string("frames_per_step=") +
                    std::to_string(options.frames_per_step);
@@ -213,6 +216,14 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironmentOnTheMemoryObservation) {
 // metadata), and its observation holds the lagged steering, as in the environment.
 TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithASteeringLag) {
   drives_exactly_as_in_the_environment(trained_with(ConvoyObservationKind::trail_action, 0.25));
+}
+
+// A policy whose steering corrects the feed-forward (steering=residual): the controller adds
+// the feed-forward of the observation the policy saw, as the environment does.
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithResidualSteering) {
+  ConvoyEnvOptions options = trained_with(ConvoyObservationKind::trail_ff);
+  options.steering_residual = true;
+  drives_exactly_as_in_the_environment(options);
 }
 
 // A policy trained at 20 Hz (frames_per_step 5): with no controller.period_s the controller

@@ -56,6 +56,11 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_TRUE(convoy_env_options({{"ground_colour", "random"}}).random_ground_colour);
   EXPECT_FALSE(convoy_env_options({{"ground_colour", "fixed"}}).random_ground_colour);
   EXPECT_FALSE(convoy_env_options({}).random_ground_colour);
+  EXPECT_EQ(convoy_env_options({{"friction_min", "0.45"}}).friction_min, 0.45);
+  EXPECT_EQ(convoy_env_options({}).friction_min, 0.0);
+  EXPECT_TRUE(convoy_env_options({{"steering", "residual"}, {"observation", "trail_ff"}})
+                  .steering_residual);
+  EXPECT_FALSE(convoy_env_options({}).steering_residual);
 }
 
 TEST(Registry, MistakesAreNamed) {
@@ -89,6 +94,15 @@ TEST(Registry, MistakesAreNamed) {
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"ground_colour", "random"}, {"terrain", "scm_soft"}})
                 .find("option ground_colour: random is for terrain=rigid"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"friction_min", "0.9"}})
+                .find("option friction_min: '0.9' is outside"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"friction_min", "0.5"}, {"terrain", "scm_hard"}})
+                .find("option friction_min: is for terrain=rigid"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"steering", "residual"}, {"observation", "trail"}})
+                .find("option steering: residual needs an observation with the feed-forward"),
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"teacher_view", "camera"}})
                 .find("option teacher_view: camera needs camera=true"),
