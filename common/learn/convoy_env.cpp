@@ -74,6 +74,11 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
   return so;
 }
 
+double convoy_start_hold(std::uint64_t seed, double hold_max_s) {
+  std::mt19937_64 rng(seed ^ 0x401d401d401d401dULL);
+  return hold_max_s * (static_cast<double>(rng() >> 11) * 0x1.0p-53);
+}
+
 double convoy_ground_friction(std::uint64_t seed, double friction_min) {
   constexpr double kRigidFriction = 0.8;
   std::mt19937_64 rng(seed ^ 0xf41c7104f41c7104ULL);
@@ -276,6 +281,12 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
                                std::to_string(k) + " frames");
     }
     run_frame();
+  }
+  // start_hold_max_s: the leader drives off while the follower waits, braked, on its trail.
+  if (options_.start_hold_max_s > 0.0) {
+    const auto hold_frames = static_cast<std::int64_t>(std::llround(
+        convoy_start_hold(seed, options_.start_hold_max_s) / scenario_->time.heartbeat_s));
+    for (std::int64_t k = 0; k < hold_frames && !collided_; ++k) run_frame();
   }
   running_ = true;
   if (sensor_ && options_.render_only_observed) {

@@ -96,6 +96,11 @@ struct ConvoyEnvOptions {
   /// the vehicle slide and run wide in bends, as it does on soil); the rest of the episode's
   /// draws do not change.
   double friction_min = 0.0;
+  /// Above 0: after the observation is ready, the follower waits, braked, for
+  /// convoy_start_hold(seed, start_hold_max_s) (uniform in [0, start_hold_max_s]) while the
+  /// leader drives off, so that the episode starts with the leader further ahead on a trail it
+  /// has laid (as when soil holds a follower back: gaps of 15-40 m instead of 5-11 m).
+  double start_hold_max_s = 0.0;
   ConvoyRewardParams reward;
   ConvoyEpisodeOptions episode;
   std::string config_dir;          // vehicle files and rigs; empty: scenario::default_config_dir()
@@ -113,6 +118,10 @@ std::array<double, 3> convoy_ground_colour(std::uint64_t seed);
 /// The rigid ground's friction coefficient of episode `seed` with friction_min above 0:
 /// uniform in [friction_min, 0.8], from a stream of its own.
 double convoy_ground_friction(std::uint64_t seed, double friction_min);
+
+/// The start hold of episode `seed` with start_hold_max_s above 0: uniform in
+/// [0, hold_max_s], from a stream of its own.
+double convoy_start_hold(std::uint64_t seed, double hold_max_s);
 
 /// The driver inputs of a convoy action: steering in [-1, 1] (positive left) and one
 /// throttle/brake value in [-1, 1] (positive throttle, negative brake), clamped; NaN is 0

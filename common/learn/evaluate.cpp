@@ -8,7 +8,7 @@
 namespace syndds::learn {
 
 EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t first_seed,
-                           int episodes, int max_steps) {
+                           int episodes, int max_steps, const StepTrace& trace) {
   if (episodes < 1) throw std::invalid_argument("evaluate: episodes must be >= 1");
   EvaluationSummary s;
   std::map<std::string, double> info_sum;
@@ -36,6 +36,7 @@ EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t
         }
       }
       const StepResult r = env.step(a);
+      if (trace) trace(e.seed, e.steps, o, a, teacher, r);
       ++e.steps;
       e.total_reward += r.reward;
       for (const auto& [key, v] : r.info) info_sum[key] += v;

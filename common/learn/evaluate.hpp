@@ -42,10 +42,17 @@ struct EvaluationSummary {
   std::map<std::string, TeacherDistance> to_teacher;
 };
 
+/// One step of an evaluation as it happened: the episode's seed, the step's index (from 0), the
+/// observation the policy acted on, its action, the expert's action in that state (empty
+/// without an expert) and what the step returned.
+using StepTrace = std::function<void(std::uint64_t seed, int step, const Observation& seen,
+                                     const std::vector<float>& action,
+                                     const std::vector<float>& teacher, const StepResult& result)>;
+
 /// Runs `episodes` episodes seeded first_seed, first_seed + 1, ..., each to its end or
-/// `max_steps`, with `policy` choosing the actions.
+/// `max_steps`, with `policy` choosing the actions; `trace`, if given, sees every step.
 EvaluationSummary evaluate(Env& env, const PolicyFunction& policy, std::uint64_t first_seed,
-                           int episodes, int max_steps = 100000);
+                           int episodes, int max_steps = 100000, const StepTrace& trace = {});
 
 /// Uniform random actions in the action box, from a generator seeded with `seed`.
 PolicyFunction random_policy(const Box& actions, std::uint64_t seed);

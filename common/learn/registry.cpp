@@ -111,6 +111,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.teacher_view_camera = r.choice("teacher_view", "map", {"map", "camera"}) == "camera";
   o.random_ground_colour = r.choice("ground_colour", "fixed", {"fixed", "random"}) == "random";
   o.friction_min = r.number("friction_min", 0.0, 0.0, 0.8);
+  o.start_hold_max_s = r.number("start_hold_max", 0.0, 0.0, 30.0);
   o.episode.kind = parse_episode_kind(r.choice("episodes", "paper", {"paper", "courses", "mixed"}));
   o.target_speed_mps = r.number("target_speed", o.target_speed_mps, 0.5, 20.0);
   o.target_speed_max_mps = r.number("target_speed_max", 0.0, 0.0, 20.0);

@@ -3,7 +3,7 @@
 // environment's expert, and for convoy_follow the hand-written follower), each over the same
 // episode seeds. Prints one row per policy (mean and spread of the return, episode length,
 // episodes ended by the environment, the step-mean of the environment's info numbers) and
-// optionally writes a CSV.
+// optionally writes a CSV, and with --trace every step of every episode.
 #include <ATen/Parallel.h>
 #include <CLI/CLI.hpp>
 
@@ -38,6 +38,10 @@ int main(int argc, char** argv) {
   app.add_option("--first-seed", first_seed, "Seed of the first episode (then +1, +2, ...)")
       ->capture_default_str();
   app.add_option("--csv", csv, "Also write the rows to this CSV file");
+  std::string trace_file;
+  app.add_option("--trace", trace_file,
+                 "Also write every step to this CSV file: policy, seed, step, the observation "
+                 "vector, the action, the expert's action (teacher_*), the reward and the info");
   CLI11_PARSE(app, argc, argv);
   if (policies.empty() && baselines.empty()) {
     std::cerr << "syndds_evaluate: give at least one --policy or --baseline\n";
@@ -108,9 +112,56 @@ int main(int argc, char** argv) {
       }
       out << "policy,episodes,first_seed,mean_return,std_return,mean_steps,terminated";
     }
+    std::ofstream trace_out;
+    bool trace_header = false;
+    if (!trace_file.empty()) {
+      trace_out.open(trace_file);
+      if (!trace_out) {
+        std::cerr << "syndds_evaluate: --trace " << trace_file << ": cannot write\n";
+        return 1;
+      }
+    }
+    const learn::Box action_space = env->action_space();
+    const learn::Box observation_vector = env->observation_space().vector;
+    const auto name_of = [](const learn::Box& box, std::size_t i, const char* fallback) {
+      return i < box.names.size() ? box.names[i] : fallback + std::to_string(i);
+    };
     bool header = false;
     for (const auto& e : entries) {
-      const auto s = learn::evaluate(*env, e.act, first_seed, episodes);
+      learn::StepTrace trace;
+      if (trace_out.is_open()) {
+        trace = [&](std::uint64_t seed, int step, const learn::Observation& seen,
+                    const std::vector<float>& action, const std::vector<float>& teacher,
+                    const learn::StepResult& r) {
+          if (!trace_header) {
+            trace_out << "policy,seed,step";
+            for (std::size_t i = 0; i < seen.vector.size(); ++i) {
+              trace_out << "," << name_of(observation_vector, i, "observation_");
+            }
+            for (std::size_t i = 0; i < action.size(); ++i) {
+              trace_out << "," << name_of(action_space, i, "action_");
+            }
+            for (std::size_t i = 0; i < action.size(); ++i) {
+              trace_out << ",teacher_" << name_of(action_space, i, "action_");
+            }
+            trace_out << ",reward";
+            for (const auto& [k, v] : r.info) trace_out << "," << k;
+            trace_out << "\n";
+            trace_header = true;
+          }
+          trace_out << e.name << "," << seed << "," << step;
+          for (float v : seen.vector) trace_out << "," << v;
+          for (float v : action) trace_out << "," << v;
+          for (std::size_t i = 0; i < action.size(); ++i) {
+            trace_out << ",";
+            if (i < teacher.size()) trace_out << teacher[i];
+          }
+          trace_out << "," << r.reward;
+          for (const auto& [k, v] : r.info) trace_out << "," << v;
+          trace_out << "\n";
+        };
+      }
+      const auto s = learn::evaluate(*env, e.act, first_seed, episodes, 100000, trace);
       if (!header) {
         std::printf("%-40s %10s %8s %8s %10s", "policy", "return", "std", "steps", "terminated");
         for (const auto& [k, v] : s.mean_info) std::printf(" %16s", k.c_str());

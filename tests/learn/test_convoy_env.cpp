@@ -933,6 +933,49 @@ TEST(ConvoyEnv, ResidualSteeringAddsTheActionToTheFeedforward) {
   EXPECT_THROW(ConvoyEnv{no_feedforward}, std::invalid_argument);
 }
 
+// A start hold: the leader drives off on its path while the follower waits, braked, so the
+// first observation has the leader further ahead on a trail it has laid, the follower where
+// it started; the expert then closes the gap (at full throttle) without leaving its trail.
+TEST(ConvoyEnv, AStartHoldLetsTheLeaderDriveOff) {
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const double h = convoy_start_hold(seed, 8.0);
+    EXPECT_EQ(h, convoy_start_hold(seed, 8.0));
+    EXPECT_GE(h, 0.0);
+    EXPECT_LE(h, 8.0);
+  }
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail_ff;
+  o.target_speed_mps = 4.0;
+  ConvoyEnvOptions held = o;
+  held.start_hold_max_s = 8.0;
+  std::uint64_t seed = 1;
+  while (convoy_start_hold(seed, 8.0) < 6.0) ++seed;  // a long hold
+  ConvoyEnv plain(o), env(held);
+  const Observation a = plain.reset(seed), b = env.reset(seed);
+  const std::size_t gap = 9;  // gap_m
+  ASSERT_EQ(ConvoyObservationBuilder::vector_space(o.observation).names.at(gap), "gap_m");
+  std::printf("hold %.2f s: gap %.1f m without, %.1f m with\n", convoy_start_hold(seed, 8.0),
+              a.vector[gap], b.vector[gap]);
+  EXPECT_GT(b.vector[gap], a.vector[gap] + 10.0);
+  EXPECT_LT((plain.follower_state().pose.position - env.follower_state().pose.position).norm(),
+            0.05);
+  double largest_cross_track = 0.0, largest_throttle = 0.0, last_gap = b.vector[gap];
+  for (int k = 0; k < 150; ++k) {
+    const std::vector<float> e = env.expert_action();
+    largest_throttle = std::max(largest_throttle, static_cast<double>(e[1]));
+    const StepResult r = env.step(e);
+    ASSERT_FALSE(r.terminated) << "step " << k;
+    largest_cross_track = std::max(largest_cross_track, std::abs(static_cast<double>(r.observation.vector[0])));
+    last_gap = r.observation.vector[gap];
+    if (r.truncated) break;
+  }
+  std::printf("expert: largest throttle %.2f, largest |cross-track| %.2f m, gap after 15 s %.1f m\n",
+              largest_throttle, largest_cross_track, last_gap);
+  EXPECT_GT(largest_throttle, 0.9);
+  EXPECT_LT(largest_cross_track, 1.0);
+  EXPECT_LT(last_gap, b.vector[gap] - 5.0);
+}
+
 // The steering lag: none gives the clamped action (NaN as 0); a lag of tau moves the applied
 // steering 1 - exp(-T / tau) of the way to the clamped action per period T.
 TEST(ConvoyEnv, SteeringLagIsFirstOrderPerAction) {

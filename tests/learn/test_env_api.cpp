@@ -167,6 +167,33 @@ TEST(Evaluate, TheDistanceToTheTeacherPerAction) {
   EXPECT_TRUE(evaluate(plain, zero_policy(plain.action_space()), 40, 1).to_teacher.empty());
 }
 
+// The trace sees every step in order: the episode's seed, the step's index, the action, the
+// teacher's action in the state the policy acted on, and what the step returned.
+TEST(Evaluate, TheTraceSeesEveryStep) {
+  HalfTaught env;
+  std::vector<std::pair<std::uint64_t, int>> steps;
+  double rewards = 0.0;
+  int taught = 0;
+  const EvaluationSummary s = evaluate(
+      env, zero_policy(env.action_space()), 40, 2, 100000,
+      [&](std::uint64_t seed, int step, const Observation& seen, const std::vector<float>& action,
+          const std::vector<float>& teacher, const StepResult& r) {
+        steps.emplace_back(seed, step);
+        EXPECT_EQ(seen.vector.size(), 2u);
+        EXPECT_EQ(action, std::vector<float>{0.0f});
+        ASSERT_EQ(teacher.size(), 1u);
+        EXPECT_EQ(teacher[0], step % 2 ? 0.5f : 0.0f);  // the expert before this step
+        taught += teacher[0] != 0.0f ? 1 : 0;
+        rewards += r.reward;
+      });
+  ASSERT_EQ(steps.size(), 200u);
+  EXPECT_EQ(steps.front(), std::make_pair(std::uint64_t{40}, 0));
+  EXPECT_EQ(steps[100], std::make_pair(std::uint64_t{41}, 0));
+  EXPECT_EQ(steps.back(), std::make_pair(std::uint64_t{41}, 99));
+  EXPECT_EQ(taught, 100);
+  EXPECT_NEAR(rewards, s.episodes[0].total_reward + s.episodes[1].total_reward, 1e-9);
+}
+
 TEST(Evaluate, EpisodesWithConsecutiveSeedsAndTheirStatistics) {
   DoubleIntegrator env;
   const auto zero = zero_policy(env.action_space());

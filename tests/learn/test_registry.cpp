@@ -61,6 +61,8 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_TRUE(convoy_env_options({{"steering", "residual"}, {"observation", "trail_ff"}})
                   .steering_residual);
   EXPECT_FALSE(convoy_env_options({}).steering_residual);
+  EXPECT_EQ(convoy_env_options({{"start_hold_max", "8"}}).start_hold_max_s, 8.0);
+  EXPECT_EQ(convoy_env_options({}).start_hold_max_s, 0.0);
 }
 
 TEST(Registry, MistakesAreNamed) {
