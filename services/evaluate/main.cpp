@@ -41,7 +41,8 @@ int main(int argc, char** argv) {
   std::string trace_file;
   app.add_option("--trace", trace_file,
                  "Also write every step to this CSV file: policy, seed, step, the observation "
-                 "vector, the action, the expert's action (teacher_*), the reward and the info");
+                 "vector, the action, the expert's action (teacher_*), the reward and the info "
+                 "numbers (info_*)");
   CLI11_PARSE(app, argc, argv);
   if (policies.empty() && baselines.empty()) {
     std::cerr << "syndds_evaluate: give at least one --policy or --baseline\n";
@@ -120,6 +121,7 @@ int main(int argc, char** argv) {
         std::cerr << "syndds_evaluate: --trace " << trace_file << ": cannot write\n";
         return 1;
       }
+      trace_out.precision(9);  // a float's every digit
     }
     const learn::Box action_space = env->action_space();
     const learn::Box observation_vector = env->observation_space().vector;
@@ -145,7 +147,7 @@ int main(int argc, char** argv) {
               trace_out << ",teacher_" << name_of(action_space, i, "action_");
             }
             trace_out << ",reward";
-            for (const auto& [k, v] : r.info) trace_out << "," << k;
+            for (const auto& [k, v] : r.info) trace_out << ",info_" << k;
             trace_out << "\n";
             trace_header = true;
           }
