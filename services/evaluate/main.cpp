@@ -91,6 +91,13 @@ int main(int argc, char** argv) {
           std::cerr << "syndds_evaluate: --baseline heuristic: only for convoy_follow\n";
           return 1;
         }
+        const auto options = learn::parse_env_options(env_option_args);
+        if (const auto it = options.find("steering");
+            it != options.end() && it->second == "residual") {
+          std::cerr << "syndds_evaluate: --baseline heuristic: its steering is a command, not a "
+                       "correction to the feed-forward (steering=residual)\n";
+          return 1;
+        }
         entries.push_back({"heuristic", learn::convoy_heuristic_action});
       }
       if (b == "expert") {
