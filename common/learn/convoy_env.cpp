@@ -27,6 +27,14 @@ bool footprint_hits(const proto::VehicleStateMsg& state, const vehicle::ChassisP
   return dx * dx + dy * dy < ob.radius_m * ob.radius_m;
 }
 
+// The first uniform draw in [0, 1) of episode `seed`'s stream `stream`: each per-episode draw
+// of the options has a stream of its own, so that adding one changes none of the others (nor
+// those of make_convoy_episode).
+double episode_uniform(std::uint64_t seed, std::uint64_t stream) {
+  std::mt19937_64 rng(seed ^ stream);
+  return static_cast<double>(rng() >> 11) * 0x1.0p-53;
+}
+
 }  // namespace
 
 double convoy_reward(double distance_m, double heading_diff_rad, const ConvoyRewardParams& p) {
@@ -61,9 +69,7 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
   so.camera = options.camera;
   so.target_speed_mps = options.target_speed_mps;
   if (options.target_speed_max_mps > options.target_speed_mps) {
-    // A stream of its own, so that the episode's other draws stay those of make_convoy_episode.
-    std::mt19937_64 rng(seed ^ 0x5eed5eed5eed5eedULL);
-    const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+    const double u = episode_uniform(seed, 0x5eed5eed5eed5eedULL);
     so.target_speed_mps = options.target_speed_mps +
                           u * (options.target_speed_max_mps - options.target_speed_mps);
   }
@@ -75,15 +81,13 @@ ConvoyScenarioOptions convoy_scenario_options(const ConvoyEnvOptions& options, s
 }
 
 double convoy_start_hold(std::uint64_t seed, double hold_max_s) {
-  std::mt19937_64 rng(seed ^ 0x401d401d401d401dULL);
-  return hold_max_s * (static_cast<double>(rng() >> 11) * 0x1.0p-53);
+  return hold_max_s * episode_uniform(seed, 0x401d401d401d401dULL);
 }
 
 double convoy_ground_friction(std::uint64_t seed, double friction_min) {
   constexpr double kRigidFriction = 0.8;
-  std::mt19937_64 rng(seed ^ 0xf41c7104f41c7104ULL);
-  const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;
-  return friction_min + u * (kRigidFriction - friction_min);
+  return friction_min +
+         episode_uniform(seed, 0xf41c7104f41c7104ULL) * (kRigidFriction - friction_min);
 }
 
 std::array<double, 3> convoy_ground_colour(std::uint64_t seed) {

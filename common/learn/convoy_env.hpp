@@ -92,9 +92,8 @@ struct ConvoyEnvOptions {
   bool random_ground_colour = false;
   /// Rigid terrain only, 0: the ground's friction coefficient is 0.8 in every episode. Above 0:
   /// each episode's is convoy_ground_friction(seed, friction_min), uniform in
-  /// [friction_min, 0.8] (domain randomisation: a policy trained on rigid ground then has seen
-  /// the vehicle slide and run wide in bends, as it does on soil); the rest of the episode's
-  /// draws do not change.
+  /// [friction_min, 0.8] (domain randomisation of the grip); the rest of the episode's draws
+  /// do not change. Measured not to be what soil changes for a student (docs/learning.md).
   double friction_min = 0.0;
   /// Above 0: after the observation is ready, the follower waits, braked, for
   /// convoy_start_hold(seed, start_hold_max_s) (uniform in [0, start_hold_max_s]) while the
