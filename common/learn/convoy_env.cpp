@@ -389,6 +389,47 @@ std::vector<float> ConvoyEnv::expert_action() const {
   return a;
 }
 
+std::vector<float> obstacle_ranges(const Vec2& camera, double yaw_rad, double hfov_rad, int rays,
+                                   double range_m, std::span<const ConvoyObstacle> obstacles) {
+  if (rays < 1 || !(range_m > 0.0) || !(hfov_rad > 0.0)) {
+    throw std::invalid_argument("obstacle_ranges: needs rays >= 1, a range and a field of view > 0");
+  }
+  std::vector<float> out(static_cast<std::size_t>(rays), 1.0f);
+  const double slice = hfov_rad / rays;
+  for (int k = 0; k < rays; ++k) {
+    const double bearing = yaw_rad + 0.5 * hfov_rad - (k + 0.5) * slice;
+    const Vec2 d(std::cos(bearing), std::sin(bearing));
+    double nearest = range_m;
+    for (const auto& ob : obstacles) {
+      // |camera + t d - centre| = radius: t^2 - 2 b t + c = 0 with b = d.(centre - camera).
+      const Vec2 to = ob.centre - camera;
+      const double c = to.squaredNorm() - ob.radius_m * ob.radius_m;
+      if (c <= 0.0) {
+        nearest = 0.0;
+        break;
+      }
+      const double b = d.dot(to);
+      const double disc = b * b - c;
+      if (b <= 0.0 || disc < 0.0) continue;  // behind the camera, or missed
+      nearest = std::min(nearest, b - std::sqrt(disc));
+    }
+    out[static_cast<std::size_t>(k)] = static_cast<float>(std::min(nearest / range_m, 1.0));
+  }
+  return out;
+}
+
+std::vector<float> ConvoyEnv::perception_target() const {
+  if (!options_.camera || !scenario_) return {};
+  const auto& camera = scenario_->find_vehicle(kConvoyFollowerId)->sensors->rig.cameras.front();
+  const double yaw = yaw_of(follower_state_.pose.orientation);
+  const Vec2 heading(std::cos(yaw), std::sin(yaw)), left(-std::sin(yaw), std::cos(yaw));
+  const Vec3& mount = camera.mount.pose.position;
+  const Vec2 at = Vec2(follower_state_.pose.position.x(), follower_state_.pose.position.y()) +
+                  mount.x() * heading + mount.y() * left;
+  return obstacle_ranges(at, yaw, camera.intrinsics.hfov_rad, kPerceptionRays, kPerceptionRangeM,
+                         episode_.obstacles);
+}
+
 std::unique_ptr<Env> make_convoy_env(const ConvoyEnvOptions& options) {
   return std::make_unique<ConvoyEnv>(options);
 }

@@ -144,6 +144,18 @@ double convoy_steering_command(const ConvoyEnvOptions& options, std::span<const 
 /// only: std::invalid_argument for another.
 std::vector<float> convoy_heuristic_action(const Observation& observation);
 
+/// A range finder's reading of the obstacles in a camera's view (the convoy environment's
+/// perception target, docs/learning.md "Perception"): `rays` bearings at the centres of equal
+/// slices of the horizontal field of view `hfov_rad` about `yaw_rad`, left to right (ray 0 at
+/// +hfov/2 - slice/2, angles counter-clockwise); for each, the distance in the ground plane
+/// from `camera` to the first obstacle footprint (circle of the obstacle's radius) the ray
+/// meets, divided by `range_m` and capped at 1 (1: nothing within range; 0: the camera is
+/// inside a footprint). std::invalid_argument for rays < 1, a range or field of view <= 0.
+std::vector<float> obstacle_ranges(const Vec2& camera, double yaw_rad, double hfov_rad, int rays,
+                                   double range_m, std::span<const ConvoyObstacle> obstacles);
+inline constexpr int kPerceptionRays = 16;
+inline constexpr double kPerceptionRangeM = 20.0;
+
 /// The subscriptions of a convoy follower's controller: its own GPS, compass, tachometer and
 /// camera samples and the V2V messages of the vehicle it follows.
 std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,
@@ -195,6 +207,11 @@ class ConvoyEnv final : public Env {
   /// estimator the observation runs (convoy::ConvoyFollower with its default gains, on the
   /// same readings: no ground truth); empty for the paper observation.
   std::vector<float> expert_action() const override;
+  /// With the camera: obstacle_ranges(kPerceptionRays, kPerceptionRangeM) from the follower's
+  /// camera (its mount's place and field of view) at the ground-truth pose of the last frame,
+  /// the pose the image was rendered at less the camera's lag (0.05-0.08 s of driving). Empty
+  /// without the camera.
+  std::vector<float> perception_target() const override;
 
   const ConvoyEnvOptions& options() const { return options_; }
   /// The current episode (valid after reset).

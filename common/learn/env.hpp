@@ -79,6 +79,10 @@ class Env {
   /// space, for a trainer to imitate; never part of the observation. Empty: this environment
   /// has no expert.
   virtual std::vector<float> expert_action() const { return {}; }
+  /// What a perception network is fitted to read from the current observation's image alone
+  /// (ppo::fit_perception), from ground truth; never part of the observation. Empty: this
+  /// environment has none (or no image).
+  virtual std::vector<float> perception_target() const { return {}; }
 };
 
 using EnvFactory = std::function<std::unique_ptr<Env>()>;

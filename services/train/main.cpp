@@ -14,6 +14,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "learn/ppo/perception.hpp"
 #include "learn/ppo/trainer.hpp"
 #include "learn/registry.hpp"
 
@@ -50,6 +51,67 @@ std::string duration(double s) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, t / 60 % 60, t % 60);
   return buf;
+}
+
+/// --perceive-steps: the perception fit alone (learn::ppo::fit_perception), its epochs to
+/// DIR/perception.csv and the network to DIR/perception.pt.
+int fit_perception(const learn::EnvFactory& factory, const learn::ppo::TrainerOptions& options,
+                   const learn::ppo::PerceptionOptions& perceive, const fs::path& dir) {
+  const auto env = factory();
+  const auto image = env->observation_space().image;
+  if (!image) {
+    std::cerr << "syndds_train: --perceive-steps: the environment's observations have no image "
+                 "(convoy_follow needs --env-option camera=true)\n";
+    return 1;
+  }
+  const fs::path csv_path = dir / "perception.csv", net_path = dir / "perception.pt";
+  if (fs::exists(net_path)) {
+    std::cerr << "syndds_train: " << net_path.string() << " exists: choose another --output\n";
+    return 1;
+  }
+  torch::manual_seed(options.seed);
+  torch::set_num_threads(options.torch_threads);
+  env->reset(learn::episode_seed(options.seed, 0, 0));
+  const auto outputs = static_cast<int>(env->perception_target().size());
+  if (outputs == 0) {
+    std::cerr << "syndds_train: --perceive-steps: the environment has no perception target\n";
+    return 1;
+  }
+  auto net = std::make_shared<learn::ppo::PerceptionNet>(*image, outputs);
+  learn::VectorEnv envs(factory, options.copies, options.threads);
+  at::Generator generator = at::make_generator<at::CPUGeneratorImpl>(options.seed);
+  std::ofstream csv(csv_path, std::ios::binary | std::ios::trunc);
+  csv << "epoch,train_rms,holdout_rms,holdout_seen_rms\n";
+  std::printf("perception fit: %lld interactions driven by the expert, %d outputs, %d epochs\n",
+              static_cast<long long>(perceive.steps), outputs, perceive.epochs);
+  std::fflush(stdout);
+  const learn::ppo::PerceptionStats s = learn::ppo::fit_perception(
+      envs, options.seed, perceive, *net, generator, [&](const learn::ppo::PerceptionEpoch& e) {
+        std::printf("perception epoch %d/%d  RMS training %s, held out %s, held out where "
+                    "something is seen %s\n",
+                    e.epoch, perceive.epochs, number(e.train_rms).c_str(),
+                    number(e.holdout_rms).c_str(), number(e.holdout_seen_rms).c_str());
+        std::fflush(stdout);
+        csv << e.epoch << ',' << number(e.train_rms) << ',' << number(e.holdout_rms) << ','
+            << number(e.holdout_seen_rms) << '\n';
+        csv.flush();
+      });
+  if (!csv) {
+    std::cerr << "syndds_train: cannot write " << csv_path.string() << "\n";
+    return 1;
+  }
+  torch::serialize::OutputArchive archive;
+  net->save(archive);
+  archive.save_to(net_path.string());
+  std::printf("perception fit on %lld images (%lld more held out; %lld episodes) in %s collecting "
+              "and %s fitting; held out, an image-blind network (the training mean): RMS %s, "
+              "%s where something is seen (%s of the values)\nwrote %s, %s\n",
+              static_cast<long long>(s.train_samples), static_cast<long long>(s.holdout_samples),
+              static_cast<long long>(s.episodes), duration(s.collect_s).c_str(),
+              duration(s.learn_s).c_str(), number(s.holdout_mean_rms).c_str(),
+              number(s.holdout_mean_seen_rms).c_str(), number(s.seen_share).c_str(),
+              csv_path.string().c_str(), net_path.string().c_str());
+  return 0;
 }
 
 }  // namespace
@@ -151,8 +213,40 @@ int main(int argc, char** argv) {
                  "factors in [1-J, 1+J] and offset by up to 128 J; 0: the images as rendered")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
+  learn::ppo::PerceptionOptions perceive;
+  app.add_option("--perceive-steps", perceive.steps,
+                 "Instead of a policy, fit a camera network to the environment's perception "
+                 "target (convoy_follow with camera=true: the obstacles' ranges across the "
+                 "camera's view) on images from this many interactions driven by the expert; "
+                 "writes DIR/perception.csv and DIR/perception.pt (docs/learning.md, "
+                 "\"Perception\")")
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{1} << 40))
+      ->capture_default_str();
+  app.add_option("--perceive-epochs", perceive.epochs, "Passes over the perception data")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--perceive-minibatch", perceive.minibatch, "Minibatch size of the perception fit")
+      ->check(CLI::Range(2, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--perceive-holdout", perceive.holdout,
+                 "Share of each copy's perception episodes held out (measured, never fitted)")
+      ->check(CLI::Range(0.0, 0.99))
+      ->capture_default_str();
+  app.add_option("--perceive-learning-rate", perceive.learning_rate,
+                 "Adam's learning rate in the perception fit")
+      ->check(CLI::Range(1e-9, 1.0))
+      ->capture_default_str();
+  app.add_option("--perceive-colour-jitter", perceive.colour_jitter,
+                 "As --clone-colour-jitter, for the perception fit")
+      ->check(CLI::Range(0.0, 0.99))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
-  if (updates == 0 && clone.steps == 0) {
+  if (perceive.steps > 0 && (resume || clone.steps > 0 || !init_from.empty())) {
+    std::cerr << "syndds_train: --perceive-steps fits a perception network only: not with "
+                 "--resume, --clone-steps or --init-from\n";
+    return 1;
+  }
+  if (updates == 0 && clone.steps == 0 && perceive.steps == 0) {
     std::cerr << "syndds_train: --updates 0 needs --clone-steps (nothing to train)\n";
     return 1;
   }
@@ -192,6 +286,7 @@ int main(int argc, char** argv) {
                 << "\n";
       return 1;
     }
+    if (perceive.steps > 0) return fit_perception(factory, options, perceive, dir);
     learn::ppo::Trainer trainer(factory, options);
     std::string rows = std::string(kHeader) + "\n";
     if (resume) {

@@ -1075,3 +1075,95 @@ TEST(ConvoyReward, TrackRewardChargesSteeringChanges) {
   ASSERT_EQ(ra.info.at("distance_m"), rb.info.at("distance_m"));
   EXPECT_NEAR(rb.reward - ra.reward, o.reward.steer_change * 4.0, 1e-12);
 }
+
+// The perception target's geometry against hand numbers: a ray through an obstacle's centre
+// reads the distance to its near edge, a ray beside it reads nothing (1), the nearer of two
+// obstacles on a ray hides the farther, obstacles behind the camera or beyond the range are not
+// seen, a camera inside a footprint reads 0, and the rays run left to right.
+TEST(ConvoyEnv, ObstacleRangesAreTheFirstFootprintEachRayMeets) {
+  const double hfov = std::numbers::pi / 2.0;  // two rays: +22.5 and -22.5 degrees
+  const double b = std::numbers::pi / 8.0;
+  const auto obstacle = [](double x, double y, double r) {
+    ConvoyObstacle o;
+    o.centre = Vec2(x, y);
+    o.radius_m = r;
+    return o;
+  };
+  // On the left ray, 10 m out along it.
+  std::vector<ConvoyObstacle> obs = {obstacle(10.0 * std::cos(b), 10.0 * std::sin(b), 1.0)};
+  std::vector<float> r = obstacle_ranges(Vec2::Zero(), 0.0, hfov, 2, 20.0, obs);
+  ASSERT_EQ(r.size(), 2u);
+  EXPECT_NEAR(r[0], 9.0 / 20.0, 1e-6);
+  EXPECT_EQ(r[1], 1.0f);
+  // Turned by 45 degrees to the left, the same obstacle is on the right ray.
+  r = obstacle_ranges(Vec2::Zero(), 2.0 * b, hfov, 2, 20.0, obs);
+  EXPECT_EQ(r[0], 1.0f);
+  EXPECT_NEAR(r[1], 9.0 / 20.0, 1e-6);
+  // A nearer one on the same ray hides it; one behind the camera and one beyond the range
+  // change nothing.
+  obs.push_back(obstacle(5.0 * std::cos(b), 5.0 * std::sin(b), 0.5));
+  obs.push_back(obstacle(-3.0, 0.0, 1.0));
+  obs.push_back(obstacle(30.0 * std::cos(b), -30.0 * std::sin(b), 1.0));
+  r = obstacle_ranges(Vec2::Zero(), 0.0, hfov, 2, 20.0, obs);
+  EXPECT_NEAR(r[0], 4.5 / 20.0, 1e-6);
+  EXPECT_EQ(r[1], 1.0f);
+  // A ray grazing a footprint: the circle at distance 1 from the ray's line, radius 1.25,
+  // centre 8 m along it: the ray enters 8 - sqrt(1.25^2 - 1) = 7.25 m out.
+  const Vec2 d(std::cos(-b), std::sin(-b)), n(-d.y(), d.x());
+  const Vec2 c = 8.0 * d + 1.0 * n;
+  r = obstacle_ranges(Vec2::Zero(), 0.0, hfov, 2, 20.0,
+                      std::vector<ConvoyObstacle>{obstacle(c.x(), c.y(), 1.25)});
+  EXPECT_NEAR(r[1], 7.25 / 20.0, 1e-6);
+  EXPECT_EQ(r[0], 1.0f);
+  // From inside a footprint every ray reads 0.
+  r = obstacle_ranges(Vec2(0.2, 0.0), 0.0, hfov, 2, 20.0,
+                      std::vector<ConvoyObstacle>{obstacle(0.0, 0.0, 1.0)});
+  EXPECT_EQ(r, (std::vector<float>{0.0f, 0.0f}));
+  EXPECT_THROW(obstacle_ranges(Vec2::Zero(), 0.0, hfov, 0, 20.0, obs), std::invalid_argument);
+  EXPECT_THROW(obstacle_ranges(Vec2::Zero(), 0.0, hfov, 2, 0.0, obs), std::invalid_argument);
+  EXPECT_THROW(obstacle_ranges(Vec2::Zero(), 0.0, 0.0, 2, 20.0, obs), std::invalid_argument);
+}
+
+// The environment's perception target: the ranges of the follower's camera, only with the
+// camera; on a course episode driven by the expert the camera sees obstacles at times and
+// never from inside one, and the target is what obstacle_ranges reads from the camera's place
+// (2.4 m ahead of the reference point), not from the reference point.
+TEST(ConvoyEnv, ThePerceptionTargetIsTheCamerasViewOfTheObstacles) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail;
+  o.episode.kind = ConvoyEpisodeKind::courses;
+  ConvoyEnv blind(o);
+  blind.reset(2000001);
+  EXPECT_TRUE(blind.perception_target().empty());
+  o.camera = true;
+  ConvoyEnv env(o);
+  env.reset(2000001);
+  int seeing = 0, steps = 0, from_camera = 0;
+  while (steps < 400) {
+    const std::vector<float> t = env.perception_target();
+    ASSERT_EQ(t.size(), static_cast<std::size_t>(kPerceptionRays));
+    const float nearest = *std::min_element(t.begin(), t.end());
+    EXPECT_GT(nearest, 0.0f);
+    EXPECT_LE(*std::max_element(t.begin(), t.end()), 1.0f);
+    seeing += nearest < 1.0f ? 1 : 0;
+    const auto& pose = env.follower_state().pose;
+    const double yaw = yaw_of(pose.orientation);
+    const Vec2 ref(pose.position.x(), pose.position.y());
+    const Vec2 camera = ref + 2.4 * Vec2(std::cos(yaw), std::sin(yaw));
+    const auto at = [&](const Vec2& p) {
+      return obstacle_ranges(p, yaw, std::numbers::pi / 2.0, kPerceptionRays, kPerceptionRangeM,
+                             env.episode().obstacles);
+    };
+    if (nearest < 1.0f) {
+      const std::vector<float> expected = at(camera);
+      for (std::size_t k = 0; k < t.size(); ++k) EXPECT_NEAR(t[k], expected[k], 1e-5);
+      from_camera += at(ref) != t ? 1 : 0;
+    }
+    const StepResult r = env.step(env.expert_action());
+    ++steps;
+    if (r.terminated || r.truncated) break;
+  }
+  std::printf("%d of %d observations see an obstacle\n", seeing, steps);
+  EXPECT_GT(seeing, 10);
+  EXPECT_GT(from_camera, 0);
+}

@@ -25,6 +25,18 @@ nn::Conv2d conv(int in, int out, int kernel, int stride) {
   return c;
 }
 
+// The camera stack of every network with an image (Nature-DQN), flattened.
+nn::Sequential camera_stack(int channels) {
+  return nn::Sequential(conv(channels, 32, 8, 4), nn::ReLU(), conv(32, 64, 4, 2), nn::ReLU(),
+                        conv(64, 64, 3, 1), nn::ReLU(), nn::Flatten());
+}
+
+int stack_features(nn::Sequential& stack, const ImageSpec& image) {
+  torch::NoGradGuard no_grad;
+  return static_cast<int>(
+      stack->forward(torch::zeros({1, image.channels, image.height, image.width})).size(1));
+}
+
 }  // namespace
 
 MlpActorCritic::MlpActorCritic(int observation_size, int action_size, int hidden) {
@@ -45,14 +57,8 @@ ActorCriticOutput MlpActorCritic::forward(const torch::Tensor& vector, const tor
 FusionActorCritic::FusionActorCritic(int observation_size, const ImageSpec& image,
                                      int action_size) {
   const double g = std::sqrt(2.0);
-  cnn_ = register_module("cnn", nn::Sequential(conv(image.channels, 32, 8, 4), nn::ReLU(),
-                                               conv(32, 64, 4, 2), nn::ReLU(), conv(64, 64, 3, 1),
-                                               nn::ReLU(), nn::Flatten()));
-  {
-    torch::NoGradGuard no_grad;
-    cnn_features_ = static_cast<int>(
-        cnn_->forward(torch::zeros({1, image.channels, image.height, image.width})).size(1));
-  }
+  cnn_ = register_module("cnn", camera_stack(image.channels));
+  cnn_features_ = stack_features(cnn_, image);
   vector_fc_ = register_module("vector_fc",
                                nn::Sequential(linear(observation_size, 64, g), nn::ReLU()));
   trunk_ = register_module("trunk", nn::Sequential(linear(cnn_features_ + 64, 256, g), nn::ReLU(),
@@ -75,15 +81,8 @@ ResidualFusionActorCritic::ResidualFusionActorCritic(int observation_size,
                                                      const ImageSpec& image, int action_size) {
   const double g = std::sqrt(2.0);
   base_ = register_module("base", std::make_shared<MlpActorCritic>(observation_size, action_size));
-  cnn_ = register_module("cnn", nn::Sequential(conv(image.channels, 32, 8, 4), nn::ReLU(),
-                                               conv(32, 64, 4, 2), nn::ReLU(), conv(64, 64, 3, 1),
-                                               nn::ReLU(), nn::Flatten()));
-  int features = 0;
-  {
-    torch::NoGradGuard no_grad;
-    features = static_cast<int>(
-        cnn_->forward(torch::zeros({1, image.channels, image.height, image.width})).size(1));
-  }
+  cnn_ = register_module("cnn", camera_stack(image.channels));
+  const int features = stack_features(cnn_, image);
   branch_ = register_module(
       "branch", nn::Sequential(linear(features + observation_size, 64, g), nn::ReLU()));
   mean_head_ = register_module("mean", linear(64, action_size, 0.0));
@@ -97,6 +96,19 @@ ActorCriticOutput ResidualFusionActorCritic::forward(const torch::Tensor& vector
   const torch::Tensor pixels = image.permute({0, 3, 1, 2}).to(torch::kFloat32) / 255.0;
   const torch::Tensor h = branch_->forward(torch::cat({cnn_->forward(pixels), vector}, 1));
   return {b.mean + mean_head_->forward(h), b.value + value_head_->forward(h).squeeze(-1)};
+}
+
+PerceptionNet::PerceptionNet(const ImageSpec& image, int outputs) : outputs_(outputs) {
+  if (outputs < 1) throw std::invalid_argument("PerceptionNet: needs outputs >= 1");
+  cnn_ = register_module("cnn", camera_stack(image.channels));
+  const int features = stack_features(cnn_, image);
+  head_ = register_module("head", nn::Sequential(linear(features, 256, std::sqrt(2.0)), nn::ReLU(),
+                                                 linear(256, outputs, 1.0)));
+}
+
+torch::Tensor PerceptionNet::forward(const torch::Tensor& image) {
+  const torch::Tensor pixels = image.permute({0, 3, 1, 2}).to(torch::kFloat32) / 255.0;
+  return head_->forward(cnn_->forward(pixels));
 }
 
 std::shared_ptr<ActorCritic> make_actor_critic(const std::string& kind,
@@ -134,6 +146,16 @@ torch::Tensor image_batch(const std::vector<const std::vector<std::uint8_t>*>& i
     dst += img->size();
   }
   return out;
+}
+
+torch::Tensor jitter_colours(const torch::Tensor& img, double j, at::Generator& generator) {
+  if (!img.defined() || j <= 0.0) return img;
+  const std::int64_t n = img.size(0), channels = img.size(3);
+  const torch::Tensor gain =
+      at::empty({n, 1, 1, channels}, torch::kFloat32).uniform_(1.0 - j, 1.0 + j, generator);
+  const torch::Tensor offset =
+      at::empty({n, 1, 1, 1}, torch::kFloat32).uniform_(-128.0 * j, 128.0 * j, generator);
+  return (img.to(torch::kFloat32) * gain + offset).clamp(0.0, 255.0);
 }
 
 }  // namespace syndds::learn::ppo

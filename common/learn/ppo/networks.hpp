@@ -79,6 +79,20 @@ class ResidualFusionActorCritic final : public ActorCritic {
   torch::nn::Linear mean_head_{nullptr}, value_head_{nullptr};
 };
 
+/// The policies' camera stack (Nature-DQN, 8x8/4 32, 4x4/2 64, 3x3/1 64, ReLU),
+/// then a fully connected layer of 256 (ReLU) and a linear head of `outputs`. Images
+/// [B, H, W, C] of pixel values in [0, 255] (any type) -> [B, outputs].
+class PerceptionNet : public torch::nn::Module {
+ public:
+  PerceptionNet(const ImageSpec& image, int outputs);
+  torch::Tensor forward(const torch::Tensor& image);
+  int outputs() const { return outputs_; }
+
+ private:
+  torch::nn::Sequential cnn_{nullptr}, head_{nullptr};
+  int outputs_ = 0;
+};
+
 /// The network for an observation space: "mlp" (vector only), "fusion" or "residual_fusion"
 /// (need an image) or "auto" (fusion when the observations have an image). Throws
 /// std::invalid_argument otherwise.
@@ -89,5 +103,11 @@ std::shared_ptr<ActorCritic> make_actor_critic(const std::string& kind,
 /// Images as the networks take them: [B, H, W, C] uint8 from B observations' bytes.
 torch::Tensor image_batch(const std::vector<const std::vector<std::uint8_t>*>& images,
                           const ImageSpec& spec);
+
+/// Images [B, H, W, C] with their colours changed (data augmentation; `j` in [0, 1)): each
+/// image's channels scaled by factors drawn uniformly from [1 - j, 1 + j], then an offset drawn
+/// uniformly from [-128 j, 128 j] added to all channels, clamped to [0, 255] (float). The
+/// images unchanged when undefined or j <= 0. The networks take pixel values of any type.
+torch::Tensor jitter_colours(const torch::Tensor& images, double j, at::Generator& generator);
 
 }  // namespace syndds::learn::ppo

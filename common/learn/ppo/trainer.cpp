@@ -412,17 +412,8 @@ CloneStats Trainer::clone(const CloneOptions& c,
   const auto select = [](const torch::Tensor& t, const torch::Tensor& idx) {
     return t.defined() ? t.index_select(0, idx) : t;
   };
-  // A training minibatch's images, with their colours jittered (CloneOptions::colour_jitter);
-  // the networks take the pixels as values in [0, 255] of any type.
   const auto jitter = [&](const torch::Tensor& img) {
-    if (!img.defined() || c.colour_jitter <= 0.0) return img;
-    const std::int64_t n = img.size(0), channels = img.size(3);
-    const double j = c.colour_jitter;
-    const torch::Tensor gain =
-        at::empty({n, 1, 1, channels}, torch::kFloat32).uniform_(1.0 - j, 1.0 + j, generator_);
-    const torch::Tensor offset =
-        at::empty({n, 1, 1, 1}, torch::kFloat32).uniform_(-128.0 * j, 128.0 * j, generator_);
-    return (img.to(torch::kFloat32) * gain + offset).clamp(0.0, 255.0);
+    return jitter_colours(img, c.colour_jitter, generator_);
   };
   torch::optim::Adam adam(model_->parameters(), torch::optim::AdamOptions(options_.ppo.learning_rate)
                                                     .eps(options_.ppo.adam_epsilon));
