@@ -176,6 +176,7 @@ class ConvoyFollower {
   bool leader_lost() const { return lost_; }
   bool ready() const { return own_.has_value() && leader_.has_value(); }
   Vec2 position_estimate() const { return own_ ? own_->position : Vec2::Zero(); }
+  double yaw_estimate() const { return own_ ? own_->yaw : 0.0; }
   Vec2 leader_estimate() const { return leader_ ? leader_->position : Vec2::Zero(); }
   /// Bumper-to-bumper gap along the trail, as the follower estimates it.
   double gap_m() const { return gap_m_; }

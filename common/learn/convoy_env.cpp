@@ -52,13 +52,15 @@ double convoy_track_reward(double distance_m, double path_error_m, const ConvoyR
 ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario& scenario,
                                      const scenario::VehicleConfig& follower,
                                      const std::string& leader_id, ConvoyObservationKind kind,
-                                     const convoy::KeepOut& teacher_keep_out)
+                                     const convoy::KeepOut& teacher_keep_out,
+                                     bool teacher_keep_out_perceived)
     : vehicle_id_(follower.id),
       leader_id_(leader_id),
       member_id_(scenario::external_member(follower.id)),
       builder_([&] {
         ConvoyObservationConfig c = convoy_observation_config(scenario, follower, leader_id, kind);
         c.teacher_keep_out = teacher_keep_out;
+        c.teacher_keep_out_perceived = teacher_keep_out_perceived;
         return c;
       }()) {}
 
@@ -181,8 +183,11 @@ ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
     throw std::invalid_argument("ConvoyEnv: random_ground_colour needs the rigid terrain (the "
                                 "soils keep their own look)");
   }
-  if (options_.teacher_view_camera && !options_.camera) {
-    throw std::invalid_argument("ConvoyEnv: teacher_view_camera needs the camera");
+  if ((options_.teacher_view_camera || options_.teacher_view_ranges) && !options_.camera) {
+    throw std::invalid_argument("ConvoyEnv: teacher_view_camera and _ranges need the camera");
+  }
+  if (options_.teacher_view_camera && options_.teacher_view_ranges) {
+    throw std::invalid_argument("ConvoyEnv: teacher_view is camera or ranges, not both");
   }
   if (options_.steering_residual && !has_feedforward(options_.observation)) {
     throw std::invalid_argument("ConvoyEnv: steering_residual needs an observation with the "
@@ -245,7 +250,9 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
       convoy::KeepOut keep_out;
       if (options_.teacher_keep_clear_m > 0.0) {
         keep_out.clearance_m = options_.teacher_keep_clear_m;
-        for (const auto& ob : episode_.obstacles) keep_out.obstacles.push_back({ob.centre, ob.radius_m});
+        if (!options_.teacher_view_ranges) {
+          for (const auto& ob : episode_.obstacles) keep_out.obstacles.push_back({ob.centre, ob.radius_m});
+        }
         if (options_.teacher_view_camera) {
           const auto& follower = *s.find_vehicle(kConvoyFollowerId);
           const auto& camera = follower.sensors->rig.cameras.front();
@@ -254,7 +261,8 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
         }
       }
       auto d = std::make_unique<ConvoyDriverAgent>(s, *s.find_vehicle(kConvoyFollowerId),
-                                                   kConvoyLeaderId, options_.observation, keep_out);
+                                                   kConvoyLeaderId, options_.observation, keep_out,
+                                                   options_.teacher_view_ranges);
       driver_ = d.get();
       agents.push_back(std::move(d));
     } else if (m == scenario::sensor_member(kConvoyFollowerId)) {
@@ -325,6 +333,12 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
       convoy_driver_inputs(driver_->steering(), 0.0).steering, command, options_.steer_lag_s,
       period_s);
   driver_->set_action(steering, action[1], expected > 2 ? action[2] : 0.0);
+  if (options_.teacher_view_ranges && options_.teacher_keep_clear_m > 0.0) {
+    const std::vector<float> ranges = perception_target();
+    const auto& camera = scenario_->find_vehicle(kConvoyFollowerId)->sensors->rig.cameras.front();
+    driver_->observe_ranges({ranges, camera.intrinsics.hfov_rad, kPerceptionRangeM,
+                             camera.mount.pose.position.x()});
+  }
   for (int f = 0; f < options_.frames_per_step && !collided_; ++f) run_frame();
   ++steps_;
 

@@ -86,6 +86,11 @@ struct ConvoyEnvOptions {
   /// camera sees at the moment (KeepOut::view_half_angle_rad from the rig's first camera), so
   /// that its shift is a function of what the policy observes now (needs `camera`).
   bool teacher_view_camera = false;
+  /// With teacher_keep_clear_m and the camera: the expert keeps clear of the obstacles it has
+  /// perceived, not of the map: before each step the camera's ground-truth reading
+  /// (perception_target) goes into its convoy::ObstacleMemory (what a perfect perception
+  /// network would give it). Excludes teacher_view_camera.
+  bool teacher_view_ranges = false;
   /// Rigid terrain only: each episode's ground gets a colour of its own in the camera,
   /// convoy_ground_colour(seed) (domain randomisation: a policy trained on the grey rigid
   /// ground then sees the soils' brown); physics does not change.
@@ -164,11 +169,13 @@ std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& 
 /// The external/<follower> member: observation from its inputs, the action as its command.
 class ConvoyDriverAgent final : public proto::Agent {
  public:
-  /// `teacher_keep_out`: the expert's map (ConvoyObservationConfig::teacher_keep_out).
+  /// `teacher_keep_out`: the expert's map (ConvoyObservationConfig::teacher_keep_out, and
+  /// ::teacher_keep_out_perceived).
   ConvoyDriverAgent(const scenario::Scenario& scenario, const scenario::VehicleConfig& follower,
                     const std::string& leader_id,
                     ConvoyObservationKind kind = ConvoyObservationKind::paper,
-                    const convoy::KeepOut& teacher_keep_out = {});
+                    const convoy::KeepOut& teacher_keep_out = {},
+                    bool teacher_keep_out_perceived = false);
 
   const std::string& member_id() const override { return member_id_; }
   std::string vehicle_key() const override { return vehicle_id_; }
@@ -184,6 +191,8 @@ class ConvoyDriverAgent final : public proto::Agent {
   /// The steering of the command (as set, before clamping).
   double steering() const { return steering_; }
   const ConvoyObservationBuilder& observations() const { return builder_; }
+  /// ConvoyObservationBuilder::observe_ranges.
+  void observe_ranges(const convoy::RangeReading& reading) { builder_.observe_ranges(reading); }
 
  private:
   std::string vehicle_id_;

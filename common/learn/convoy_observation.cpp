@@ -248,6 +248,14 @@ void ConvoyObservationBuilder::note_action(double steering, double throttle_brak
   memory_ = has_memory(config_.kind) ? applied(memory) : 0.0;
 }
 
+void ConvoyObservationBuilder::observe_ranges(const convoy::RangeReading& reading) {
+  if (!config_.teacher_keep_out_perceived || !estimator_ || !estimator_->ready()) return;
+  teacher_memory_.observe(estimator_->position_estimate(), estimator_->yaw_estimate(), reading);
+  convoy::KeepOut keep_out = config_.teacher_keep_out;
+  keep_out.obstacles = teacher_memory_.circles();
+  estimator_->set_keep_out(std::move(keep_out));
+}
+
 template <typename Archive>
 void ConvoyObservationBuilder::state_io(Archive& a) {
   a.begin("convoy_observation", 1);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "convoy/follower.hpp"
+#include "convoy/obstacle_memory.hpp"
 #include "core/state_io.hpp"
 #include "learn/env.hpp"
 #include "protocol/agent.hpp"
@@ -69,6 +70,9 @@ struct ConvoyObservationConfig {
   /// keeps clear of. The observation does not see it: its numbers are the same with or
   /// without a map.
   convoy::KeepOut teacher_keep_out;
+  /// The teacher's map is not given but perceived: its obstacles are the cells of an
+  /// convoy::ObstacleMemory that observe_ranges fills (teacher_keep_out.obstacles unused).
+  bool teacher_keep_out_perceived = false;
 };
 
 /// The observation's configuration for `follower` of `scenario` following `leader_id`: its
@@ -108,6 +112,13 @@ class ConvoyObservationBuilder {
   /// steering 0, brake 1 (the brake the controllers hold until they act).
   /// `memory`: the memory action (kinds with one; ignored by the others), clamped likewise.
   void note_action(double steering, double throttle_brake, double memory = 0.0);
+  /// With teacher_keep_out_perceived: a camera's range reading, placed by the estimator's
+  /// own position and heading into the teacher's obstacle memory, whose cells become the
+  /// teacher's map from the next frame on. Ignored otherwise and before the estimator has a
+  /// position. Not checkpointed (training only).
+  void observe_ranges(const convoy::RangeReading& reading);
+  /// The teacher's perceived obstacle cells (empty without teacher_keep_out_perceived).
+  const convoy::ObstacleMemory& teacher_memory() const { return teacher_memory_; }
 
   /// Checkpoints (docs/checkpoints.md): the newest reading of each kind held, every field.
   void save_state(core::StateWriter& w) const;
@@ -129,6 +140,7 @@ class ConvoyObservationBuilder {
   double previous_steering_ = 0.0;                    // note_action's
   double previous_throttle_brake_ = -1.0;
   double memory_ = 0.0;                               // note_action's (memory kinds)
+  convoy::ObstacleMemory teacher_memory_;             // teacher_keep_out_perceived's
 };
 
 }  // namespace syndds::learn

@@ -108,7 +108,9 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.episode.leader_wobble_m = r.number("leader_wobble", 0.0, 0.0, 2.0);
   o.episode.chain_fraction = r.number("chain", 0.0, 0.0, 1.0);
   o.teacher_keep_clear_m = r.number("teacher_keep_clear", 0.0, 0.0, 10.0);
-  o.teacher_view_camera = r.choice("teacher_view", "map", {"map", "camera"}) == "camera";
+  const std::string view = r.choice("teacher_view", "map", {"map", "camera", "ranges"});
+  o.teacher_view_camera = view == "camera";
+  o.teacher_view_ranges = view == "ranges";
   o.random_ground_colour = r.choice("ground_colour", "fixed", {"fixed", "random"}) == "random";
   o.friction_min = r.number("friction_min", 0.0, 0.0, 0.8);
   o.start_hold_max_s = r.number("start_hold_max", 0.0, 0.0, 30.0);
@@ -132,9 +134,10 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
                                 "observation with the feed-forward steering (trail_ff, "
                                 "trail_ff_memory)");
   }
-  if (o.teacher_view_camera && !o.camera) {
-    throw std::invalid_argument("environment convoy_follow, option teacher_view: camera needs "
-                                "camera=true (the teacher sees what that camera sees)");
+  if ((o.teacher_view_camera || o.teacher_view_ranges) && !o.camera) {
+    throw std::invalid_argument("environment convoy_follow, option teacher_view: " +
+                                std::string(o.teacher_view_camera ? "camera" : "ranges") +
+                                " needs camera=true (the teacher sees what that camera sees)");
   }
   o.frames_per_step = r.whole("frames_per_step", o.frames_per_step, 1, 100);
   o.max_steps = r.whole("max_steps", o.max_steps, 1, 100000);
