@@ -45,6 +45,14 @@ class ObstacleMemory {
   std::size_t size() const { return cells_.size(); }
   void clear() { cells_.clear(); }
 
+  /// Checkpoints: the occupied cells.
+  template <typename Archive>
+  void state_io(Archive& a) {
+    a.begin("obstacle_memory", 1);
+    a.io(cells_);
+    a.end();
+  }
+
  private:
   std::int64_t key(const Vec2& p) const;
   Vec2 centre(std::int64_t key) const;

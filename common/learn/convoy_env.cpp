@@ -53,7 +53,7 @@ ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario& scenario,
                                      const scenario::VehicleConfig& follower,
                                      const std::string& leader_id, ConvoyObservationKind kind,
                                      const convoy::KeepOut& teacher_keep_out,
-                                     bool teacher_keep_out_perceived)
+                                     bool teacher_keep_out_perceived, bool observe_keep_out)
     : vehicle_id_(follower.id),
       leader_id_(leader_id),
       member_id_(scenario::external_member(follower.id)),
@@ -61,6 +61,7 @@ ConvoyDriverAgent::ConvoyDriverAgent(const scenario::Scenario& scenario,
         ConvoyObservationConfig c = convoy_observation_config(scenario, follower, leader_id, kind);
         c.teacher_keep_out = teacher_keep_out;
         c.teacher_keep_out_perceived = teacher_keep_out_perceived;
+        c.observe_keep_out = observe_keep_out;
         return c;
       }()) {}
 
@@ -186,6 +187,9 @@ ConvoyEnv::ConvoyEnv(ConvoyEnvOptions options) : options_(std::move(options)) {
   if ((options_.teacher_view_camera || options_.teacher_view_ranges) && !options_.camera) {
     throw std::invalid_argument("ConvoyEnv: teacher_view_camera and _ranges need the camera");
   }
+  if (options_.observe_keep_out && !(options_.teacher_keep_clear_m > 0.0)) {
+    throw std::invalid_argument("ConvoyEnv: observe_keep_out needs teacher_keep_clear_m > 0");
+  }
   if (options_.teacher_view_camera && options_.teacher_view_ranges) {
     throw std::invalid_argument("ConvoyEnv: teacher_view is camera or ranges, not both");
   }
@@ -262,7 +266,8 @@ Observation ConvoyEnv::reset(std::uint64_t seed) {
       }
       auto d = std::make_unique<ConvoyDriverAgent>(s, *s.find_vehicle(kConvoyFollowerId),
                                                    kConvoyLeaderId, options_.observation, keep_out,
-                                                   options_.teacher_view_ranges);
+                                                   options_.teacher_view_ranges,
+                                                   options_.observe_keep_out);
       driver_ = d.get();
       agents.push_back(std::move(d));
     } else if (m == scenario::sensor_member(kConvoyFollowerId)) {
@@ -334,7 +339,9 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
       period_s);
   driver_->set_action(steering, action[1], expected > 2 ? action[2] : 0.0);
   if (options_.teacher_view_ranges && options_.teacher_keep_clear_m > 0.0) {
-    const std::vector<float> ranges = perception_target();
+    const std::vector<float> ranges = options_.perceive_ranges
+                                          ? options_.perceive_ranges(driver_->observations().observation())
+                                          : perception_target();
     const auto& camera = scenario_->find_vehicle(kConvoyFollowerId)->sensors->rig.cameras.front();
     driver_->observe_ranges({ranges, camera.intrinsics.hfov_rad, kPerceptionRangeM,
                              camera.mount.pose.position.x()});

@@ -7,6 +7,7 @@
 // the current action as its DriverCommand every frame, exactly as a policy controller would
 // over DDS. One step = one control period of 10 frames (0.1 s).
 #include <array>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -91,6 +92,14 @@ struct ConvoyEnvOptions {
   /// (perception_target) goes into its convoy::ObstacleMemory (what a perfect perception
   /// network would give it). Excludes teacher_view_camera.
   bool teacher_view_ranges = false;
+  /// With teacher_keep_clear_m: the observation's cross-track is measured from the trail the
+  /// teacher tracks, shifted clear of the obstacles (ConvoyObservationConfig::
+  /// observe_keep_out): a policy that tracks the trail keeps clear with it.
+  bool observe_keep_out = false;
+  /// teacher_view_ranges' reading from the observation (its image) instead of the ground
+  /// truth: a perception network's (set by programs that load one, e.g. syndds_evaluate
+  /// --perception; not an option of the registry). Called from the copy's own thread.
+  std::function<std::vector<float>(const Observation&)> perceive_ranges;
   /// Rigid terrain only: each episode's ground gets a colour of its own in the camera,
   /// convoy_ground_colour(seed) (domain randomisation: a policy trained on the grey rigid
   /// ground then sees the soils' brown); physics does not change.
@@ -175,7 +184,7 @@ class ConvoyDriverAgent final : public proto::Agent {
                     const std::string& leader_id,
                     ConvoyObservationKind kind = ConvoyObservationKind::paper,
                     const convoy::KeepOut& teacher_keep_out = {},
-                    bool teacher_keep_out_perceived = false);
+                    bool teacher_keep_out_perceived = false, bool observe_keep_out = false);
 
   const std::string& member_id() const override { return member_id_; }
   std::string vehicle_key() const override { return vehicle_id_; }
@@ -228,6 +237,8 @@ class ConvoyEnv final : public Env {
   /// Ground truth of the last frame (valid after reset).
   const proto::VehicleStateMsg& follower_state() const { return follower_state_; }
   const proto::VehicleStateMsg& leader_state() const { return leader_state_; }
+  /// The expert's keep-out shift of the last frame (m, > 0 left; 0 without a map).
+  double teacher_shift_m() const { return driver_ ? driver_->observations().teacher_shift_m() : 0.0; }
   /// The steering the last step applied (after the residual, the clamp and the lag).
   double applied_steering() const { return last_steering_; }
   /// Camera frames the follower's rig has made this episode (0 without a camera).

@@ -149,6 +149,7 @@ void ConvoyObservationBuilder::consume(const proto::FrameContext& ctx,
         ctx.sim_time_s - ctx.heartbeat_s, ctx.heartbeat_s, own, s.v2v_messages, events);
     classical_action_ = {static_cast<float>(command.steering),
                          static_cast<float>(command.throttle - command.braking)};
+    teacher_shift_m_ = estimator_->keep_out_shift_m();
     if (has_memory(config_.kind)) {
       const double largest = config_.teacher_keep_out.max_shift_m;
       classical_action_.push_back(
@@ -202,7 +203,8 @@ Observation ConvoyObservationBuilder::observation() const {
   Observation o;
   if (estimator_) {
     const convoy::TrailFeatures f = estimator_->trail_features();
-    o.vector = {static_cast<float>(f.cross_track_m),
+    const double shift = config_.observe_keep_out ? teacher_shift_m_ : 0.0;
+    o.vector = {static_cast<float>(f.cross_track_m - shift),
                 static_cast<float>(std::sin(f.heading_error_rad)),
                 static_cast<float>(std::cos(f.heading_error_rad)),
                 static_cast<float>(f.curvature_per_m[0]),
@@ -276,6 +278,17 @@ void ConvoyObservationBuilder::state_io(Archive& a) {
     a.io(previous_throttle_brake_);
   }
   if (has_memory(config_.kind)) a.io(memory_);
+  if (config_.teacher_keep_out_perceived) {  // what the obstacle map has seen (a controller's)
+    a.io(teacher_shift_m_);
+    teacher_memory_.state_io(a);
+    if constexpr (!std::is_same_v<Archive, core::StateWriter>) {
+      if (estimator_) {
+        convoy::KeepOut keep_out = config_.teacher_keep_out;
+        keep_out.obstacles = teacher_memory_.circles();
+        estimator_->set_keep_out(std::move(keep_out));
+      }
+    }
+  }
   a.end();
 }
 

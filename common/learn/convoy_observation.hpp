@@ -73,6 +73,10 @@ struct ConvoyObservationConfig {
   /// The teacher's map is not given but perceived: its obstacles are the cells of an
   /// convoy::ObstacleMemory that observe_ranges fills (teacher_keep_out.obstacles unused).
   bool teacher_keep_out_perceived = false;
+  /// The observation's cross_track_m is the distance to the trail the teacher tracks: the
+  /// estimator's less the teacher's keep-out shift (a policy that tracks the trail then keeps
+  /// clear as the teacher does). Off: the observation does not see the map.
+  bool observe_keep_out = false;
 };
 
 /// The observation's configuration for `follower` of `scenario` following `leader_id`: its
@@ -115,8 +119,10 @@ class ConvoyObservationBuilder {
   /// With teacher_keep_out_perceived: a camera's range reading, placed by the estimator's
   /// own position and heading into the teacher's obstacle memory, whose cells become the
   /// teacher's map from the next frame on. Ignored otherwise and before the estimator has a
-  /// position. Not checkpointed (training only).
+  /// position. The memory is checkpointed.
   void observe_ranges(const convoy::RangeReading& reading);
+  /// The teacher's keep-out shift of the estimator's last update (m, > 0 left; 0 without a map).
+  double teacher_shift_m() const { return teacher_shift_m_; }
   /// The teacher's perceived obstacle cells (empty without teacher_keep_out_perceived).
   const convoy::ObstacleMemory& teacher_memory() const { return teacher_memory_; }
 
@@ -141,6 +147,7 @@ class ConvoyObservationBuilder {
   double previous_throttle_brake_ = -1.0;
   double memory_ = 0.0;                               // note_action's (memory kinds)
   convoy::ObstacleMemory teacher_memory_;             // teacher_keep_out_perceived's
+  double teacher_shift_m_ = 0.0;                      // the estimator's last keep-out shift
 };
 
 }  // namespace syndds::learn

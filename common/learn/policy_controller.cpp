@@ -3,6 +3,7 @@
 #include <ATen/Parallel.h>
 
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 #include <type_traits>
 
@@ -65,7 +66,47 @@ ConvoyObservationConfig observation_for(const scenario::Scenario& s,
   ConvoyObservationConfig c =
       convoy_observation_config(s, v, v.controller.convoy.leader, trained.observation);
   if (!policy.observation_space().image) c.image.reset();
+  if (trained.observe_keep_out) {  // as ConvoyEnv::reset builds the driver's
+    c.teacher_keep_out.clearance_m = trained.teacher_keep_clear_m;
+    c.teacher_keep_out_perceived = true;
+    c.observe_keep_out = true;
+  }
   return c;
+}
+
+// The perception network of a policy that observes the keep-out (its metadata's
+// "perception", relative to the policy file's directory).
+std::shared_ptr<ppo::PerceptionModel> perception_for(const Policy& policy,
+                                                     const std::string& policy_file,
+                                                     const ConvoyEnvOptions& trained,
+                                                     const std::string& where) {
+  if (!trained.observe_keep_out) return nullptr;
+  if (!trained.teacher_view_ranges || !policy.observation_space().image) {
+    throw ConfigError(where + "the policy observes the trail shifted clear of obstacles (env "
+                              "option observe_keep_out) from a map a controller does not have: "
+                              "only a camera policy with teacher_view=ranges can drive");
+  }
+  const auto it = policy.metadata().find("perception");
+  if (it == policy.metadata().end()) {
+    throw ConfigError(where + "the policy observes the obstacles it perceives (observe_keep_out) "
+                              "but names no perception network (metadata \"perception\")");
+  }
+  const std::filesystem::path file =
+      std::filesystem::path(policy_file).parent_path() / it->second;
+  try {
+    auto model = std::make_shared<ppo::PerceptionModel>(ppo::PerceptionModel::load(file.string()));
+    const ImageSpec& want = *policy.observation_space().image;
+    if (model->image().width != want.width || model->image().height != want.height ||
+        model->image().channels != want.channels || model->outputs() != kPerceptionRays) {
+      throw ConfigError(where + "perception network " + file.string() + " reads another image "
+                        "or gives another number of ranges than the policy's camera and " +
+                        std::to_string(kPerceptionRays) + " rays");
+    }
+    return model;
+  } catch (const std::runtime_error& e) {
+    if (dynamic_cast<const ConfigError*>(&e)) throw;
+    throw ConfigError(where + e.what());
+  }
 }
 
 }  // namespace
@@ -79,7 +120,8 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
              ": "),
       policy_(load_policy(v.controller.policy_file, where_)),
       trained_(policy_env_options(policy_, where_)),
-      builder_(observation_for(s, v, policy_, trained_)) {
+      builder_(observation_for(s, v, policy_, trained_)),
+      perception_(perception_for(policy_, v.controller.policy_file, trained_, where_)) {
   const ObservationSpace expected = builder_.space();
   const ObservationSpace& got = policy_.observation_space();
   const bool same_image = expected.image.has_value() == got.image.has_value() &&
@@ -90,6 +132,11 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
     throw ConfigError(where_ + "the policy observes " + describe(got) +
                       ", the vehicle's sensors give " + describe(expected) +
                       " (a camera policy needs the vehicle's first camera at its image size)");
+  }
+  if (perception_) {  // the camera the policy observes (checked above: it is there)
+    const auto& camera = v.sensors->rig.cameras.front();
+    camera_hfov_rad_ = camera.intrinsics.hfov_rad;
+    camera_ahead_m_ = camera.mount.pose.position.x();
   }
   const std::size_t actions = convoy_action_space(trained_.observation).size();
   if (policy_.action_space().size() != actions) {
@@ -131,6 +178,10 @@ void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::Fr
                                        trained_.steer_lag_s, action_period_s_);
     throttle_brake_ = a[1];
     builder_.note_action(steering_, throttle_brake_, a.size() > 2 ? a[2] : 0.0);
+    if (perception_) {
+      const std::vector<float> ranges = perception_->read(seen.image);
+      builder_.observe_ranges({ranges, camera_hfov_rad_, kPerceptionRangeM, camera_ahead_m_});
+    }
     since_action_ = 0;
     ++actions_;
   }

@@ -7,10 +7,15 @@
 // (0.1 s, the environment's control period), it takes the policy's deterministic action from
 // the observation as it stood after the previous frame, and writes it as its DriverCommand
 // every frame. Inference runs on one thread, so every process computes the same actions.
+// A policy trained to keep clear of what its camera shows (env options observe_keep_out and
+// teacher_view=ranges) comes with a perception network (metadata "perception": a file beside
+// the policy); after each action the controller gives the network's reading of the image the
+// policy saw to the observation's obstacle memory, as the environment does.
 #include <cstdint>
 #include <string>
 
 #include "learn/convoy_env.hpp"
+#include "learn/ppo/perception.hpp"
 #include "learn/ppo/policy.hpp"
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
@@ -54,6 +59,12 @@ class PolicyControllerAgent final : public proto::Agent {
   Policy policy_;      // loaded before the builder: it says whether the camera is observed
   ConvoyEnvOptions trained_;  // the environment options of its training (metadata)
   ConvoyObservationBuilder builder_;
+  // A policy trained with observe_keep_out and teacher_view=ranges: the perception network
+  // that reads the obstacles' ranges from the camera's image (the policy's metadata
+  // "perception", a file beside the policy), and where that camera is.
+  std::shared_ptr<ppo::PerceptionModel> perception_;
+  double camera_hfov_rad_ = 0.0;
+  double camera_ahead_m_ = 0.0;
   std::int64_t period_frames_ = 10;
   double action_period_s_ = 0.1;
   std::int64_t since_action_ = 0;

@@ -111,6 +111,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   const std::string view = r.choice("teacher_view", "map", {"map", "camera", "ranges"});
   o.teacher_view_camera = view == "camera";
   o.teacher_view_ranges = view == "ranges";
+  o.observe_keep_out = r.flag("observe_keep_out", false);
   o.random_ground_colour = r.choice("ground_colour", "fixed", {"fixed", "random"}) == "random";
   o.friction_min = r.number("friction_min", 0.0, 0.0, 0.8);
   o.start_hold_max_s = r.number("start_hold_max", 0.0, 0.0, 30.0);
@@ -138,6 +139,10 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
     throw std::invalid_argument("environment convoy_follow, option teacher_view: " +
                                 std::string(o.teacher_view_camera ? "camera" : "ranges") +
                                 " needs camera=true (the teacher sees what that camera sees)");
+  }
+  if (o.observe_keep_out && !(o.teacher_keep_clear_m > 0.0)) {
+    throw std::invalid_argument("environment convoy_follow, option observe_keep_out: needs "
+                                "teacher_keep_clear > 0 (the shift observed is that map's)");
   }
   o.frames_per_step = r.whole("frames_per_step", o.frames_per_step, 1, 100);
   o.max_steps = r.whole("max_steps", o.max_steps, 1, 100000);

@@ -13,6 +13,8 @@
 
 #include "learn/convoy_env.hpp"
 #include "learn/evaluate.hpp"
+#include "learn/convoy_env.hpp"
+#include "learn/ppo/perception.hpp"
 #include "learn/ppo/policy.hpp"
 #include "learn/registry.hpp"
 
@@ -43,6 +45,11 @@ int main(int argc, char** argv) {
                  "Also write every step to this CSV file: policy, seed, step, the observation "
                  "vector, the action, the expert's action (teacher_*), the reward and the info "
                  "numbers (info_*)");
+  std::string perception_file;
+  app.add_option("--perception", perception_file,
+                 "convoy_follow with teacher_view=ranges: the teacher's obstacle readings come "
+                 "from this perception network (syndds_train --perceive-steps) reading the "
+                 "camera's image, not from the ground truth");
   CLI11_PARSE(app, argc, argv);
   if (policies.empty() && baselines.empty()) {
     std::cerr << "syndds_evaluate: give at least one --policy or --baseline\n";
@@ -52,7 +59,26 @@ int main(int argc, char** argv) {
   try {
     learn::EnvFactory factory;
     try {
-      factory = learn::env_factory(env_name, learn::parse_env_options(env_option_args));
+      const learn::EnvOptions options = learn::parse_env_options(env_option_args);
+      if (perception_file.empty()) {
+        factory = learn::env_factory(env_name, options);
+      } else {
+        learn::ConvoyEnvOptions o = learn::convoy_env_options(options);
+        if (env_name != "convoy_follow" || !o.teacher_view_ranges) {
+          std::cerr << "syndds_evaluate: --perception: for convoy_follow with "
+                       "teacher_view=ranges\n";
+          return 1;
+        }
+        auto model = std::make_shared<learn::ppo::PerceptionModel>(
+            learn::ppo::PerceptionModel::load(perception_file));
+        o.perceive_ranges = [model](const learn::Observation& seen) {
+          return model->read(seen.image);
+        };
+        factory = [o] { return learn::make_convoy_env(o); };
+      }
+    } catch (const std::runtime_error& e) {
+      std::cerr << "syndds_evaluate: --perception " << e.what() << "\n";
+      return 1;
     } catch (const std::invalid_argument& e) {
       std::cerr << "syndds_evaluate: --env / --env-option: " << e.what() << "\n";
       return 1;

@@ -100,9 +100,7 @@ int fit_perception(const learn::EnvFactory& factory, const learn::ppo::TrainerOp
     std::cerr << "syndds_train: cannot write " << csv_path.string() << "\n";
     return 1;
   }
-  torch::serialize::OutputArchive archive;
-  net->save(archive);
-  archive.save_to(net_path.string());
+  learn::ppo::PerceptionModel::save(net_path.string(), *net, *image);
   std::printf("perception fit on %lld images (%lld more held out; %lld episodes) in %s collecting "
               "and %s fitting; held out, an image-blind network (the training mean): RMS %s, "
               "%s where something is seen (%s of the values)\nwrote %s, %s\n",

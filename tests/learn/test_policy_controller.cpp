@@ -74,6 +74,25 @@ std::string write_policy(const fs::path& dir, const ConvoyEnvOptions& options) {
   if (options.steering_residual) {
     env_options += (env_options.empty() ? "" : " ") + std::string("steering=residual");
   }
+  if (options.observe_keep_out) {  // with the perception network it reads the ranges with
+    env_options += " camera=true teacher_keep_clear=" + std::to_string(options.teacher_keep_clear_m) +
+                   " teacher_view=ranges observe_keep_out=true";
+    // Untrained, with its head made to see obstacles 6 m out on the left half of the view
+    // (the image moves the readings a little around that).
+    torch::manual_seed(5);
+    ppo::PerceptionNet net(ImageSpec{80, 45, 3}, kPerceptionRays);
+    {
+      torch::NoGradGuard no_grad;
+      for (auto& p : net.named_parameters()) {
+        if (p.key() == "head.2.weight") p.value().mul_(0.01);
+        if (p.key() == "head.2.bias") {
+          for (int k = 0; k < kPerceptionRays; ++k) p.value()[k] = k < kPerceptionRays / 2 ? 0.3f : 1.5f;
+        }
+      }
+    }
+    ppo::PerceptionModel::save((dir / "perception.pt").string(), net, ImageSpec{80, 45, 3});
+    meta["perception"] = "perception.pt";
+  }
   if (options.frames_per_step != ConvoyEnvOptions{}.frames_per_step) {
     env_options += (env_options.empty() ? "" : " ") + std::string("frames_per_step=") +
                    std::to_string(options.frames_per_step);
@@ -132,7 +151,7 @@ static ConvoyEnvOptions trained_with(ConvoyObservationKind kind, double steer_la
   return options;
 }
 
-static void drives_exactly_as_in_the_environment(const ConvoyEnvOptions& options,
+static void drives_exactly_as_in_the_environment(ConvoyEnvOptions options,
                                                  const std::string& rig = "") {
   register_policy_controller();
   at::set_num_threads(1);
@@ -140,6 +159,12 @@ static void drives_exactly_as_in_the_environment(const ConvoyEnvOptions& options
   const std::string policy_file = write_policy(dir, options);
   Policy policy;
   policy.load(policy_file);
+  if (options.observe_keep_out) {  // the environment reads the ranges with the same network
+    auto model = std::make_shared<ppo::PerceptionModel>(
+        ppo::PerceptionModel::load((dir / "perception.pt").string()));
+    options.perceive_ranges = [model](const Observation& o) { return model->read(o.image); };
+  }
+  double largest_shift = 0.0;
 
   // The environment: its own driver agent, the policy's deterministic actions; the follower's
   // state at the end of every step (frames from 0, as in a run).
@@ -153,6 +178,7 @@ static void drives_exactly_as_in_the_environment(const ConvoyEnvOptions& options
     const StepResult r = env.step(policy.act(obs, true));
     obs = r.observation;
     env_states.push_back(env.follower_state());
+    largest_shift = std::max(largest_shift, std::abs(env.teacher_shift_m()));
     ASSERT_FALSE(r.terminated || r.truncated)
         << "the episode ended early at step " << k << " (distance " << r.info.at("distance_m")
         << " m, collided " << r.info.at("collided") << ", leader_contact "
@@ -172,6 +198,11 @@ static void drives_exactly_as_in_the_environment(const ConvoyEnvOptions& options
   // The policy moved the follower (a track standing still would prove nothing).
   EXPECT_GT((track.back().pose.position - track.front().pose.position).norm(), 0.5);
   EXPECT_NE(first_action[0], 0.0f);
+  // With a perceived keep-out the observation was shifted (else it would prove nothing).
+  if (options.observe_keep_out) {
+    std::printf("largest keep-out shift %.3f m\n", largest_shift);
+    EXPECT_GT(largest_shift, 0.05);
+  }
 }
 
 TEST(PolicyController, DrivesExactlyAsInTheEnvironment) {
@@ -224,6 +255,23 @@ TEST(PolicyController, DrivesExactlyAsInTheEnvironmentWithResidualSteering) {
   ConvoyEnvOptions options = trained_with(ConvoyObservationKind::trail_ff);
   options.steering_residual = true;
   drives_exactly_as_in_the_environment(options);
+}
+
+// A policy that keeps clear of what its camera shows (observe_keep_out, teacher_view=ranges):
+// the controller reads the ranges from the image the policy saw with the policy's perception
+// network and gives them to the obstacle memory, as the environment does; the shift they
+// make reaches the observation the same way.
+static ConvoyEnvOptions keeping_clear_of_what_it_sees() {
+  ConvoyEnvOptions options = trained_with(ConvoyObservationKind::trail_ff);
+  options.camera = true;
+  options.teacher_keep_clear_m = 2.5;
+  options.teacher_view_ranges = true;
+  options.observe_keep_out = true;
+  return options;
+}
+
+TEST(PolicyController, DrivesExactlyAsInTheEnvironmentKeepingClearOfWhatItSees) {
+  drives_exactly_as_in_the_environment(keeping_clear_of_what_it_sees());
 }
 
 // A policy trained at 20 Hz (frames_per_step 5): with no controller.period_s the controller
@@ -440,6 +488,11 @@ TEST(PolicyController, AResumedRunIsByteIdenticalOnTheMemoryObservation) {
 
 TEST(PolicyController, AResumedRunIsByteIdenticalWithASteeringLag) {
   a_resumed_run_is_byte_identical(trained_with(ConvoyObservationKind::trail_action, 0.25));
+}
+
+// The obstacle memory behind a perceived keep-out is in the checkpoint too.
+TEST(PolicyController, AResumedRunIsByteIdenticalKeepingClearOfWhatItSees) {
+  a_resumed_run_is_byte_identical(keeping_clear_of_what_it_sees());
 }
 
 // The residual sensor-fusion network started from a vector policy of an earlier stage acts

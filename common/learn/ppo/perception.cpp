@@ -15,6 +15,51 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
 
+void PerceptionModel::save(const std::string& path, PerceptionNet& net, const ImageSpec& image) {
+  torch::serialize::OutputArchive archive;
+  net.save(archive);
+  archive.write("perception_outputs", torch::tensor(static_cast<std::int64_t>(net.outputs())));
+  archive.write("perception_image",
+                torch::tensor({static_cast<std::int64_t>(image.width),
+                               static_cast<std::int64_t>(image.height),
+                               static_cast<std::int64_t>(image.channels)}));
+  archive.save_to(path);
+}
+
+PerceptionModel PerceptionModel::load(const std::string& path) {
+  try {
+    torch::serialize::InputArchive archive;
+    archive.load_from(path);
+    torch::Tensor outputs, image;
+    archive.read("perception_outputs", outputs);
+    archive.read("perception_image", image);
+    PerceptionModel m;
+    m.image_ = ImageSpec{static_cast<int>(image[0].item<std::int64_t>()),
+                         static_cast<int>(image[1].item<std::int64_t>()),
+                         static_cast<int>(image[2].item<std::int64_t>())};
+    m.net_ = std::make_shared<PerceptionNet>(m.image_, static_cast<int>(outputs.item<std::int64_t>()));
+    m.net_->load(archive);
+    m.net_->eval();
+    return m;
+  } catch (const c10::Error& e) {
+    throw std::runtime_error(path + ": not a perception file of syndds_train --perceive-steps (" +
+                             e.what_without_backtrace() + ")");
+  }
+}
+
+std::vector<float> PerceptionModel::read(const std::vector<std::uint8_t>& image) const {
+  if (image.size() != image_.bytes()) {
+    throw std::invalid_argument("PerceptionModel: an image of " + std::to_string(image.size()) +
+                                " bytes, the model reads " + std::to_string(image_.bytes()));
+  }
+  torch::NoGradGuard no_grad;
+  const torch::Tensor in = torch::from_blob(const_cast<std::uint8_t*>(image.data()),
+                                            {1, image_.height, image_.width, image_.channels},
+                                            torch::kUInt8);
+  const torch::Tensor out = net_->forward(in).contiguous();
+  return std::vector<float>(out.data_ptr<float>(), out.data_ptr<float>() + out.numel());
+}
+
 PerceptionStats fit_perception(VectorEnv& envs, std::uint64_t seed, const PerceptionOptions& o,
                                PerceptionNet& net, at::Generator& generator,
                                const std::function<void(const PerceptionEpoch&)>& progress) {
