@@ -266,6 +266,21 @@ std::string resolve_policy_file(const YamlNode& node, const std::string& config_
               node.file() + ")");
   }
   files.read(file.string(), node.path());
+  // A policy that reads obstacles from its camera names its perception network in its
+  // sidecar (<policy>.json, key "perception", a file beside it): read too, so that every
+  // process perceives with the same bytes.
+  const fs::path sidecar = fs::path(file).replace_extension(".json");
+  if (fs::exists(sidecar)) {
+    const YAML::Node meta = YamlNode::load_file(sidecar.string()).raw();
+    if (meta.IsMap() && meta["perception"] && meta["perception"].IsScalar()) {
+      const fs::path perception = file.parent_path() / meta["perception"].as<std::string>();
+      if (!fs::exists(perception)) {
+        node.fail("policy file " + name + " names perception network " + perception.string() +
+                  " in " + sidecar.string() + ", which is not there");
+      }
+      files.read(perception.string(), node.path() + " (perception)");
+    }
+  }
   return file.string();
 }
 

@@ -12,8 +12,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
+#include "learn/convoy_env.hpp"
 #include "learn/ppo/perception.hpp"
 #include "learn/ppo/trainer.hpp"
 #include "learn/registry.hpp"
@@ -238,6 +240,12 @@ int main(int argc, char** argv) {
                  "As --clone-colour-jitter, for the perception fit")
       ->check(CLI::Range(0.0, 0.99))
       ->capture_default_str();
+  std::string perception_file;
+  app.add_option("--perception", perception_file,
+                 "convoy_follow with observe_keep_out and teacher_view=ranges: the perception "
+                 "network (--perceive-steps' perception.pt) a controller driving with this policy "
+                 "reads the ranges with; copied beside policy.pt and named in its metadata. "
+                 "Training itself reads the ground-truth ranges");
   CLI11_PARSE(app, argc, argv);
   if (perceive.steps > 0 && (resume || clone.steps > 0 || !init_from.empty())) {
     std::cerr << "syndds_train: --perceive-steps fits a perception network only: not with "
@@ -285,6 +293,33 @@ int main(int argc, char** argv) {
       return 1;
     }
     if (perceive.steps > 0) return fit_perception(factory, options, perceive, dir);
+    std::optional<learn::ppo::PerceptionModel> perception;
+    if (!perception_file.empty()) {
+      const learn::ConvoyEnvOptions o = learn::convoy_env_options(env_options);
+      if (env_name != "convoy_follow" || !o.observe_keep_out || !o.teacher_view_ranges) {
+        std::cerr << "syndds_train: --perception: for convoy_follow with observe_keep_out=true "
+                     "and teacher_view=ranges\n";
+        return 1;
+      }
+      try {
+        perception = learn::ppo::PerceptionModel::load(perception_file);
+      } catch (const std::runtime_error& e) {
+        std::cerr << "syndds_train: --perception " << e.what() << "\n";
+        return 1;
+      }
+      const auto image = factory()->observation_space().image;
+      if (!image || image->bytes() != perception->image().bytes() ||
+          perception->outputs() != learn::kPerceptionRays) {
+        std::cerr << "syndds_train: --perception " << perception_file << ": reads another image "
+                  << "or gives another number of ranges than this environment's camera\n";
+        return 1;
+      }
+    } else if (env_name == "convoy_follow" &&
+               learn::convoy_env_options(env_options).observe_keep_out &&
+               learn::convoy_env_options(env_options).teacher_view_ranges) {
+      std::printf("no --perception: a controller cannot drive with this policy (it needs the "
+                  "network that reads the ranges)\n");
+    }
     learn::ppo::Trainer trainer(factory, options);
     std::string rows = std::string(kHeader) + "\n";
     if (resume) {
@@ -413,6 +448,13 @@ int main(int argc, char** argv) {
     if (env_name == "convoy_follow") {
       // The rig a vehicle driven by this policy needs (config/sensors/<rig>.yaml).
       metadata["sensors"] = factory()->observation_space().image ? "convoy_camera" : "convoy";
+    }
+    if (perception) {
+      const fs::path copy = dir / "perception.pt";
+      if (fs::absolute(perception_file) != fs::absolute(copy)) {
+        fs::copy_file(perception_file, copy, fs::copy_options::overwrite_existing);
+      }
+      metadata["perception"] = copy.filename().string();
     }
     trainer.save_policy((dir / "policy.pt").string(), metadata);
     learn::write_policy_sidecar((dir / "policy.pt").string(), metadata);

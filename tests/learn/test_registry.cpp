@@ -51,6 +51,13 @@ TEST(Registry, ConvoyOptionsReachTheEnvironment) {
   EXPECT_EQ(convoy_env_options({}).teacher_keep_clear_m, 0.0);
   EXPECT_FALSE(convoy_env_options({}).teacher_view_camera);
   EXPECT_TRUE(convoy_env_options({{"teacher_view", "camera"}, {"camera", "true"}}).teacher_view_camera);
+  const ConvoyEnvOptions ranges = convoy_env_options({{"teacher_view", "ranges"}, {"camera", "true"},
+                                                      {"teacher_keep_clear", "2.5"},
+                                                      {"observe_keep_out", "true"}});
+  EXPECT_TRUE(ranges.teacher_view_ranges);
+  EXPECT_FALSE(ranges.teacher_view_camera);
+  EXPECT_TRUE(ranges.observe_keep_out);
+  EXPECT_FALSE(convoy_env_options({}).observe_keep_out);
   EXPECT_EQ(convoy_env_options({{"observation", "trail_ff_memory"}}).observation,
             ConvoyObservationKind::trail_ff_memory);
   EXPECT_TRUE(convoy_env_options({{"ground_colour", "random"}}).random_ground_colour);
@@ -110,7 +117,13 @@ TEST(Registry, MistakesAreNamed) {
                 .find("option teacher_view: camera needs camera=true"),
             std::string::npos);
   EXPECT_NE(error_of("convoy_follow", {{"teacher_view", "lidar"}})
-                .find("option teacher_view: 'lidar' is not one of map, camera"),
+                .find("option teacher_view: 'lidar' is not one of map, camera, ranges"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"teacher_view", "ranges"}})
+                .find("option teacher_view: ranges needs camera=true"),
+            std::string::npos);
+  EXPECT_NE(error_of("convoy_follow", {{"observe_keep_out", "true"}})
+                .find("option observe_keep_out: needs teacher_keep_clear > 0"),
             std::string::npos);
   EXPECT_NE(error_of("double_integrator", {{"mass", "2"}}).find("takes no options"),
             std::string::npos);
