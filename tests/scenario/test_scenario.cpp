@@ -13,6 +13,8 @@ using namespace syndds::scenario;
 
 namespace {
 
+namespace fs = std::filesystem;
+
 const std::string kConfigDir = SYNDDS_TEST_CONFIG_DIR;
 
 Scenario parse(const std::string& text, const Overrides& o = {}) {
@@ -327,6 +329,26 @@ vehicles:
                 .find("period_s (0.015 s) must be a whole multiple of time.heartbeat_s (0.01 s)"),
             std::string::npos)
       << error_of(leader + odd_period);
+  // A policy whose sidecar names a perception network: that file is read too (in the
+  // fingerprint), and its absence is named.
+  const fs::path dir = fs::path(testing::TempDir()) / "policy_with_perception";
+  fs::create_directories(dir);
+  std::ofstream(dir / "p.pt") << "policy bytes";
+  std::ofstream(dir / "p.json") << "{\"env\": \"convoy_follow\", \"perception\": \"perc.pt\"}\n";
+  fs::remove(dir / "perc.pt");
+  const std::string perceiving = replaced(policy, "model: no_such_policy.pt",
+                                          "model: " + (dir / "p.pt").string());
+  EXPECT_NE(error_of(leader + perceiving).find("names perception network"), std::string::npos)
+      << error_of(leader + perceiving);
+  std::ofstream(dir / "perc.pt") << "network one";
+  const Scenario one = parse(leader + perceiving);
+  const auto perception_file = std::find_if(one.files.begin(), one.files.end(), [](const auto& f) {
+    return f.role == "vehicles[1].controller.model (perception)";
+  });
+  ASSERT_NE(perception_file, one.files.end());
+  EXPECT_EQ(fs::path(perception_file->path), dir / "perc.pt");
+  std::ofstream(dir / "perc.pt") << "network two";
+  EXPECT_NE(parse(leader + perceiving).fingerprint, one.fingerprint);
 }
 
 // Each camera, lidar or radar publishes at most one sample a frame; more of one kind on one
