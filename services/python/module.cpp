@@ -106,6 +106,7 @@ class PyEnv {
   py::dict observation_space() const { return space_dict(space_); }
   py::dict action_space() const { return box_dict(env_->action_space()); }
   py::array_t<float> expert_action() const { return to_array(env_->expert_action()); }
+  py::array_t<float> perception_target() const { return to_array(env_->perception_target()); }
 
  private:
   std::unique_ptr<Env> env_;
@@ -167,20 +168,29 @@ class PyVectorEnv {
   py::dict observation_space() const { return space_dict(space_); }
   py::dict action_space() const { return box_dict(env_.action_space()); }
   // (K, A) floats, or (K, 0) when the environment has no teacher.
-  py::array_t<float> expert_actions() {
+  py::array_t<float> expert_actions() { return rows("expert_action", &Env::expert_action); }
+  // (K, R) floats, or (K, 0) when the environment has no perception target.
+  py::array_t<float> perception_targets() {
+    return rows("perception_target", &Env::perception_target);
+  }
+
+ private:
+  // One row per copy of what `of` gives.
+  py::array_t<float> rows(const char* what, std::vector<float> (Env::*of)() const) {
     const auto k = static_cast<std::size_t>(env_.size());
     std::vector<std::vector<float>> each(k);
-    for (std::size_t i = 0; i < k; ++i) each[i] = env_.copy(static_cast<int>(i)).expert_action();
+    for (std::size_t i = 0; i < k; ++i) each[i] = (env_.copy(static_cast<int>(i)).*of)();
     const std::size_t n = each.empty() ? 0 : each.front().size();
     py::array_t<float> out({k, n});
     for (std::size_t i = 0; i < k; ++i) {
-      if (each[i].size() != n) throw py::value_error("expert_action: copies disagree on its size");
+      if (each[i].size() != n) {
+        throw py::value_error(std::string(what) + ": copies disagree on its size");
+      }
       std::memcpy(out.mutable_data(i), each[i].data(), n * sizeof(float));
     }
     return out;
   }
 
- private:
   // Observations of all copies stacked: (K, n) floats, and (K, H, W, 3) bytes with a camera.
   py::object batch(const std::vector<Observation>& obs) const {
     const std::size_t k = obs.size(), n = space_.vector.size();
@@ -214,6 +224,9 @@ PYBIND11_MODULE(_syndds, m) {
       .def("step", &PyEnv::step, "action"_a)
       .def("expert_action", &PyEnv::expert_action,
            "The teacher's action for the current state (empty without one)")
+      .def("perception_target", &PyEnv::perception_target,
+           "What a perception network is fitted to read from the current image (empty without "
+           "one)")
       .def_property_readonly("observation_space_dict", &PyEnv::observation_space)
       .def_property_readonly("action_space_dict", &PyEnv::action_space);
   py::class_<PyVectorEnv>(m, "VectorEnv")
@@ -223,6 +236,8 @@ PYBIND11_MODULE(_syndds, m) {
       .def("step", &PyVectorEnv::step, "actions"_a)
       .def("expert_action", &PyVectorEnv::expert_actions,
            "Each copy's teacher action for its current state: (copies, actions)")
+      .def("perception_target", &PyVectorEnv::perception_targets,
+           "Each copy's perception target for its current image: (copies, values)")
       .def_property_readonly("num_envs", &PyVectorEnv::size)
       .def_property_readonly("observation_space_dict", &PyVectorEnv::observation_space)
       .def_property_readonly("action_space_dict", &PyVectorEnv::action_space);

@@ -116,6 +116,18 @@ class CameraFollower(unittest.TestCase):
         envs.reset(seed=1)
         self.assertEqual(envs.expert_action().shape, (2, 2))
 
+    def test_the_perception_target_is_the_cameras_ranges(self):
+        env = syndds.make("convoy_follow", observation="trail_ff", camera=True, episodes="courses")
+        env.reset(seed=2000001)
+        ranges = env.perception_target()
+        self.assertEqual(ranges.shape, (16,))
+        self.assertTrue(((ranges >= 0.0) & (ranges <= 1.0)).all())
+        self.assertLess(ranges.min(), 1.0)  # a course has obstacles in view at its start
+        self.assertEqual(syndds.make("convoy_follow").perception_target().shape, (0,))
+        envs = syndds.make_vector("convoy_follow", copies=2, camera=True)
+        envs.reset(seed=1)
+        self.assertEqual(envs.perception_target().shape, (2, 16))
+
     def test_an_unknown_observation_is_an_error_naming_it(self):
         with self.assertRaisesRegex(ValueError, "option observation: 'radar' is not one of"):
             syndds.make("convoy_follow", observation="radar")

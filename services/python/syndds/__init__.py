@@ -92,6 +92,13 @@ class _Wrapped:
         the environment has none; a vector environment gives one row per copy."""
         return self._env.expert_action()
 
+    def perception_target(self):
+        """What a perception network is fitted to read from the current image alone (e.g. the
+        obstacles' ranges across the convoy follower's camera view, each over 20 m, 1: none),
+        from ground truth; never part of the observation. Empty when the environment has none;
+        a vector environment gives one row per copy."""
+        return self._env.perception_target()
+
     def close(self):
         pass
 
