@@ -13,7 +13,6 @@
 
 #include "learn/convoy_env.hpp"
 #include "learn/evaluate.hpp"
-#include "learn/convoy_env.hpp"
 #include "learn/ppo/perception.hpp"
 #include "learn/ppo/policy.hpp"
 #include "learn/registry.hpp"
