@@ -104,4 +104,17 @@ VectorStepResult VectorEnv::step(const std::vector<std::vector<float>>& actions)
   return out;
 }
 
+std::int64_t take_step(VectorStepResult& step, std::vector<Observation>& observations,
+                       std::vector<std::int64_t>& episodes) {
+  std::int64_t ended = 0;
+  for (std::size_t k = 0; k < step.results.size(); ++k) {
+    if (step.results[k].terminated || step.results[k].truncated) {
+      ++episodes[k];
+      ++ended;
+    }
+    observations[k] = std::move(step.results[k].observation);
+  }
+  return ended;
+}
+
 }  // namespace syndds::learn

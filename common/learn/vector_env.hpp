@@ -5,6 +5,7 @@
 // next episode seed (episode_seed(seed, i, n)); the step result then carries the next
 // episode's first observation and `final_observation` the last one of the ended episode (what a
 // trainer bootstraps a truncated episode's value from).
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <span>
@@ -19,6 +20,11 @@ struct VectorStepResult {
   std::vector<StepResult> results;                       // one per copy
   std::vector<std::optional<Observation>> final_observations;  // set where an episode ended
 };
+
+/// Takes one step's results in: each copy's next observation moved into `observations`, and
+/// `episodes[i]` counted up where copy i's episode ended in it. Returns how many ended.
+std::int64_t take_step(VectorStepResult& step, std::vector<Observation>& observations,
+                       std::vector<std::int64_t>& episodes);
 
 class VectorEnv {
  public:

@@ -119,14 +119,7 @@ PerceptionStats fit_perception(VectorEnv& envs, std::uint64_t seed, const Percep
       ++s.size;
     }
     VectorStepResult res = envs.step(actions);
-    for (int k = 0; k < K; ++k) {
-      const auto ku = static_cast<std::size_t>(k);
-      if (res.results[ku].terminated || res.results[ku].truncated) {
-        ++episode[ku];
-        ++stats.episodes;
-      }
-      obs[ku] = std::move(res.results[ku].observation);
-    }
+    stats.episodes += take_step(res, obs, episode);
   }
   stats.collect_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (train.size < 2) throw std::invalid_argument("perception fit: fewer than 2 training samples");

@@ -461,14 +461,7 @@ CloneStats Trainer::clone(const CloneOptions& c,
         }
       }
       VectorStepResult res = envs_.step(actions);
-      for (int k = 0; k < K; ++k) {
-        const auto ku = static_cast<std::size_t>(k);
-        if (res.results[ku].terminated || res.results[ku].truncated) {
-          ++episode[ku];
-          ++stats.episodes;
-        }
-        obs[ku] = std::move(res.results[ku].observation);
-      }
+      stats.episodes += take_step(res, obs, episode);
     }
     collect_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - tc).count();
     if (train.size < 2) {
