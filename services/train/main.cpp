@@ -432,7 +432,8 @@ int main(int argc, char** argv) {
                                    {"seed", std::to_string(options.seed)},
                                    {"updates", std::to_string(trainer.updates())},
                                    {"interactions", std::to_string(trainer.interactions())}};
-    if (!init_from.empty()) metadata["init_from"] = fs::path(init_from).filename().string();
+    // Where the run started, kept by its checkpoints through a --resume.
+    if (!trainer.init_from().empty()) metadata["init_from"] = trainer.init_from();
     if (clone.steps > 0) {
       metadata["clone"] = std::to_string(clone.iterations) + " x " +
                           std::to_string(clone.steps) + " interactions, " +

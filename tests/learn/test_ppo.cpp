@@ -314,7 +314,17 @@ TEST(Ppo, AStageStartsFromTheNetworkOfTheLastOne) {
   expect_identical(parameters(first), parameters(second));
   EXPECT_EQ(first.normalizer().mean(), second.normalizer().mean());
   EXPECT_EQ(second.updates(), 0);
+  EXPECT_EQ(second.init_from(), "stage1.pt");
   second.update();  // and it trains on
+  // Where it started is kept through a checkpoint (the resumed policy's metadata names it),
+  // and a run that has updated does not start over from a file.
+  const std::string checkpoint = (dir / "checkpoint.pt").string();
+  second.save_checkpoint(checkpoint);
+  Trainer resumed(double_integrator(), o);
+  resumed.load_checkpoint(checkpoint);
+  EXPECT_EQ(resumed.init_from(), "stage1.pt");
+  EXPECT_THROW(resumed.initialize_from_policy(file), std::logic_error);
+  EXPECT_EQ(Trainer(double_integrator(), o).init_from(), "");
   // A policy of another environment (4 numbers, 2 actions) does not fit.
   const std::string convoy = (dir / "convoy.pt").string();
   Trainer(env_factory("convoy_follow"), small_options(1, 1, 150)).save_policy(convoy);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <filesystem>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -539,6 +540,7 @@ void Trainer::save_checkpoint(const std::string& path) const {
   archive.write("normalizer", normalizer);
   archive.write("return_normalizer", return_normalizer);
   archive.write("network", c10::IValue(model_->kind()));
+  archive.write("init_from", c10::IValue(init_from_));
   archive.write("seed", int_tensor(std::bit_cast<std::int64_t>(options_.seed)));
   archive.write("copies", int_tensor(options_.copies));
   archive.write("steps", int_tensor(steps_));
@@ -570,6 +572,10 @@ void Trainer::save_checkpoint(const std::string& path) const {
 }
 
 void Trainer::initialize_from_policy(const std::string& path) {
+  if (updates_ > 0) {
+    throw std::logic_error(path + ": a run starts from an earlier policy before its first "
+                           "update, not after " + std::to_string(updates_));
+  }
   Policy earlier;
   earlier.load(path);
   const ObservationSpace& o = earlier.observation_space();
@@ -594,6 +600,7 @@ void Trainer::initialize_from_policy(const std::string& path) {
     archive.read("normalizer", normalizer);
     residual->base().load(model);
     normalizer_.load(normalizer);
+    init_from_ = std::filesystem::path(path).filename().string();
     return;
   }
   const bool same_image = o.image.has_value() == observation_space_.image.has_value() &&
@@ -617,6 +624,7 @@ void Trainer::initialize_from_policy(const std::string& path) {
   archive.read("normalizer", normalizer);
   model_->load(model);
   normalizer_.load(normalizer);
+  init_from_ = std::filesystem::path(path).filename().string();
 }
 
 void Trainer::load_checkpoint(const std::string& path) {
@@ -668,6 +676,8 @@ void Trainer::load_checkpoint(const std::string& path) {
   return_normalizer_.load(return_normalizer);
   updates_ = static_cast<int>(int_of(archive, "updates"));
   interactions_ = int_of(archive, "interactions");
+  c10::IValue init_from;
+  init_from_ = archive.try_read("init_from", init_from) ? init_from.toStringRef() : "";
   const auto env_seed = std::bit_cast<std::uint64_t>(int_of(archive, "env_seed"));
   torch::Tensor t = read(archive, "episodes");
   std::vector<std::uint64_t> episodes;

@@ -178,8 +178,13 @@ class Trainer {
   /// Starts this (fresh) run from the network and observation normaliser of a policy file of
   /// an earlier stage (the curriculum: reduced model first, then the full one); the optimiser,
   /// counters and return statistics start anew. std::invalid_argument if the network kind or
-  /// the spaces differ, naming the file.
+  /// the spaces differ, naming the file; std::logic_error once this run has updated (a
+  /// resumed run keeps the network its checkpoint holds).
   void initialize_from_policy(const std::string& path);
+  /// The file name (no directory) of the policy this run started from, kept in its
+  /// checkpoints: empty for a run from a random initialisation (or a checkpoint written
+  /// before the name was kept).
+  const std::string& init_from() const { return init_from_; }
 
  private:
   torch::Tensor vector_tensor(const std::vector<const Observation*>& obs) const;
@@ -199,6 +204,7 @@ class Trainer {
   at::Generator generator_;
   int steps_ = 0;
   int updates_ = 0;
+  std::string init_from_;
   std::int64_t interactions_ = 0;
   std::vector<Observation> observations_;                     // current, raw
   std::vector<std::vector<std::vector<float>>> episode_actions_;  // per copy, current episode
