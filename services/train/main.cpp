@@ -132,7 +132,10 @@ int main(int argc, char** argv) {
                  }() + ")")
       ->required();
   app.add_option("--env-option", env_option_args, "Environment option KEY=VALUE (repeatable)");
-  app.add_option("--updates", updates, "Updates in all (a resumed run goes on to this count)")
+  app.add_option("--updates", updates,
+                 "Updates in all (a resumed run goes on to this count). 0 with --init-from "
+                 "writes that policy's network under this run's environment options and "
+                 "metadata (e.g. to attach --perception)")
       ->check(CLI::Range(0, 1 << 30))
       ->capture_default_str();
   app.add_option("--steps-per-update", ppo.steps_per_update,
@@ -252,8 +255,9 @@ int main(int argc, char** argv) {
                  "--resume, --clone-steps or --init-from\n";
     return 1;
   }
-  if (updates == 0 && clone.steps == 0 && perceive.steps == 0) {
-    std::cerr << "syndds_train: --updates 0 needs --clone-steps (nothing to train)\n";
+  if (updates == 0 && clone.steps == 0 && perceive.steps == 0 && init_from.empty()) {
+    std::cerr << "syndds_train: --updates 0 needs --clone-steps, --perceive-steps or "
+                 "--init-from (nothing to train or write)\n";
     return 1;
   }
 
@@ -337,7 +341,7 @@ int main(int argc, char** argv) {
                 << " exists: pass --resume to continue it or choose another --output\n";
       return 1;
     }
-    if (!init_from.empty()) {
+    if (!init_from.empty()) {  // not with --resume (CLI11 refuses it)
       try {
         trainer.initialize_from_policy(init_from);
       } catch (const std::exception& e) {

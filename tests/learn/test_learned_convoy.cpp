@@ -111,3 +111,50 @@ TEST(LearnedConvoy, EvaluateComparesTheExpertWithTheBaselines) {
             std::string::npos)
       << read_file(run.dir / "paper.log");
 }
+
+// syndds_train --init-from with 0 updates writes the earlier policy's network under the
+// run's environment options (it acts exactly as that policy on the same episodes), and a run
+// started from a policy still names it in its metadata after a --resume.
+TEST(LearnedConvoy, TrainStartsFromAnEarlierPolicyAndNamesItThroughAResume) {
+  TestRun run;
+  const std::string earlier = kConfig + "/policies/convoy_follow_lowdim.pt";
+  const auto train = [&](const std::string& args, const std::string& name) {
+    const std::string cmd = kBin + "/syndds_train --env convoy_follow --env-option max_steps=150 " +
+                            "--steps-per-update 64 --copies 1 " + args + " --output " +
+                            (run.dir / name).string() + " > " +
+                            (run.dir / (name + ".log")).string() + " 2>&1";
+    return std::system(cmd.c_str());
+  };
+  const auto metadata = [&](const std::string& name) {
+    return nlohmann::json::parse(read_file(run.dir / name / "policy.json"));
+  };
+  ASSERT_EQ(train("--init-from " + earlier + " --updates 0", "relabelled"), 0)
+      << read_file(run.dir / "relabelled.log");
+  EXPECT_EQ(metadata("relabelled")["init_from"], "convoy_follow_lowdim.pt");
+  EXPECT_EQ(metadata("relabelled")["updates"], "0");
+  EXPECT_EQ(metadata("relabelled")["env_options"], "max_steps=150");
+  // The same rows from syndds_evaluate, the policy's name aside.
+  const std::string csv = (run.dir / "evaluate.csv").string();
+  const std::string cmd = kBin + "/syndds_evaluate --env convoy_follow --env-option max_steps=150" +
+                          " --episodes 2 --policy " + earlier + " --policy " +
+                          (run.dir / "relabelled" / "policy.pt").string() + " --csv " + csv +
+                          " > " + (run.dir / "evaluate.log").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << read_file(run.dir / "evaluate.log");
+  std::istringstream rows(read_file(csv));
+  std::string header, first, second;
+  std::getline(rows, header);
+  std::getline(rows, first);
+  std::getline(rows, second);
+  ASSERT_FALSE(second.empty()) << read_file(csv);
+  EXPECT_EQ(first.substr(first.find(',')), second.substr(second.find(',')));
+
+  ASSERT_EQ(train("--init-from " + earlier + " --updates 1", "staged"), 0)
+      << read_file(run.dir / "staged.log");
+  ASSERT_EQ(train("--resume --updates 2", "staged"), 0) << read_file(run.dir / "staged.log");
+  EXPECT_EQ(metadata("staged")["init_from"], "convoy_follow_lowdim.pt");
+  EXPECT_EQ(metadata("staged")["updates"], "2");
+
+  EXPECT_EQ(train("--updates 0", "nothing"), 1 << 8);
+  EXPECT_NE(read_file(run.dir / "nothing.log").find("--updates 0 needs"), std::string::npos)
+      << read_file(run.dir / "nothing.log");
+}
