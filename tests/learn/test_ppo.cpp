@@ -6,6 +6,7 @@
 
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "learn/double_integrator.hpp"
@@ -693,14 +695,15 @@ TEST(Ppo, CloningIterationsAreDrivenByThePolicyAndFitOnEverything) {
 
 namespace {
 
-// Grey screens: each step's image (40 x 36) is one grey level, drawn anew, and the expert's
-// action is that level mapped onto [-1, 1]: an expert that reads the images' brightness.
-class GreyScreens final : public Env {
+// Episodes of 20 steps whose every observation is a freshly drawn 40 x 36 image (what `paint`
+// draws on black from the episode's generator) and the step over 20; one action, unused.
+class DrawnImages : public Env {
  public:
+  explicit DrawnImages(std::string action) : action_(std::move(action)) {}
   ObservationSpace observation_space() const override {
-    return {Box{{0.0f}, {1.0f}, {"time"}}, ImageSpec{40, 36, 3}};
+    return {Box{{0.0f}, {1.0f}, {"time"}}, ImageSpec{kWidth, kHeight, 3}};
   }
-  Box action_space() const override { return Box{{-1.0f}, {1.0f}, {"level"}}; }
+  Box action_space() const override { return Box{{-1.0f}, {1.0f}, {action_}}; }
   Observation reset(std::uint64_t seed) override {
     rng_.seed(seed);
     step_ = 0;
@@ -713,20 +716,38 @@ class GreyScreens final : public Env {
     r.truncated = step_ >= 20;
     return r;
   }
+
+ protected:
+  static constexpr int kWidth = 40, kHeight = 36;
+  virtual void paint(std::mt19937_64& rng, std::vector<std::uint8_t>& image) = 0;
+
+ private:
+  Observation draw() {
+    Observation o;
+    o.vector = {static_cast<float>(step_) / 20.0f};
+    o.image.assign(kWidth * kHeight * 3, 0);
+    paint(rng_, o.image);
+    return o;
+  }
+  std::string action_;
+  std::mt19937_64 rng_;
+  int step_ = 0;
+};
+
+// Grey screens: each image is one grey level, and the expert's action is that level mapped
+// onto [-1, 1]: an expert that reads the images' brightness.
+class GreyScreens final : public DrawnImages {
+ public:
+  GreyScreens() : DrawnImages("level") {}
   std::vector<float> expert_action() const override {
     return {static_cast<float>((level_ - 127.5) / 87.5)};
   }
 
  private:
-  Observation draw() {
-    level_ = std::uniform_int_distribution<int>(40, 215)(rng_);
-    Observation o;
-    o.vector = {static_cast<float>(step_) / 20.0f};
-    o.image.assign(40 * 36 * 3, static_cast<std::uint8_t>(level_));
-    return o;
+  void paint(std::mt19937_64& rng, std::vector<std::uint8_t>& image) override {
+    level_ = std::uniform_int_distribution<int>(40, 215)(rng);
+    std::fill(image.begin(), image.end(), static_cast<std::uint8_t>(level_));
   }
-  std::mt19937_64 rng_;
-  int step_ = 0;
   int level_ = 0;
 };
 
@@ -768,28 +789,12 @@ TEST(Ppo, ColourJitterChangesOnlyTheImagesTheCloningFitsOn) {
 
 namespace {
 
-// Bars: each step's image (40 x 36) is black with a white bar 4 pixels wide at a column drawn
-// anew, and the perception target is the bar's column over the width: something only the
-// image tells. The expert does nothing.
-class Bars final : public Env {
+// Bars: each image is black with a white bar 4 pixels wide at a column drawn anew, and the
+// perception target is the bar's column over the width: something only the image tells. The
+// expert does nothing.
+class Bars final : public DrawnImages {
  public:
-  explicit Bars(bool with_target = true) : with_target_(with_target) {}
-  ObservationSpace observation_space() const override {
-    return {Box{{0.0f}, {1.0f}, {"time"}}, ImageSpec{40, 36, 3}};
-  }
-  Box action_space() const override { return Box{{-1.0f}, {1.0f}, {"nothing"}}; }
-  Observation reset(std::uint64_t seed) override {
-    rng_.seed(seed);
-    step_ = 0;
-    return draw();
-  }
-  StepResult step(std::span<const float>) override {
-    StepResult r;
-    ++step_;
-    r.observation = draw();
-    r.truncated = step_ >= 20;
-    return r;
-  }
+  explicit Bars(bool with_target = true) : DrawnImages("nothing"), with_target_(with_target) {}
   std::vector<float> expert_action() const override { return {0.0f}; }
   std::vector<float> perception_target() const override {
     if (!with_target_) return {};
@@ -797,21 +802,15 @@ class Bars final : public Env {
   }
 
  private:
-  Observation draw() {
-    column_ = std::uniform_int_distribution<int>(0, 36)(rng_);
-    Observation o;
-    o.vector = {static_cast<float>(step_) / 20.0f};
-    o.image.assign(40 * 36 * 3, 0);
-    for (int row = 0; row < 36; ++row) {
+  void paint(std::mt19937_64& rng, std::vector<std::uint8_t>& image) override {
+    column_ = std::uniform_int_distribution<int>(0, 36)(rng);
+    for (int row = 0; row < kHeight; ++row) {
       for (int col = column_; col < column_ + 4; ++col) {
-        for (int ch = 0; ch < 3; ++ch) o.image[static_cast<std::size_t>((row * 40 + col) * 3 + ch)] = 255;
+        for (int ch = 0; ch < 3; ++ch) image[static_cast<std::size_t>((row * kWidth + col) * 3 + ch)] = 255;
       }
     }
-    return o;
   }
   bool with_target_;
-  std::mt19937_64 rng_;
-  int step_ = 0;
   int column_ = 0;
 };
 
