@@ -52,12 +52,27 @@ inline void fill_packet(RTCRayHit16& rh, int* valid, float (*dir)[3], std::size_
   }
 }
 
+// Whether the CPU traces 16-wide packets natively (AVX-512). Elsewhere Embree emulates them
+// with 8-wide ones, and that emulation in Debian's Embree 3.13.5 aborts on valid rays (its
+// assertion `all(valid, ray.valid())` in bvh_intersector_hybrid.cpp fails on AVX2 CPUs): there
+// the packets are traced ray by ray.
+inline bool native_packets(RTCScene scene) {
+  static const bool native = [scene] {
+    RTCDevice device = rtcGetSceneDevice(scene);  // counts a reference
+    const bool n = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) != 0;
+    rtcReleaseDevice(device);
+    return n;
+  }();
+  return native;
+}
+
 // Traces the valid lanes of a packet: 16-wide when rays are coherent, one by one otherwise
 // (low-resolution cameras: neighbouring pixels diverge by a degree or more and Embree's
-// single-ray traversal is about 20 % faster there; at 720p packets are twice as fast).
+// single-ray traversal is about 20 % faster there; at 720p packets are twice as fast), and
+// one by one on CPUs without native 16-wide packets (native_packets).
 inline void intersect(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
                       RTCRayHit16& rh) {
-  if (packets) {
+  if (packets && native_packets(scene)) {
     rtcIntersect16(valid, scene, ctx, &rh);
     return;
   }
@@ -90,7 +105,7 @@ inline void intersect(bool packets, const int* valid, RTCScene scene, RTCInterse
 
 inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
                      RTCRay16& rays) {
-  if (packets) {
+  if (packets && native_packets(scene)) {
     rtcOccluded16(valid, scene, ctx, &rays);
     return;
   }
