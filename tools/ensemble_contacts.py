@@ -5,7 +5,6 @@ follows: the measurements docs/ensemble.md gives for the paper's study.
     tools/ensemble_contacts.py DIR
     tools/ensemble_contacts.py --list DIR
 
-
 Reads DIR/runs/<seed>_<terrain>/{summary.json,events.csv,vehicles.csv,metrics.json} and
 DIR/courses/<seed>_<terrain>.yaml of every completed run; prints per terrain:
   - the leader's smallest distance from its reference point to an obstacle's edge over the run
@@ -33,34 +32,22 @@ from collections import defaultdict
 
 import numpy as np
 
-OBSTACLE = re.compile(r"id: (\w+), label: \w+, shape: cylinder, position: \[([-0-9.e]+), "
+OBSTACLE = re.compile(r"id: (\w+), label: (\w+), shape: cylinder, position: \[([-0-9.e]+), "
                       r"([-0-9.e]+)\], radius_m: ([0-9.e]+)")
-OBSTACLE_LABELLED = re.compile(r"id: (\w+), label: (\w+), shape: cylinder, position: "
-                               r"\[([-0-9.e]+), ([-0-9.e]+)\], radius_m: ([0-9.e]+)")
 TERRAINS = ["rigid", "scm_hard", "scm_soft"]
 HALF_WIDTH_M = 1.1
 BEND_ARC_M = 10.0
 STRAIGHT_DEG = 3.0
 
 
-def tracks(path):
-    """vehicle -> array of (time, x, y, speed), every 5th frame."""
+def tracks(path, every=5):
+    """vehicle -> array of (time, x, y, speed, steering), every `every`-th frame."""
     rows = defaultdict(list)
     with open(path, newline="") as f:
         for r in csv.DictReader(f):
-            if int(r["frame"]) % 5 == 0:
+            if int(r["frame"]) % every == 0:
                 rows[r["vehicle"]].append((float(r["time_s"]), float(r["x"]), float(r["y"]),
-                                           float(r["speed_mps"])))
-    return {v: np.array(x) for v, x in rows.items()}
-
-
-def frames(path):
-    """vehicle -> array of (time, x, y, speed, steering), every frame."""
-    rows = defaultdict(list)
-    with open(path, newline="") as f:
-        for r in csv.DictReader(f):
-            rows[r["vehicle"]].append((float(r["time_s"]), float(r["x"]), float(r["y"]),
-                                       float(r["speed_mps"]), float(r["steering"])))
+                                           float(r["speed_mps"]), float(r["steering"])))
     return {v: np.array(x) for v, x in rows.items()}
 
 
@@ -82,8 +69,7 @@ def contact_line(run, vehicle, name, label, centre, radius, time_s, track, leade
         turn = np.degrees(np.arctan2(t1[0] * t2[1] - t1[1] * t2[0], t1 @ t2))
         left = t1[0] * (centre[1] - leader[j][1]) - t1[1] * (centre[0] - leader[j][0]) > 0
         side = "inside" if (turn > 0) == left else "outside"
-        bend = f"turn {turn:+.0f} deg, {side}" if abs(turn) >= STRAIGHT_DEG else \
-            f"turn {turn:+.0f} deg, straight"
+        bend = f"turn {turn:+.0f} deg, {side if abs(turn) >= STRAIGHT_DEG else 'straight'}"
     return (f"{run} {vehicle} {name} ({label}, r {radius:.2f} m) t {time_s:.2f} s: "
             f"edge {edge:.2f} m, leader's {leader_edge:.2f} m there, nearer by "
             f"{leader_edge - edge:+.2f} m; {bend}; speed {x[i, 3]:.2f} m/s, steering "
@@ -103,8 +89,8 @@ def list_contacts(out):
         if not contacts:
             continue
         obstacles = {o: (label, float(x), float(y), float(r)) for o, label, x, y, r in
-                     OBSTACLE_LABELLED.findall((out / "courses" / f"{run.name}.yaml").read_text())}
-        track = frames(run / "vehicles.csv")
+                     OBSTACLE.findall((out / "courses" / f"{run.name}.yaml").read_text())}
+        track = tracks(run / "vehicles.csv", every=1)
         names = [e["detail"].split()[0].split("=", 1)[1] for e in contacts]
         by_leader = {n for e, n in zip(contacts, names) if e["vehicle"] == "l1"}
         seen = set()
@@ -130,7 +116,7 @@ def main():
         if not run.is_dir() or not summary.exists() or '"completed"' not in summary.read_text():
             continue
         terrain = run.name.split("_", 1)[1]
-        obstacles = {o: (float(x), float(y), float(r)) for o, x, y, r in
+        obstacles = {o: (float(x), float(y), float(r)) for o, _, x, y, r in
                      OBSTACLE.findall((out / "courses" / f"{run.name}.yaml").read_text())}
         track = tracks(run / "vehicles.csv")
         s = stats[terrain]

@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <bit>
-#include <filesystem>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <numbers>
 #include <numeric>
