@@ -17,6 +17,7 @@
 #include "learn/convoy_env.hpp"
 #include "learn/ppo/perception.hpp"
 #include "learn/ppo/policy.hpp"
+#include "learn/register_policy_controller.hpp"
 #include "protocol/agent.hpp"
 #include "scenario/scenario.hpp"
 
@@ -72,10 +73,5 @@ class PolicyControllerAgent final : public proto::Agent {
   double steering_ = 0.0;          // as applied (after the steering lag of the training)
   double throttle_brake_ = -1.0;  // the brake until the first action
 };
-
-/// Lets this process's agent factory build `controller: {type: policy}` members
-/// (syndds_policy_controller and syndds_sim call it at start; the other programs do not link
-/// libtorch).
-void register_policy_controller();
 
 }  // namespace syndds::learn

@@ -52,28 +52,80 @@ inline void fill_packet(RTCRayHit16& rh, int* valid, float (*dir)[3], std::size_
   }
 }
 
-// Whether the CPU traces 16-wide packets natively (AVX-512). Elsewhere Embree emulates them
-// with 8-wide ones, and that emulation in Debian's Embree 3.13.5 aborts on valid rays (its
-// assertion `all(valid, ray.valid())` in bvh_intersector_hybrid.cpp fails on AVX2 CPUs): there
-// the packets are traced ray by ray.
-inline bool native_packets(RTCScene scene) {
-  static const bool native = [scene] {
+// The widest packet the CPU traces natively: 16 (AVX-512), 8 (AVX2) or 1. Where 16-wide is
+// not native, Embree emulates it with 8-wide packets, and that emulation in Debian's Embree
+// 3.13.5 aborts on valid rays (its assertion `all(valid, ray.valid())` in
+// bvh_intersector_hybrid.cpp fails on AVX2 CPUs): there a 16-ray packet is traced as two native
+// 8-wide halves.
+inline int native_width(RTCScene scene) {
+  static const int width = [scene] {
     RTCDevice device = rtcGetSceneDevice(scene);  // counts a reference
-    const bool n = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) != 0;
+    const int w = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) ? 16
+                  : rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) ? 8
+                                                                                             : 1;
     rtcReleaseDevice(device);
-    return n;
+    return w;
   }();
-  return native;
+  return width;
 }
 
-// Traces the valid lanes of a packet: 16-wide when rays are coherent, one by one otherwise
+// Copies lane `from` of ray packet `src` into lane `to` of `dst` (any widths, or single rays
+// through the lane-less overloads below).
+template <class Dst, class Src>
+inline void copy_ray_lane(Dst& dst, int to, const Src& src, int from) {
+  dst.org_x[to] = src.org_x[from];
+  dst.org_y[to] = src.org_y[from];
+  dst.org_z[to] = src.org_z[from];
+  dst.dir_x[to] = src.dir_x[from];
+  dst.dir_y[to] = src.dir_y[from];
+  dst.dir_z[to] = src.dir_z[from];
+  dst.tnear[to] = src.tnear[from];
+  dst.tfar[to] = src.tfar[from];
+  dst.time[to] = 0.0f;
+  dst.mask[to] = src.mask[from];
+  dst.id[to] = src.id[from];
+  dst.flags[to] = 0;
+}
+// The hit fields the renderers read back (with the ray's tfar).
+template <class Dst, class Src>
+inline void copy_hit_lane(Dst& dst, int to, const Src& src, int from) {
+  dst.ray.tfar[to] = src.ray.tfar[from];
+  dst.hit.geomID[to] = src.hit.geomID[from];
+  dst.hit.primID[to] = src.hit.primID[from];
+  dst.hit.Ng_x[to] = src.hit.Ng_x[from];
+  dst.hit.Ng_y[to] = src.hit.Ng_y[from];
+  dst.hit.Ng_z[to] = src.hit.Ng_z[from];
+}
+
+// Traces the valid lanes of a packet: as packets when rays are coherent, one by one otherwise
 // (low-resolution cameras: neighbouring pixels diverge by a degree or more and Embree's
-// single-ray traversal is about 20 % faster there; at 720p packets are twice as fast), and
-// one by one on CPUs without native 16-wide packets (native_packets).
+// single-ray traversal is about 20 % faster there; at 720p packets are twice as fast). Packets
+// are 16 wide or two 8-wide halves (native_width); one by one where neither is native.
 inline void intersect(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
                       RTCRayHit16& rh) {
-  if (packets && native_packets(scene)) {
+  const int width = packets ? native_width(scene) : 1;
+  if (width == 16) {
     rtcIntersect16(valid, scene, ctx, &rh);
+    return;
+  }
+  if (width == 8) {
+    for (int half = 0; half < 16; half += 8) {
+      alignas(32) RTCRayHit8 h;
+      alignas(32) int v8[8];
+      bool any = false;
+      for (int l = 0; l < 8; ++l) {
+        v8[l] = valid[half + l];
+        if (!v8[l]) continue;
+        any = true;
+        copy_ray_lane(h.ray, l, rh.ray, half + l);
+        h.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+        h.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+      }
+      if (!any) continue;
+      rtcIntersect8(v8, scene, ctx, &h);
+      for (int l = 0; l < 8; ++l)
+        if (v8[l]) copy_hit_lane(rh, half + l, h, l);
+    }
     return;
   }
   for (int l = 0; l < 16; ++l) {
@@ -105,8 +157,27 @@ inline void intersect(bool packets, const int* valid, RTCScene scene, RTCInterse
 
 inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
                      RTCRay16& rays) {
-  if (packets && native_packets(scene)) {
+  const int width = packets ? native_width(scene) : 1;
+  if (width == 16) {
     rtcOccluded16(valid, scene, ctx, &rays);
+    return;
+  }
+  if (width == 8) {
+    for (int half = 0; half < 16; half += 8) {
+      alignas(32) RTCRay8 r8;
+      alignas(32) int v8[8];
+      bool any = false;
+      for (int l = 0; l < 8; ++l) {
+        v8[l] = valid[half + l];
+        if (!v8[l]) continue;
+        any = true;
+        copy_ray_lane(r8, l, rays, half + l);
+      }
+      if (!any) continue;
+      rtcOccluded8(v8, scene, ctx, &r8);
+      for (int l = 0; l < 8; ++l)
+        if (v8[l]) rays.tfar[half + l] = r8.tfar[l];
+    }
     return;
   }
   for (int l = 0; l < 16; ++l) {

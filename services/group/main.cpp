@@ -15,7 +15,7 @@
 #include "agents/agent_factory.hpp"
 #include "common/service_cli.hpp"
 #include "core/error.hpp"
-#include "learn/policy_controller.hpp"
+#include "learn/register_policy_controller.hpp"
 
 using namespace syndds;
 namespace sdds = syndds::dds;

@@ -2,7 +2,7 @@
 // docs/learning.md), as a barrier member. A program of its own so that only the members that
 // run a policy load libtorch (about 90 MB and 0.3 s of CPU at start per process).
 #include "common/member_main.hpp"
-#include "learn/policy_controller.hpp"
+#include "learn/register_policy_controller.hpp"
 
 int main(int argc, char** argv) {
   syndds::learn::register_policy_controller();
