@@ -69,8 +69,7 @@ inline int native_width(RTCScene scene) {
   return width;
 }
 
-// Copies lane `from` of ray packet `src` into lane `to` of `dst` (any widths, or single rays
-// through the lane-less overloads below).
+// Copies lane `from` of ray packet `src` into lane `to` of packet `dst` (any two widths).
 template <class Dst, class Src>
 inline void copy_ray_lane(Dst& dst, int to, const Src& src, int from) {
   dst.org_x[to] = src.org_x[from];
