@@ -96,6 +96,18 @@ inline void copy_hit_lane(Dst& dst, int to, const Src& src, int from) {
   dst.hit.Ng_z[to] = src.hit.Ng_z[from];
 }
 
+// Calls trace(v8, half) for each 8-lane half (half = 0 or 8) of a 16-lane valid mask that has a
+// valid lane; v8 is that half's mask, aligned as rtcIntersect8/rtcOccluded8 require.
+template <class Trace>
+inline void for_each_half(const int* valid, Trace&& trace) {
+  for (int half = 0; half < 16; half += 8) {
+    alignas(32) int v8[8];
+    bool any = false;
+    for (int l = 0; l < 8; ++l) any |= (v8[l] = valid[half + l]) != 0;
+    if (any) trace(v8, half);
+  }
+}
+
 // Traces the valid lanes of a packet: as packets when rays are coherent, one by one otherwise
 // (low-resolution cameras: neighbouring pixels diverge by a degree or more and Embree's
 // single-ray traversal is about 20 % faster there; at 720p packets are twice as fast). Packets
@@ -108,23 +120,18 @@ inline void intersect(bool packets, const int* valid, RTCScene scene, RTCInterse
     return;
   }
   if (width == 8) {
-    for (int half = 0; half < 16; half += 8) {
+    for_each_half(valid, [&](const int* v8, int half) {
       alignas(32) RTCRayHit8 h;
-      alignas(32) int v8[8];
-      bool any = false;
       for (int l = 0; l < 8; ++l) {
-        v8[l] = valid[half + l];
         if (!v8[l]) continue;
-        any = true;
         copy_ray_lane(h.ray, l, rh.ray, half + l);
         h.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
         h.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
       }
-      if (!any) continue;
       rtcIntersect8(v8, scene, ctx, &h);
       for (int l = 0; l < 8; ++l)
         if (v8[l]) copy_hit_lane(rh, half + l, h, l);
-    }
+    });
     return;
   }
   for (int l = 0; l < 16; ++l) {
@@ -162,21 +169,14 @@ inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersec
     return;
   }
   if (width == 8) {
-    for (int half = 0; half < 16; half += 8) {
+    for_each_half(valid, [&](const int* v8, int half) {
       alignas(32) RTCRay8 r8;
-      alignas(32) int v8[8];
-      bool any = false;
-      for (int l = 0; l < 8; ++l) {
-        v8[l] = valid[half + l];
-        if (!v8[l]) continue;
-        any = true;
-        copy_ray_lane(r8, l, rays, half + l);
-      }
-      if (!any) continue;
+      for (int l = 0; l < 8; ++l)
+        if (v8[l]) copy_ray_lane(r8, l, rays, half + l);
       rtcOccluded8(v8, scene, ctx, &r8);
       for (int l = 0; l < 8; ++l)
         if (v8[l]) rays.tfar[half + l] = r8.tfar[l];
-    }
+    });
     return;
   }
   for (int l = 0; l < 16; ++l) {
