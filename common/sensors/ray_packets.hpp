@@ -112,9 +112,10 @@ inline void for_each_half(const int* valid, Trace&& trace) {
 // (low-resolution cameras: neighbouring pixels diverge by a degree or more and Embree's
 // single-ray traversal is about 20 % faster there; at 720p packets are twice as fast). Packets
 // are 16 wide or two 8-wide halves (native_width); one by one where neither is native.
-inline void intersect(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
-                      RTCRayHit16& rh) {
-  const int width = packets ? native_width(scene) : 1;
+// intersect_at / occluded_at: the same with packets of `width` lanes (16, 8 or 1; no wider than
+// native_width, tests use them to trace one packet every way this CPU can).
+inline void intersect_at(int width, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
+                         RTCRayHit16& rh) {
   if (width == 16) {
     rtcIntersect16(valid, scene, ctx, &rh);
     return;
@@ -161,9 +162,8 @@ inline void intersect(bool packets, const int* valid, RTCScene scene, RTCInterse
   }
 }
 
-inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
-                     RTCRay16& rays) {
-  const int width = packets ? native_width(scene) : 1;
+inline void occluded_at(int width, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
+                        RTCRay16& rays) {
   if (width == 16) {
     rtcOccluded16(valid, scene, ctx, &rays);
     return;
@@ -197,6 +197,15 @@ inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersec
     rtcOccluded1(scene, ctx, &r);
     rays.tfar[l] = r.tfar;
   }
+}
+
+inline void intersect(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
+                      RTCRayHit16& rh) {
+  intersect_at(packets ? native_width(scene) : 1, valid, scene, ctx, rh);
+}
+inline void occluded(bool packets, const int* valid, RTCScene scene, RTCIntersectContext* ctx,
+                     RTCRay16& rays) {
+  occluded_at(packets ? native_width(scene) : 1, valid, scene, ctx, rays);
 }
 
 }  // namespace syndds::sensors
