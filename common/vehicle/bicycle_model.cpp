@@ -9,11 +9,10 @@
 
 namespace syndds::vehicle {
 namespace {
-constexpr double kAirDensity = 1.2;  // kg/m^3
 
 /// The params this model reads (a state is refused by a vehicle whose params differ in any of
 /// them; the full model's own params do not matter here).
-std::uint64_t params_fingerprint(const VehicleParams& p) {
+std::uint64_t reduced_params_fingerprint(const VehicleParams& p) {
   Fnv1a64 h;
   for (double v : {p.chassis.mass_kg, p.wheels.radius_m, p.wheels.mass_kg, p.front.x_m,
                    p.front.half_track_m, p.rear.x_m, p.rear.half_track_m,
@@ -101,7 +100,6 @@ void BicycleModel::advance(double dt) {
 }
 
 namespace {
-constexpr double kEpisodeGapS = 0.5;  // as the full model's
 constexpr double kPushShare = 0.5;    // of this vehicle's share of an overlap, removed per step
 }  // namespace
 
@@ -194,7 +192,7 @@ std::vector<CollisionContact> BicycleModel::take_collisions() {
 void BicycleModel::save_state(core::StateWriter& w) {
   w.begin("bicycle_model", 2);
   w.io(params_.name);
-  w.io(params_fingerprint(params_));
+  w.io(reduced_params_fingerprint(params_));
   w.io(inputs_.steering);
   w.io(inputs_.throttle);
   w.io(inputs_.braking);
@@ -229,10 +227,10 @@ void BicycleModel::load_state(core::StateReader& r) {
   const std::uint32_t version = r.begin("bicycle_model", 2, 1);
   const auto name = r.get<std::string>();
   const auto fingerprint = r.get<std::uint64_t>();
-  if (fingerprint != params_fingerprint(params_)) {
+  if (fingerprint != reduced_params_fingerprint(params_)) {
     r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex64(fingerprint) +
            "; this model is vehicle '" + params_.name + "' with " +
-           hex64(params_fingerprint(params_)) + ": their params differ");
+           hex64(reduced_params_fingerprint(params_)) + ": their params differ");
   }
   // Read into a copy and take it only once the whole section has been read: a state that
   // does not fit leaves the model as it was.

@@ -23,7 +23,6 @@ static_assert(sizeof(dReal) == 8, "syndds needs ODE built in double precision (d
 namespace syndds::vehicle {
 namespace {
 
-constexpr double kAirDensity = 1.2;          // kg/m^3
 constexpr double kSettleStepS = 0.002;
 constexpr double kSteerGainPerStep = 0.5;    // steering motor closes half the error per step
 constexpr double kSteerMaxTorqueNm = 2.0e4;
@@ -31,10 +30,6 @@ constexpr double kSteerStopMarginRad = 0.05;
 constexpr double kObstacleFriction = 0.5;
 constexpr double kObstacleSoftCfm = 1e-7;
 constexpr double kObstacleSoftErp = 0.2;
-// A collision episode with an obstacle ends when the vehicle has been free of it for this long
-// and the obstacle is outside the vehicle's broad-phase sphere (so front and rear wheels
-// rolling over one rock, or pushing against a wall, make one episode).
-constexpr double kEpisodeGapS = 0.5;
 constexpr int kMaxContactsPerPair = 4;
 // Vehicle against vehicle (body panels, bumpers, tires): friction and the same soft contact
 // as obstacles.
@@ -104,7 +99,7 @@ void set_body_state(dBodyID b, const BodyState& s) {
 
 /// Every param the full model reads (all but the reduced model's, the name and the file):
 /// a state is refused by a vehicle whose params differ in any of them.
-std::uint64_t params_fingerprint(const VehicleParams& p) {
+std::uint64_t full_params_fingerprint(const VehicleParams& p) {
   Fnv1a64 h;
   auto add = [&h](std::initializer_list<double> values) {
     for (double v : values) h.add(v);
@@ -1033,7 +1028,7 @@ struct OdeVehicleModel::Impl {
 
     w.begin("ode_vehicle", 1);
     w.io(p.name);
-    w.io(params_fingerprint(p));
+    w.io(full_params_fingerprint(p));
     w.io(placement_fingerprint);
     w.io(obstacles_fingerprint);
     w.io(static_cast<std::uint32_t>(wheels.size()));
@@ -1105,9 +1100,9 @@ struct OdeVehicleModel::Impl {
     r.begin("ode_vehicle", 1, 1);
     const auto name = r.get<std::string>();
     const auto params_fp = r.get<std::uint64_t>();
-    if (params_fp != params_fingerprint(p)) {
+    if (params_fp != full_params_fingerprint(p)) {
       r.fail("the state is of vehicle '" + name + "' with params fingerprint " + hex64(params_fp) +
-             "; this model is vehicle '" + p.name + "' with " + hex64(params_fingerprint(p)) +
+             "; this model is vehicle '" + p.name + "' with " + hex64(full_params_fingerprint(p)) +
              ": their params differ");
     }
     if (r.get<std::uint64_t>() != placement_fingerprint) {

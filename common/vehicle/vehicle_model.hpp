@@ -52,6 +52,14 @@ struct CollisionContact {
                                     // vehicle relative to the one on the other, before the step
 };
 
+/// Air density of the aerodynamic drag both models apply (kg/m^3).
+inline constexpr double kAirDensity = 1.2;
+
+/// A collision episode with an obstacle ends when the vehicle has been free of it for this long
+/// (s); the full model also waits until the obstacle is outside its broad-phase sphere, so front
+/// and rear wheels rolling over one rock, or pushing against a wall, make one episode.
+inline constexpr double kEpisodeGapS = 0.5;
+
 /// The ground-plane rectangle that holds a vehicle's collision shapes (chassis box and wheels
 /// at full steer) about its reference point, in the vehicle's heading frame: the centre lies
 /// `offset_m` ahead of the reference point. Broad phase of vehicle-vehicle contact.
