@@ -16,18 +16,18 @@ torch::Tensor floats(const std::vector<float>& v) {
   return torch::tensor(at::ArrayRef<float>(v), torch::kFloat32);
 }
 
-torch::Tensor read(torch::serialize::InputArchive& archive, const std::string& key) {
-  torch::Tensor t;  // fresh: reading into a defined tensor copies into its storage
-  archive.read(key, t);
-  return t;
-}
-
 std::vector<float> floats(const torch::Tensor& t) {
   const torch::Tensor c = t.contiguous().to(torch::kFloat32);
   return {c.data_ptr<float>(), c.data_ptr<float>() + c.numel()};
 }
 
 }  // namespace
+
+torch::Tensor read_tensor(torch::serialize::InputArchive& archive, const std::string& key) {
+  torch::Tensor t;
+  archive.read(key, t);
+  return t;
+}
 
 void save_policy_file(const std::string& path, const ActorCritic& model,
                       const RunningNormalizer& normalizer, const ObservationSpace& observations,
@@ -83,10 +83,10 @@ void Policy::load(const std::string& path) {
   } catch (const c10::Error& e) {  // its what() carries a stack trace: the message alone
     throw std::runtime_error(path + " is not a policy file: " + e.what_without_backtrace());
   }
-  observations_.vector.low = ppo::floats(ppo::read(archive, "observation_low"));
-  observations_.vector.high = ppo::floats(ppo::read(archive, "observation_high"));
+  observations_.vector.low = ppo::floats(ppo::read_tensor(archive, "observation_low"));
+  observations_.vector.high = ppo::floats(ppo::read_tensor(archive, "observation_high"));
   observations_.vector.names.clear();
-  const torch::Tensor t = ppo::read(archive, "image");
+  const torch::Tensor t = ppo::read_tensor(archive, "image");
   if (t[0].item<std::int64_t>() != 0) {
     observations_.image = ImageSpec{static_cast<int>(t[1].item<std::int64_t>()),
                                     static_cast<int>(t[2].item<std::int64_t>()),
@@ -94,8 +94,8 @@ void Policy::load(const std::string& path) {
   } else {
     observations_.image.reset();
   }
-  actions_.low = ppo::floats(ppo::read(archive, "action_low"));
-  actions_.high = ppo::floats(ppo::read(archive, "action_high"));
+  actions_.low = ppo::floats(ppo::read_tensor(archive, "action_low"));
+  actions_.high = ppo::floats(ppo::read_tensor(archive, "action_high"));
   actions_.names.clear();
   actions_.explore.clear();
   torch::Tensor explore;

@@ -22,6 +22,10 @@ void save_policy_file(const std::string& path, const ActorCritic& model,
                       const RunningNormalizer& normalizer, const ObservationSpace& observations,
                       const Box& actions, const PolicyMetadata& metadata = {});
 
+/// The tensor stored under `key`, read into a fresh tensor (reading into a defined one copies
+/// into its storage, which fails when the sizes differ). Throws when the key is missing.
+torch::Tensor read_tensor(torch::serialize::InputArchive& archive, const std::string& key);
+
 }  // namespace syndds::learn::ppo
 
 namespace syndds::learn {

@@ -36,16 +36,8 @@ std::vector<double> doubles(const torch::Tensor& t) {
   return {c.data_ptr<double>(), c.data_ptr<double>() + c.numel()};
 }
 
-/// A tensor of an archive, read into a fresh tensor (reading into a defined one copies into its
-/// storage, which fails when the sizes differ).
-torch::Tensor read(torch::serialize::InputArchive& archive, const std::string& key) {
-  torch::Tensor t;
-  archive.read(key, t);
-  return t;
-}
-
 std::int64_t int_of(torch::serialize::InputArchive& archive, const std::string& key) {
-  return read(archive, key).item<std::int64_t>();
+  return read_tensor(archive, key).item<std::int64_t>();
 }
 
 torch::Tensor int_tensor(std::int64_t v) { return torch::tensor(v, torch::kInt64); }
@@ -679,25 +671,25 @@ void Trainer::load_checkpoint(const std::string& path) {
   c10::IValue init_from;
   init_from_ = archive.try_read("init_from", init_from) ? init_from.toStringRef() : "";
   const auto env_seed = std::bit_cast<std::uint64_t>(int_of(archive, "env_seed"));
-  torch::Tensor t = read(archive, "episodes");
+  torch::Tensor t = read_tensor(archive, "episodes");
   std::vector<std::uint64_t> episodes;
   for (std::int64_t k = 0; k < t.numel(); ++k) {
     episodes.push_back(std::bit_cast<std::uint64_t>(t[k].item<std::int64_t>()));
   }
   const auto a_size = static_cast<std::size_t>(action_space_.size());
   for (std::size_t k = 0; k < episode_actions_.size(); ++k) {
-    const torch::Tensor c = read(archive, "actions_" + std::to_string(k)).contiguous();
+    const torch::Tensor c = read_tensor(archive, "actions_" + std::to_string(k)).contiguous();
     const float* a = c.data_ptr<float>();
     episode_actions_[k].clear();
     for (std::int64_t j = 0; j < c.size(0); ++j, a += a_size) {
       episode_actions_[k].emplace_back(a, a + a_size);
     }
   }
-  episode_returns_ = doubles(read(archive, "episode_returns"));
-  discounted_returns_ = doubles(read(archive, "discounted_returns"));
-  const std::vector<double> recent = doubles(read(archive, "recent_returns"));
+  episode_returns_ = doubles(read_tensor(archive, "episode_returns"));
+  discounted_returns_ = doubles(read_tensor(archive, "discounted_returns"));
+  const std::vector<double> recent = doubles(read_tensor(archive, "recent_returns"));
   recent_returns_.assign(recent.begin(), recent.end());
-  generator_.set_state(read(archive, "generator"));
+  generator_.set_state(read_tensor(archive, "generator"));
   observations_ = envs_.restore(env_seed, episodes, episode_actions_);
 }
 
