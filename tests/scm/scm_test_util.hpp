@@ -2,13 +2,25 @@
 // Shared rigs for the SCM tests: presets from config/terrain, and a rigid body with one vertical
 // degree of freedom driven onto the grid (semi-implicit Euler).
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "scm/scm_params.hpp"
 #include "scm/scm_terrain.hpp"
 
 namespace syndds::scm::test {
+
+/// The HMMWV's wheel, and the step the SCM tests advance by (s).
+inline constexpr double kHmmwvWheelRadius = 0.467;
+inline constexpr double kHmmwvWheelWidth = 0.254;
+inline constexpr double kStepS = 2e-3;
+
+/// True when both hold the same doubles, bit for bit.
+inline bool bit_equal(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
 
 inline SoilPreset preset(const std::string& name) {
   return load_soil_preset_file(std::string(SYNDDS_TEST_CONFIG_DIR) + "/terrain/scm_" + name +

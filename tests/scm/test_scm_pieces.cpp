@@ -20,7 +20,6 @@ using namespace syndds::scm;
 namespace {
 
 constexpr double kCellArea = 0.05 * 0.05;
-constexpr double kDt = 2e-3;
 
 /// A frictional-cohesive soil with every term of the law non-zero.
 SoilParams soil() {
@@ -61,7 +60,7 @@ TEST(ScmSoilLaw, FirstLoadingFollowsBekkerWong) {
   for (const double b : {0.1, 0.25, 1.0}) {
     for (const double z : {0.005, 0.03, 0.12}) {
       VertexRecord r = undeformed();
-      const VertexLoad l = law.apply(r, flat_point(-z), 1.0 / b, 0, kDt);
+      const VertexLoad l = law.apply(r, flat_point(-z), 1.0 / b, 0, test::kStepS);
       const double p = (s.bekker_kc / b + s.bekker_kphi) * std::pow(z, s.bekker_n);
       ASSERT_TRUE(l.loaded);
       EXPECT_NEAR(l.force.z(), p * kCellArea, 1e-12 * p * kCellArea) << "b " << b << " z " << z;
@@ -84,11 +83,11 @@ TEST(ScmSoilLaw, UnloadingIsElasticAndTensionFree) {
   const SoilParams s = soil();
   const SoilLaw law(s, 0.0, kCellArea);
   VertexRecord r = undeformed();
-  law.apply(r, flat_point(-0.05), 4.0, 0, kDt);
+  law.apply(r, flat_point(-0.05), 4.0, 0, test::kStepS);
   const double plastic = r.sinkage_plastic, yield = r.sigma_yield;
   // Back off by half the elastic rebound: stress Ke (s - s_p), state unchanged.
   const double z = 0.05 - 0.5 * (0.05 - plastic);
-  const VertexLoad l = law.apply(r, flat_point(-z), 4.0, 1, kDt);
+  const VertexLoad l = law.apply(r, flat_point(-z), 4.0, 1, test::kStepS);
   const double expect = s.elastic_stiffness_pa_per_m * (z - plastic);
   EXPECT_NEAR(l.force.z(), expect * kCellArea, 1e-9 * expect * kCellArea);
   EXPECT_LT(l.force.z(), yield * kCellArea);
@@ -96,7 +95,7 @@ TEST(ScmSoilLaw, UnloadingIsElasticAndTensionFree) {
   EXPECT_EQ(r.sigma_yield, yield);
   EXPECT_EQ(r.step_plastic_flow, 0.0);
   // Above the plastic surface: no load at all (the soil does not pull).
-  const VertexLoad none = law.apply(r, flat_point(-0.5 * plastic), 4.0, 2, kDt);
+  const VertexLoad none = law.apply(r, flat_point(-0.5 * plastic), 4.0, 2, test::kStepS);
   EXPECT_FALSE(none.loaded);
   EXPECT_EQ(none.force, Vec3::Zero());
 }
@@ -108,8 +107,8 @@ TEST(ScmSoilLaw, ShearFollowsJanosiHanamoto) {
   VertexRecord r = undeformed();
   const double p = law.bekker_pressure(0.0, z);
   for (int k = 0; k < 40; ++k) {
-    const VertexLoad l = law.apply(r, flat_point(-z, Vec3(v, 0.0, 0.0)), 0.0, k, kDt);
-    const double j = (k + 1) * v * kDt;  // slip so far
+    const VertexLoad l = law.apply(r, flat_point(-z, Vec3(v, 0.0, 0.0)), 0.0, k, test::kStepS);
+    const double j = (k + 1) * v * test::kStepS;  // slip so far
     const double tau = (s.cohesion_pa + p * std::tan(deg_to_rad(s.friction_angle_deg))) *
                        (1.0 - std::exp(-j / s.janosi_shear_m));
     ASSERT_TRUE(l.loaded);
@@ -124,10 +123,10 @@ TEST(ScmSoilLaw, ShearResetsAfterLeavingContact) {
   const SoilLaw law(soil(), 0.0, kCellArea);
   VertexRecord r = undeformed();
   const ContactPoint sliding = flat_point(-0.04, Vec3(0.5, 0.0, 0.0));
-  const VertexLoad first = law.apply(r, sliding, 0.0, 0, kDt);
-  law.apply(r, sliding, 0.0, 1, kDt);
+  const VertexLoad first = law.apply(r, sliding, 0.0, 0, test::kStepS);
+  law.apply(r, sliding, 0.0, 1, test::kStepS);
   // Step 2 is skipped (no contact): step 3 starts from zero mobilisation again.
-  const VertexLoad again = law.apply(r, sliding, 0.0, 3, kDt);
+  const VertexLoad again = law.apply(r, sliding, 0.0, 3, test::kStepS);
   EXPECT_NEAR(again.force.x(), first.force.x(), 1e-12 * std::abs(first.force.x()));
 }
 
@@ -135,14 +134,14 @@ TEST(ScmSoilLaw, ShearDampingLooksAheadAlongTheSlip) {
   const SoilParams s = soil();
   const double beta = 0.005;
   const SoilLaw law(s, beta, kCellArea);
-  const ShearMobilisation m = law.mobilise(0.0, 0.0, 1e-3, 0.0, kDt);
+  const ShearMobilisation m = law.mobilise(0.0, 0.0, 1e-3, 0.0, test::kStepS);
   const double K = s.janosi_shear_m;
   EXPECT_NEAR(m.mx, 1.0 - std::exp(-1e-3 / K), 1e-15);
   // The force's mobilisation is the state after a further slip |v| beta = (1e-3 / dt) beta.
-  EXPECT_NEAR(m.force_mx, 1.0 - std::exp(-(1e-3 + 1e-3 / kDt * beta) / K), 1e-14);
+  EXPECT_NEAR(m.force_mx, 1.0 - std::exp(-(1e-3 + 1e-3 / test::kStepS * beta) / K), 1e-14);
   EXPECT_EQ(m.my, 0.0);
   // No slip: the state stands still and the force uses it unchanged.
-  const ShearMobilisation rest = law.mobilise(0.3, -0.2, 0.0, 0.0, kDt);
+  const ShearMobilisation rest = law.mobilise(0.3, -0.2, 0.0, 0.0, test::kStepS);
   EXPECT_EQ(rest.mx, 0.3);
   EXPECT_EQ(rest.force_my, -0.2);
 }
@@ -152,8 +151,9 @@ TEST(ScmSoilLaw, DampingActsOnTheVerticalStressOnly) {
   const SoilLaw law(s, 0.0, kCellArea);
   VertexRecord a = undeformed(), b = undeformed();
   const double vz = -0.2;  // moving down: the damping adds to the vertical stress
-  const VertexLoad still = law.apply(a, flat_point(-0.03), 0.0, 0, kDt);
-  const VertexLoad moving = law.apply(b, flat_point(-0.03, Vec3(0.0, 0.0, vz)), 0.0, 0, kDt);
+  const VertexLoad still = law.apply(a, flat_point(-0.03), 0.0, 0, test::kStepS);
+  const VertexLoad moving =
+      law.apply(b, flat_point(-0.03, Vec3(0.0, 0.0, vz)), 0.0, 0, test::kStepS);
   EXPECT_NEAR(moving.force.z() - still.force.z(), -vz * s.damping_pa_s_per_m * kCellArea, 1e-9);
   EXPECT_EQ(a.sigma_yield, b.sigma_yield);  // the yield limit is the soil's, undamped
 }
@@ -163,11 +163,11 @@ TEST(ScmSoilLaw, SlopedBodySurfacePushesAlongItsNormal) {
   VertexRecord r = undeformed();
   ContactPoint p = flat_point(-0.03);
   p.normal = Vec3(0.6, 0.0, -0.8);  // slope 0.75: the soil pushes the body towards -x
-  const VertexLoad l = law.apply(r, p, 0.0, 0, kDt);
+  const VertexLoad l = law.apply(r, p, 0.0, 0, test::kStepS);
   EXPECT_NEAR(l.force.x(), -0.75 * l.force.z(), 1e-12 * l.force.z());
   p.slope_cap = 0.5;  // a capped slope
   VertexRecord r2 = undeformed();
-  const VertexLoad capped = law.apply(r2, p, 0.0, 0, kDt);
+  const VertexLoad capped = law.apply(r2, p, 0.0, 0, test::kStepS);
   EXPECT_NEAR(capped.force.x(), -0.5 * capped.force.z(), 1e-12 * capped.force.z());
 }
 

@@ -22,9 +22,6 @@ using namespace syndds::scm::test;
 
 namespace {
 
-constexpr double kRadius = 0.467;
-constexpr double kWidth = 0.254;
-constexpr double kDt = 2e-3;
 constexpr int kStepsPerFrame = 5;
 
 ScmParams state_params() {
@@ -38,11 +35,11 @@ ScmParams state_params() {
 terrain::WheelBodyState crossing_wheel(double t) {
   terrain::WheelBodyState w;
   w.pose.orientation = quat_from_yaw(0.5 * std::numbers::pi);
-  w.pose.position = Vec3(0.0, -1.5 + 2.0 * t, kRadius - 0.03);
+  w.pose.position = Vec3(0.0, -1.5 + 2.0 * t, kHmmwvWheelRadius - 0.03);
   w.linear_velocity = Vec3(0.0, 2.0, 0.0);
-  w.angular_velocity = (w.pose.orientation * Vec3::UnitY()) * (2.0 * 1.2 / kRadius);
-  w.radius_m = kRadius;
-  w.width_m = kWidth;
+  w.angular_velocity = (w.pose.orientation * Vec3::UnitY()) * (2.0 * 1.2 / kHmmwvWheelRadius);
+  w.radius_m = kHmmwvWheelRadius;
+  w.width_m = kHmmwvWheelWidth;
   return w;
 }
 
@@ -64,10 +61,10 @@ struct World {
     lazy.set_source_id(3);
     for (std::size_t k = 0; k < rigs.size(); ++k) {
       VerticalRig& rig = rigs[k];
-      rig.body.shape = CylinderShape{kRadius, kWidth};
-      rig.body.pose.position = Vec3(-2.0, k == 0 ? 0.45 : -0.45, kRadius);
+      rig.body.shape = CylinderShape{kHmmwvWheelRadius, kHmmwvWheelWidth};
+      rig.body.pose.position = Vec3(-2.0, k == 0 ? 0.45 : -0.45, kHmmwvWheelRadius);
       rig.body.linear_velocity = Vec3(2.0, 0, 0);
-      rig.body.angular_velocity = Vec3(0, 1.2 * 2.0 / kRadius, 0);
+      rig.body.angular_velocity = Vec3(0, 1.2 * 2.0 / kHmmwvWheelRadius, 0);
       rig.mass_kg = 60.0;
       rig.damping_nspm = 3e4;
     }
@@ -82,11 +79,11 @@ struct World {
     lazy.apply_remote_changes(2, c2);
     lazy.apply_remote_changes(1, c1);
     for (int s = 0; s < kStepsPerFrame; ++s) {
-      for (auto& rig : rigs) rig.step(t1, 6000.0, kDt);
+      for (auto& rig : rigs) rig.step(t1, 6000.0, kStepS);
       const auto w = crossing_wheel(t);
       terrain::WheelLoad l;
-      t2.compute_wheel_loads(std::span(&w, 1), kDt, std::span(&l, 1));
-      t += kDt;
+      t2.compute_wheel_loads(std::span(&w, 1), kStepS, std::span(&l, 1));
+      t += kStepS;
       for (const terrain::WheelLoad* load : {&rigs[0].last, &rigs[1].last, &l}) {
         for (int c = 0; c < 3; ++c) {
           trace.push_back(load->force[c]);
@@ -113,10 +110,6 @@ void load(ScmTerrain& terrain, const std::string& bytes) {
   core::StateReader r(bytes, "soil.state");
   terrain.load_state(r);
   EXPECT_TRUE(r.at_end());
-}
-
-bool bit_equal(const std::vector<double>& a, const std::vector<double>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
 /// Normal stress of the last step at every vertex under load in it (sinking wheels of t1).
@@ -290,7 +283,7 @@ TEST(ScmState, ChangesNotYetPublishedSurviveTheCheckpoint) {
   World a;
   std::vector<double> ignored;
   for (int f = 0; f < 10; ++f) a.run_frame(ignored);
-  for (auto& rig : a.rigs) rig.step(a.t1, 6000.0, kDt);
+  for (auto& rig : a.rigs) rig.step(a.t1, 6000.0, kStepS);
   ScmTerrain b(state_params());
   load(b, save(a.t1));
   const auto la = a.t1.take_local_changes();

@@ -17,8 +17,6 @@ using namespace syndds::scm::test;
 
 namespace {
 
-constexpr double kRadius = 0.467;
-constexpr double kWidth = 0.254;
 
 /// A wheel pressed kinematically 30 mm below the undeformed surface, rolling at v with slip.
 terrain::WheelBodyState kinematic_wheel(Vec3 start, Vec3 direction, double v, double slip,
@@ -27,12 +25,13 @@ terrain::WheelBodyState kinematic_wheel(Vec3 start, Vec3 direction, double v, do
   const double yaw = std::atan2(direction.y(), direction.x());
   w.pose.orientation = quat_from_yaw(yaw);
   w.pose.position = start + v * t * direction;
-  w.pose.position.z() = kRadius - 0.03;
+  w.pose.position.z() = kHmmwvWheelRadius - 0.03;
   w.linear_velocity = v * direction;
   const Vec3 axis = w.pose.orientation * Vec3::UnitY();
-  w.angular_velocity = axis * (v * (1.0 + slip) / kRadius);  // driven: spins faster than rolls
-  w.radius_m = kRadius;
-  w.width_m = kWidth;
+  // Driven: spins faster than it rolls.
+  w.angular_velocity = axis * (v * (1.0 + slip) / kHmmwvWheelRadius);
+  w.radius_m = kHmmwvWheelRadius;
+  w.width_m = kHmmwvWheelWidth;
   return w;
 }
 
@@ -44,10 +43,10 @@ std::vector<double> drive_four_wheels(ScmTerrain& terrain, int steps) {
   const double xs[2] = {1.7, -1.7}, ys[2] = {0.9, -0.9};
   for (int k = 0; k < 4; ++k) {
     auto& rig = rigs[static_cast<std::size_t>(k)];
-    rig.body.shape = CylinderShape{kRadius, kWidth};
-    rig.body.pose.position = Vec3(xs[k / 2] - 3.0, ys[k % 2], kRadius);
+    rig.body.shape = CylinderShape{kHmmwvWheelRadius, kHmmwvWheelWidth};
+    rig.body.pose.position = Vec3(xs[k / 2] - 3.0, ys[k % 2], kHmmwvWheelRadius);
     rig.body.linear_velocity = Vec3(v, 0, 0);
-    rig.body.angular_velocity = Vec3(0, 1.2 * v / kRadius, 0);
+    rig.body.angular_velocity = Vec3(0, 1.2 * v / kHmmwvWheelRadius, 0);
     rig.mass_kg = 60.0;
     rig.damping_nspm = 3e4;
   }
@@ -63,10 +62,6 @@ std::vector<double> drive_four_wheels(ScmTerrain& terrain, int steps) {
     }
   }
   return trace;
-}
-
-bool bit_equal(const std::vector<double>& a, const std::vector<double>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
 /// One frame of the crossing: in t1 a wheel drives east along y = 0, in t2 one north along
@@ -484,7 +479,7 @@ TEST(ScmSurface, BaseSurfaceGivesTheUndeformedHeight) {
   EXPECT_NEAR(t.normal(1.02, 0.3).x(), Vec3(-0.1, 0, 1).normalized().x(), 1e-9);
   // A wheel pressed 30 mm into the slope: sinkage is measured from the base surface there.
   terrain::WheelBodyState w = kinematic_wheel(Vec3(1.0, 0.0, 0.0), Vec3::UnitX(), 0.0, 0.0, 0.0);
-  w.pose.position.z() = 0.6 + kRadius - 0.03;
+  w.pose.position.z() = 0.6 + kHmmwvWheelRadius - 0.03;
   terrain::WheelLoad l;
   t.compute_wheel_loads(std::span(&w, 1), 2e-3, std::span(&l, 1));
   EXPECT_TRUE(l.in_contact);
