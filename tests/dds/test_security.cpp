@@ -37,9 +37,19 @@ bool wait_until(const std::function<bool()>& condition, double timeout_s) {
 }
 
 // The security folder of tests/multiprocess/scenarios/two_vehicles.yaml (members vehicle/a,
-// vehicle/b, controller/a, controller/b, recorder) with a read-only "intruder", made once.
+// vehicle/b, controller/a, controller/b, recorder) with a read-only "intruder", made once per
+// process and removed when it exits (its log stays when make_security.sh fails).
+struct SecurityDir {
+  fs::path path;
+  ~SecurityDir() {
+    std::error_code ignored;
+    fs::remove_all(path, ignored);
+    fs::remove(path.string() + ".log", ignored);
+  }
+};
+
 const fs::path& security_dir() {
-  static const fs::path dir = [] {
+  static const SecurityDir dir{[] {
     const fs::path d = fs::temp_directory_path() / ("syndds-security-" + std::to_string(getpid()));
     fs::remove_all(d);
     const std::string cmd = "SYNDDS_BUILD_DIR=" + kBin + "/.. SYNDDS_CONFIG_DIR=" + kConfig + " " +
@@ -48,8 +58,8 @@ const fs::path& security_dir() {
                             d.string() + " --observer intruder > " + d.string() + ".log 2>&1";
     if (std::system(cmd.c_str()) != 0) throw std::runtime_error("make_security.sh failed: " + cmd);
     return d;
-  }();
-  return dir;
+  }()};
+  return dir.path;
 }
 
 sdds::DdsOptions options(const std::string& identity, bool secure = true) {

@@ -236,7 +236,9 @@ std::string rig_error(const std::string& sensor_yaml) {
   std::ofstream(dir / "rig.yaml") << "name: test\nsensors:\n" << sensor_yaml;
   std::string text = replaced(kMinimal, "    model: hmmwv\n",
                               "    model: hmmwv\n    sensors: " + (dir / "rig.yaml").string() + "\n");
-  return error_of(text);
+  const std::string error = error_of(text);
+  fs::remove_all(dir);
+  return error;
 }
 
 }  // namespace
