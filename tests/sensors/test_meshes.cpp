@@ -24,7 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 const std::string kMeshes = std::string(SYNDDS_TEST_CONFIG_DIR) + "/meshes";
 
-fs::path temp_dir(const std::string& name) {
+fs::path mesh_temp_dir(const std::string& name) {
   auto p = fs::temp_directory_path() / ("syndds_meshes_" + name);
   fs::remove_all(p);
   fs::create_directories(p);
@@ -88,7 +88,7 @@ TEST(Meshes, ShippedMeshesLoadWithTheirMaterials) {
   EXPECT_NEAR(zmax, 6.0, 1e-9);
   EXPECT_EQ(names(fitted), names(tree));
 
-  const auto dir = temp_dir("bad");
+  const auto dir = mesh_temp_dir("bad");
   std::ofstream(dir / "broken.obj") << "v 0 0 0\nf 1 2 3\n";
   EXPECT_THROW(load_mesh((dir / "broken.obj").string()), std::invalid_argument);
   EXPECT_THROW(load_mesh((dir / "missing.obj").string()), std::invalid_argument);
@@ -192,7 +192,7 @@ TEST(Meshes, RigsFindTheMeshDirectoryOrNameTheMissingOne) {
   const SensorRig rig = load_sensor_rig(sensor_rig_path("default", SYNDDS_TEST_CONFIG_DIR));
   ASSERT_FALSE(rig.scene.mesh_dir.empty());
   EXPECT_TRUE(fs::equivalent(rig.scene.mesh_dir, kMeshes));
-  const auto dir = temp_dir("rig");
+  const auto dir = mesh_temp_dir("rig");
   std::ofstream(dir / "rig.yaml") << "name: r\nscene: {meshes: nowhere}\n"
                                      "sensors: [{id: gps, type: gps}]\n";
   try {
