@@ -521,6 +521,15 @@ void CoordinatorService::write_status_locked(const std::string& state, int exit_
       j["lost"].push_back({{"member", member}, {"why", why}});
     }
   }
+  // A completed run's timing, for tools that measure runs (the benchmarks) with or without a
+  // recorder: frames completed, simulated and wall time, and their ratio.
+  if (state == "completed") {
+    const auto& s = result_.stats;
+    j["stats"] = {{"frames", s.frames},
+                  {"sim_time_s", s.sim_time_s},
+                  {"wall_time_s", s.wall_time_s},
+                  {"real_time_factor", s.real_time_factor}};
+  }
   j["reason"] = result_.reason;
   j["exit_code"] = exit_code;
   j["failed_after_end"] = failed_after_end_;

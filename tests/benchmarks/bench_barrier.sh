@@ -43,13 +43,13 @@ scenario() {  # $1 = N, $2 = with controllers and recorder (0/1)
   echo "$f"
 }
 
-run_one() {  # $1 = scenario file; prints "frames wall_s rtf"
-  local out=$WORK/out log
+run_one() {  # $1 = scenario file; prints "frames wall_s rtf" (the coordinator's status file)
+  local out=$WORK/out
   rm -rf "$out"
   "$ROOT/tests/netns_exec.sh" "$ROOT/launch_scripts/run_scenario.sh" "$1" --output "$out" \
       > "$WORK/launch.log" 2>&1 || { cat "$WORK/launch.log" >&2; return 1; }
-  log=$out/logs/coordinator.log
-  sed -n 's/.*run completed: \([0-9]*\) frames, [0-9.]* s simulated in \([0-9.]*\) s (real-time factor \([0-9.]*\)).*/\1 \2 \3/p' "$log"
+  /usr/bin/python3 -c 'import json, sys; s = json.load(open(sys.argv[1]))["stats"]
+print(s["frames"], "%.3f %.3f" % (s["wall_time_s"], s["real_time_factor"]))' "$out/logs/run_status.json"
 }
 
 echo "# $(date -u +%F) $(nproc) cores, $(uname -r); duration ${DURATION} s simulated, heartbeat 0.01 s"

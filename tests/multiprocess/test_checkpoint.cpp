@@ -343,6 +343,13 @@ TEST(Checkpoint, QuietLogsStillRecoverAndComplete) {
     ASSERT_EQ(launcher->wait(120), std::optional<int>(0)) << launcher->log();
     EXPECT_EQ(launcher->log().find("stopping"), std::string::npos) << launcher->log();
     EXPECT_EQ(read_file(out / "logs" / "coordinator.log").find("[info]"), std::string::npos);
+    // The completed run's timing is in the status file too, as the coordinator sent it.
+    const auto status = nlohmann::json::parse(read_file(out / "logs" / "run_status.json"));
+    const auto summary = nlohmann::json::parse(read_file(out / "summary.json"));
+    ASSERT_TRUE(status.contains("stats")) << status.dump(2);
+    for (const char* key : {"frames", "sim_time_s", "wall_time_s", "real_time_factor"}) {
+      EXPECT_EQ(status.at("stats").at(key), summary.at(key)) << key;
+    }
   }
   fs::remove_all(out);
   auto launcher = start_launcher(run, kScenario, "--log-level error");

@@ -209,6 +209,7 @@ TEST(Failure, KilledVehicleIsNamedAndEveryProcessStops) {
   ASSERT_EQ(status.at("lost").size(), 1u) << status.dump(2);
   EXPECT_EQ(status.at("lost").at(0).at("member"), "vehicle/b");
   EXPECT_TRUE(status.at("recovery_list").empty());
+  EXPECT_FALSE(status.contains("stats")) << "only a completed run has its timing";
   const std::string launcher_log = launcher.log();
   EXPECT_NE(launcher_log.find("FAILED: run 'long_run' aborted: member vehicle/b lost"),
             std::string::npos)
