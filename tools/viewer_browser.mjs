@@ -22,9 +22,10 @@ export async function launchChromium(args = []) {
   });
 }
 
-/// Opens the viewer at `url` and waits until it has drawn its first picture.
-export async function openViewer(url, { width = 1280, height = 720, timeoutMs = 60000 } = {}) {
-  const browser = await launchChromium();
+/// Opens the viewer at `url` and waits until it has drawn its first picture (in `browser`, or in
+/// a Chromium started for it).
+export async function openViewer(url, { width = 1280, height = 720, timeoutMs = 60000, browser = null } = {}) {
+  browser = browser || await launchChromium();
   const page = await browser.newPage({ viewport: { width, height } });
   const errors = [];
   page.on('pageerror', (e) => errors.push(e.message));

@@ -6,7 +6,9 @@
 //   node browser_tests.mjs radar URL SHOT.png BAD_URL a recorded radar (radar_scene.yaml): its
 //                                                     detections; BAD_URL: the same run with a
 //                                                     malformed radar.csv
-//   node browser_tests.mjs live URL                   a live scm_crossing run
+//   node browser_tests.mjs live URL_FILE READY_FILE   a live scm_crossing run: Chromium starts
+//                                                     first and writes READY_FILE, then opens
+//                                                     the address the launcher writes to URL_FILE
 //   node browser_tests.mjs radarlive URL RADAR.csv    a live radar_scene.yaml run: its radar's
 //                                                     detections, as RADAR.csv records them
 //   node browser_tests.mjs watch URL [sensors]        a live run: states arrive (with
@@ -15,7 +17,7 @@
 //   node browser_tests.mjs origin URL LIVE_URL        a replay viewer (URL) and a live one:
 //                                                     other sites' pages cannot reach either
 import assert from 'node:assert/strict';
-import { readFileSync } from 'node:fs';
+import { readFileSync, writeFileSync } from 'node:fs';
 import http from 'node:http';
 import { launchChromium, openViewer } from '../../tools/viewer_browser.mjs';
 
@@ -101,8 +103,24 @@ async function ruts() {
   }
 }
 
+// The text of file `path` once it is not empty (bounded wait).
+async function fileText(path, timeoutMs = 60000) {
+  for (const end = Date.now() + timeoutMs; Date.now() < end;) {
+    try {
+      const text = readFileSync(path, 'utf8').trim();
+      if (text) return text;
+    } catch { /* not there yet */ }
+    await new Promise((r) => setTimeout(r, 100));
+  }
+  throw new Error(`${path} stayed empty for ${timeoutMs / 1000} s`);
+}
+
 async function live() {
-  const { browser, page } = await openViewer(url);
+  // Chromium is up before the run starts (on a loaded machine it takes many seconds): the page
+  // has the run's whole 20 s.
+  const chromium = await launchChromium();
+  writeFileSync(shot, 'ready\n');
+  const { browser, page } = await openViewer(await fileText(url), { browser: chromium });
   try {
     // While the run goes on: states arrive, the soil deforms in the page, the clock advances.
     await page.waitForFunction(() => window.syndds.updates > 0 && window.syndds.soilStats().vertices > 0,

@@ -94,11 +94,16 @@ case "$CASE" in
     node "$ROOT/tests/viewer/browser_tests.mjs" ruts "$(cat "$work/url")" "$OUT/viewer_scm_crossing.png"
     ;;
   live)
+    # The browser first (it opens the page once the launcher has written the viewer's address),
+    # then the run.
+    node "$ROOT/tests/viewer/browser_tests.mjs" live "$work/live/logs/viewer.url" \
+        "$work/browser.ready" &
+    bpid=$!
+    wait_file "$work/browser.ready" || { wait "$bpid"; exit 1; }
     "$ROOT/launch_scripts/run_scenario.sh" "$ROOT/config/scenarios/scm_crossing.yaml" --duration 20 \
         --realtime --view --view-port 0 --output "$work/live" > "$work/launcher.log" 2>&1 &
     lpid=$!
-    wait_file "$work/live/logs/viewer.url"
-    node "$ROOT/tests/viewer/browser_tests.mjs" live "$(cat "$work/live/logs/viewer.url")"
+    wait "$bpid" || { cat "$work/launcher.log" >&2; exit 1; }
     wait "$lpid" || { cat "$work/launcher.log" >&2; exit 1; }
     single scm_crossing 20 "$work/single"
     cmp "$work/live/vehicles.csv" "$work/single/vehicles.csv"
