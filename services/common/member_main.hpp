@@ -1,57 +1,28 @@
 #pragma once
-// main() of a member service: build one agent from the scenario and run it over DDS.
-#include <spdlog/spdlog.h>
+// main() of a member service: build one agent from the scenario and run it over DDS. This
+// header is kept free of Fast DDS, the agents and spdlog (the body is in service_member.cpp), so
+// that a service main compiles its options only.
+#include <CLI/CLI.hpp>
 
-#include <optional>
+#include <functional>
+#include <string>
 
-#include "agents/agent_factory.hpp"
-#include "common/service_cli.hpp"
+#include "scenario/scenario.hpp"
+
+namespace syndds::proto {
+class Agent;
+}
 
 namespace syndds::service {
 
-/// `make_member_id(scenario)` names the member this process plays.
-inline int member_main(const char* name, const char* description, int argc, char** argv,
-                       const std::function<void(CLI::App&)>& add_options,
-                       const std::function<std::string(const scenario::Scenario&)>& make_member_id,
-                       const std::function<record::RecorderOptions(const scenario::Scenario&,
-                                                                   const std::string&)>&
-                           recorder_options = {},
-                       const std::function<void(proto::Agent&)>& configure = {}) {
-  CLI::App app{description};
-  CommonArgs common;
-  DebugArgs debug;
-  add_common_options(app, common);
-  add_debug_options(app, debug);
-  add_options(app);
-  return run_service(name, app, argc, argv, common, [&] {
-    const auto s = load_scenario(common);
-    const std::string member = make_member_id(s);
-    auto options = member_options(common, debug, s, member);
-    // Once this member's outcome is settled, a Fast DDS abort while the run's participants
-    // leave (a known 2.9.1 assertion) must not turn it into a crash.
-    std::optional<DdsTeardownGuard> leaving;
-    options.on_outcome = [&](int code) { leaving.emplace(code); };
-    record::RecorderOptions ro;
-    if (recorder_options) ro = recorder_options(s, options.dds.run_id);
-    ro.resume = options.resume_frame >= 0 || options.rejoin;
-    auto agent = agents::make_agent(s, member, ro);
-    if (options.checkpoint_every > 0 || options.resume_frame >= 0 || options.rejoin) {
-      agents::require_checkpoints(s, *agent);
-    }
-    if (configure) configure(*agent);
-    dds::MemberRuntime runtime(*agent, options);
-    const int code = runtime.run(interrupted());
-    if (code == dds::kExitCompleted) {
-      spdlog::info("{}: run completed", member);
-    } else {
-      spdlog::error("{}: run ended: {}", member, runtime.end_reason());
-    }
-    {
-      DdsTeardownGuard guard(code);
-      runtime.close();
-    }
-    return code;
-  });
-}
+/// `make_member_id(scenario)` names the member this process plays. `recorder_output`, when not
+/// null, is the variable of the program's --output option (read after parsing): the member
+/// writes its files there (the recorder, a sensor's saved frames). `configure` is called with
+/// the agent before the run starts.
+int member_main(const char* name, const char* description, int argc, char** argv,
+                const std::function<void(CLI::App&)>& add_options,
+                const std::function<std::string(const scenario::Scenario&)>& make_member_id,
+                const std::string* recorder_output = nullptr,
+                const std::function<void(proto::Agent&)>& configure = {});
 
 }  // namespace syndds::service

@@ -4,6 +4,7 @@
 #include <map>
 
 #include "core/error.hpp"
+#include "dds/participant.hpp"
 
 namespace syndds::service {
 

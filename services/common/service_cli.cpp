@@ -15,6 +15,7 @@
 
 #include "core/cpu_policy.hpp"
 #include "core/error.hpp"
+#include "dds/member_runtime.hpp"
 #include "record/checkpoint.hpp"
 
 namespace syndds::service {

@@ -9,8 +9,14 @@
 #include <optional>
 #include <string>
 
-#include "dds/member_runtime.hpp"
 #include "scenario/scenario.hpp"
+
+// The DDS layer's option structs (dds/participant.hpp, dds/member_runtime.hpp): a main that
+// fills or reads them includes those headers; the others compile without Fast DDS.
+namespace syndds::dds {
+struct DdsOptions;
+struct MemberRuntimeOptions;
+}  // namespace syndds::dds
 
 namespace syndds::service {
 

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "common/service_cli.hpp"
+#include "dds/participant.hpp"
 #include "core/error.hpp"
 #include "dds/coordinator_service.hpp"
 #include "record/checkpoint.hpp"

@@ -5,6 +5,7 @@
 
 #include "agents/constant_driver_agent.hpp"
 #include "common/service_cli.hpp"
+#include "dds/member_runtime.hpp"
 
 namespace service = syndds::service;
 

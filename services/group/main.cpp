@@ -14,6 +14,7 @@
 
 #include "agents/agent_factory.hpp"
 #include "common/service_cli.hpp"
+#include "dds/member_runtime.hpp"
 #include "core/error.hpp"
 #include "learn/register_policy_controller.hpp"
 

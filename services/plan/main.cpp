@@ -6,6 +6,7 @@
 
 #include "common/run_plan.hpp"
 #include "common/service_cli.hpp"
+#include "dds/participant.hpp"
 #include "core/error.hpp"
 
 using namespace syndds;

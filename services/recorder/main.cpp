@@ -9,7 +9,5 @@ int main(int argc, char** argv) {
         app.add_option("--output", output, "Run directory")->capture_default_str();
       },
       [&](const syndds::scenario::Scenario&) { return std::string(syndds::scenario::kRecorderMember); },
-      [&](const syndds::scenario::Scenario&, const std::string& run_id) {
-        return syndds::record::RecorderOptions{output, run_id, "distributed"};
-      });
+      &output);
 }

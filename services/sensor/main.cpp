@@ -13,7 +13,5 @@ int main(int argc, char** argv) {
             ->capture_default_str();
       },
       [&](const syndds::scenario::Scenario&) { return syndds::scenario::sensor_member(vehicle); },
-      [&](const syndds::scenario::Scenario&, const std::string& run_id) {
-        return syndds::record::RecorderOptions{output, run_id, "distributed"};
-      });
+      &output);
 }

@@ -9,6 +9,7 @@
 
 #include "agents/agent_factory.hpp"
 #include "common/service_cli.hpp"
+#include "dds/member_runtime.hpp"
 #include "learn/register_policy_controller.hpp"
 #include "protocol/local_runner.hpp"
 #include "record/checkpoint.hpp"

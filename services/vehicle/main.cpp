@@ -1,6 +1,7 @@
 // syndds_vehicle: one vehicle's dynamics as a barrier member.
 #include "agents/vehicle_agent.hpp"
 #include "common/member_main.hpp"
+#include "core/error.hpp"
 
 int main(int argc, char** argv) {
   std::string vehicle;
@@ -15,7 +16,7 @@ int main(int argc, char** argv) {
             ->group("Testing (fault injection; never needed in normal runs)");
       },
       [&](const syndds::scenario::Scenario&) { return syndds::scenario::vehicle_member(vehicle); },
-      {},
+      nullptr,
       [&](syndds::proto::Agent& agent) {
         if (hash_log.empty()) return;
         auto* v = dynamic_cast<syndds::agents::VehicleAgent*>(&agent);

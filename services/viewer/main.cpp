@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "common/service_cli.hpp"
+#include "dds/participant.hpp"
 #include "core/error.hpp"
 #include "viewer/scene.hpp"
 #include "viewer/viewer_feed.hpp"
