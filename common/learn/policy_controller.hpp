@@ -15,7 +15,7 @@
 #include <string>
 
 #include "learn/convoy_env.hpp"
-#include "learn/ppo/perception.hpp"
+#include "learn/ppo/perception_model.hpp"
 #include "learn/ppo/policy.hpp"
 #include "learn/register_policy_controller.hpp"
 #include "protocol/agent.hpp"

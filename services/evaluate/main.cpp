@@ -13,7 +13,7 @@
 
 #include "learn/convoy_env.hpp"
 #include "learn/evaluate.hpp"
-#include "learn/ppo/perception.hpp"
+#include "learn/ppo/perception_model.hpp"
 #include "learn/ppo/policy.hpp"
 #include "learn/registry.hpp"
 

@@ -37,7 +37,8 @@ PerceptionModel PerceptionModel::load(const std::string& path) {
     m.image_ = ImageSpec{static_cast<int>(image[0].item<std::int64_t>()),
                          static_cast<int>(image[1].item<std::int64_t>()),
                          static_cast<int>(image[2].item<std::int64_t>())};
-    m.net_ = std::make_shared<PerceptionNet>(m.image_, static_cast<int>(outputs.item<std::int64_t>()));
+    m.outputs_ = static_cast<int>(outputs.item<std::int64_t>());
+    m.net_ = std::make_shared<PerceptionNet>(m.image_, m.outputs_);
     m.net_->load(archive);
     m.net_->eval();
     return m;

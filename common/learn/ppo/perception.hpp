@@ -14,6 +14,7 @@
 
 #include "learn/env.hpp"
 #include "learn/ppo/networks.hpp"
+#include "learn/ppo/perception_model.hpp"
 #include "learn/vector_env.hpp"
 
 namespace syndds::learn::ppo {
@@ -46,24 +47,6 @@ struct PerceptionStats {
   double seen_share = 0.0;  // share of held-out values < seen_below
   std::vector<PerceptionEpoch> epochs;
   double collect_s = 0.0, learn_s = 0.0;  // wall times
-};
-
-/// A fitted perception network with what it reads: the file syndds_train --perceive-steps
-/// writes (the network's parameters and its image size and outputs).
-class PerceptionModel {
- public:
-  /// Throws std::runtime_error naming `path` when it is not a perception file.
-  static PerceptionModel load(const std::string& path);
-  static void save(const std::string& path, PerceptionNet& net, const ImageSpec& image);
-  /// The network's outputs for one image of the model's size (std::invalid_argument
-  /// otherwise). Safe to call from several threads at once.
-  std::vector<float> read(const std::vector<std::uint8_t>& image) const;
-  const ImageSpec& image() const { return image_; }
-  int outputs() const { return net_->outputs(); }
-
- private:
-  std::shared_ptr<PerceptionNet> net_;
-  ImageSpec image_;
 };
 
 /// Resets `envs` with `seed`, drives every copy by its expert_action() for `steps`

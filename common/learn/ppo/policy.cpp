@@ -1,12 +1,16 @@
 #include "learn/ppo/policy.hpp"
 
 #include <ATen/CPUGeneratorImpl.h>
+#include <torch/torch.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
 
+#include "learn/ppo/networks.hpp"
+#include "learn/ppo/normalizer.hpp"
+#include "learn/ppo/policy_file.hpp"
 #include "learn/ppo/trainer.hpp"
 
 namespace syndds::learn::ppo {
@@ -75,6 +79,12 @@ void Trainer::save_policy(const std::string& path, const PolicyMetadata& metadat
 
 namespace syndds::learn {
 
+struct Policy::Net {
+  std::shared_ptr<ppo::ActorCritic> model;
+  ppo::RunningNormalizer normalizer;
+  at::Generator generator;
+};
+
 void Policy::load(const std::string& path) {
   torch::serialize::InputArchive archive;
   if (!std::ifstream(path)) throw std::runtime_error("cannot read " + path);
@@ -117,36 +127,40 @@ void Policy::load(const std::string& path) {
   }
   c10::IValue network;
   archive.read("network", network);
-  model_ = ppo::make_actor_critic(network.toStringRef(), observations_, actions_);
+  auto net = std::make_shared<Net>();
+  net->model = ppo::make_actor_critic(network.toStringRef(), observations_, actions_);
   torch::serialize::InputArchive m, n;
   archive.read("model", m);
   archive.read("normalizer", n);
-  model_->load(m);
-  model_->eval();
-  normalizer_.load(n);
-  if (!generator_.defined()) seed(0);
+  net->model->load(m);
+  net->model->eval();
+  net->normalizer.load(n);
+  net->generator = net_ ? net_->generator : at::make_generator<at::CPUGeneratorImpl>(0);
+  net_ = std::move(net);
 }
 
 void Policy::seed(std::uint64_t seed) {
-  generator_ = at::make_generator<at::CPUGeneratorImpl>(seed);
+  auto net = net_ ? std::make_shared<Net>(*net_) : std::make_shared<Net>();
+  net->generator = at::make_generator<at::CPUGeneratorImpl>(seed);
+  net_ = std::move(net);
 }
 
 std::vector<float> Policy::act(const Observation& observation, bool deterministic) {
-  if (!model_) throw std::logic_error("Policy::act before load");
-  const std::vector<float> z = normalizer_.normalize(observation.vector);
+  if (!net_ || !net_->model) throw std::logic_error("Policy::act before load");
+  const std::vector<float> z = net_->normalizer.normalize(observation.vector);
   const torch::Tensor vec =
       torch::tensor(at::ArrayRef<float>(z), torch::kFloat32).reshape({1, -1});
   torch::Tensor img;
   if (observations_.image) img = ppo::image_batch({&observation.image}, *observations_.image);
   torch::NoGradGuard no_grad;
-  const ppo::ActorCriticOutput out = model_->forward(vec, img);
+  const ppo::ActorCriticOutput out = net_->model->forward(vec, img);
   torch::Tensor a = out.mean;
   if (!deterministic) {
-    torch::Tensor noise = at::normal(0.0, 1.0, a.sizes(), generator_, torch::kFloat32);
+    torch::Tensor noise = at::normal(0.0, 1.0, a.sizes(), net_->generator, torch::kFloat32);
     for (std::size_t j = 0; j < actions_.size(); ++j) {
       if (!actions_.explored(j)) noise[0][static_cast<std::int64_t>(j)] = 0.0f;
     }
-    a = a + torch::exp(model_->log_std) * noise;
+    a = a + torch::exp(net_->model->log_std) * noise;
   }
   std::vector<float> action = ppo::floats(a);
   for (std::size_t j = 0; j < action.size(); ++j) {

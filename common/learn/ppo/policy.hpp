@@ -2,34 +2,20 @@
 // A trained policy for inference (a controller driving with it): the file Trainer::save_policy
 // writes (syndds_train's policy.pt) holds the network, the observation normaliser and the
 // spaces. act() normalises the observation as in training and returns the Gaussian policy's
-// mean (deterministic) or a sample, clamped to the action box either way.
-#include <torch/torch.h>
-
-#include <map>
+// mean (deterministic) or a sample, clamped to the action box either way. The network lives
+// behind this interface (policy.cpp), so users of a policy compile without libtorch's headers.
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "learn/env.hpp"
 #include "learn/policy_metadata.hpp"
-#include "learn/ppo/networks.hpp"
-#include "learn/ppo/normalizer.hpp"
-
-namespace syndds::learn::ppo {
-
-/// Writes the policy file of `model` (used by Trainer::save_policy).
-void save_policy_file(const std::string& path, const ActorCritic& model,
-                      const RunningNormalizer& normalizer, const ObservationSpace& observations,
-                      const Box& actions, const PolicyMetadata& metadata = {});
-
-/// The tensor stored under `key`, read into a fresh tensor (reading into a defined one copies
-/// into its storage, which fails when the sizes differ). Throws when the key is missing.
-torch::Tensor read_tensor(torch::serialize::InputArchive& archive, const std::string& key);
-
-}  // namespace syndds::learn::ppo
 
 namespace syndds::learn {
 
+/// Copies share the network and the sampling generator (as libtorch's handles do); load() and
+/// seed() on one copy change that copy only.
 class Policy {
  public:
   /// Reads a policy file; throws std::runtime_error (c10::Error) for a file that is not one.
@@ -46,12 +32,11 @@ class Policy {
   const Box& action_space() const { return actions_; }
 
  private:
-  std::shared_ptr<ppo::ActorCritic> model_;
-  ppo::RunningNormalizer normalizer_;
+  struct Net;  // the network, the normaliser and the sampling generator (policy.cpp)
+  std::shared_ptr<Net> net_;
   ObservationSpace observations_;
   Box actions_;
   PolicyMetadata metadata_;
-  at::Generator generator_;
 };
 
 }  // namespace syndds::learn

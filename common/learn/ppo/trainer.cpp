@@ -15,6 +15,7 @@
 #include <tuple>
 
 #include "learn/ppo/policy.hpp"
+#include "learn/ppo/policy_file.hpp"
 
 namespace syndds::learn::ppo {
 namespace {

@@ -25,7 +25,8 @@
 
 #include "learn/ppo/networks.hpp"
 #include "learn/ppo/normalizer.hpp"
-#include "learn/ppo/policy.hpp"
+#include "learn/policy_metadata.hpp"
+#include "learn/ppo/policy_file.hpp"
 #include "learn/vector_env.hpp"
 
 namespace syndds::learn::ppo {
