@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "agents/agent_factory.hpp"
+#include "core/error.hpp"
 #include "common/service_cli.hpp"
 #include "dds/member_runtime.hpp"
 #include "learn/register_policy_controller.hpp"
@@ -24,8 +25,12 @@ int main(int argc, char** argv) {
   service::add_common_options(app, common);
   std::string output = "runs/latest";
   bool quiet = false;
+  std::string checkpoint_log;
   app.add_option("--output", output, "Run directory")->capture_default_str();
   app.add_flag("--quiet", quiet, "Do not print the summary");
+  app.add_option("--checkpoint-log", checkpoint_log,
+                 "Write a CSV row per member and checkpoint here (frame, sim_time_s, member, "
+                 "bytes, write_ms: the wall time to save and write its file)");
   return service::run_service("sim", app, argc, argv, common, [&] {
     const auto s = service::load_scenario(common);
     const std::string run_id = service::dds_options(common, s).run_id;  // validated
@@ -39,6 +44,12 @@ int main(int argc, char** argv) {
     }
     proto::LocalRunner runner(std::move(agents),
                               {s.time.final_frame(), s.time.heartbeat_s, s.time.realtime});
+    std::ofstream timings;
+    if (!checkpoint_log.empty()) {
+      timings.open(checkpoint_log);
+      if (!timings) throw ConfigError("--checkpoint-log: cannot write " + checkpoint_log);
+      timings << "frame,sim_time_s,member,bytes,write_ms\n";
+    }
     if (s.checkpoint.enabled()) {
       runner.set_after_frame([&](proto::FrameStepper& stepper) {
         const std::int64_t frame = stepper.next_frame() - 1;
@@ -57,6 +68,11 @@ int main(int argc, char** argv) {
           seconds += m.write_s;
           spdlog::debug("checkpoint of frame {}: {} {} bytes {:.3f} ms", frame, m.member_id,
                         m.bytes, 1e3 * m.write_s);
+          if (timings.is_open()) {
+            timings << fmt::format("{},{:g},{},{},{:.3f}\n", frame, info.sim_time_s, m.member_id,
+                                   m.bytes, 1e3 * m.write_s)
+                    << std::flush;
+          }
         }
         spdlog::info("checkpoint of frame {} (t = {:g} s): {} members, {} bytes, {:.1f} ms",
                      frame, info.sim_time_s, info.members.size(), bytes, 1e3 * seconds);

@@ -37,16 +37,16 @@ for scenario in "${SCENARIOS[@]}"; do
       file=$scenario; [ $mode = with ] && file=$copy
       out="$WORK/$name-$mode-$run"
       start=$(date +%s.%N)
-      "$BIN/syndds_sim" "$file" --output "$out" --quiet --log-level debug > "$WORK/log" 2>&1 ||
-        { rm -f "$copy"; cat "$WORK/log" >&2; exit 1; }
+      "$BIN/syndds_sim" "$file" --output "$out" --quiet --checkpoint-log "$WORK/timings.csv" \
+          > "$WORK/log" 2>&1 || { rm -f "$copy"; cat "$WORK/log" >&2; exit 1; }
       wall=$(echo "$(date +%s.%N) - $start" | bc)
       echo "$name run $run $mode checkpoints: wall ${wall} s"
       if [ $mode = with ]; then
         echo
         echo "| $name, run $run | checkpoints | mean bytes | mean ms |"
         echo "|---|---|---|---|"
-        sed -n 's/.*checkpoint of frame \([0-9]*\): \([^ ]*\) \([0-9]*\) bytes \([0-9.]*\) ms/\2 \3 \4/p' "$WORK/log" |
-          awk '{n[$1]++; b[$1]+=$2; t[$1]+=$3} END {for (m in n) printf "| %s | %d | %.0f | %.2f |\n", m, n[m], b[m]/n[m], t[m]/n[m]}' | sort
+        awk -F, 'NR > 1 {n[$3]++; b[$3]+=$4; t[$3]+=$5} END {for (m in n) printf "| %s | %d | %.0f | %.2f |\n", m, n[m], b[m]/n[m], t[m]/n[m]}' \
+          "$WORK/timings.csv" | sort
         echo
       fi
     done

@@ -26,14 +26,15 @@ export SYNDDS_CONFIG_DIR=${SYNDDS_CONFIG_DIR:-$ROOT/config}
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 RANDOM=$SEED
-"$BIN/syndds_sim" "$SCENARIO" --output "$WORK/reference" --quiet > "$WORK/reference.log" 2>&1 ||
+"$BIN/syndds_sim" "$SCENARIO" --output "$WORK/reference" --quiet \
+    --checkpoint-log "$WORK/checkpoints.csv" > "$WORK/reference.log" 2>&1 ||
   { cat "$WORK/reference.log" >&2; exit 1; }
 members=($("$BIN/syndds_coordinator" "$SCENARIO" --print-members))
 vehicles=$(( $(wc -l < "$WORK/reference/vehicles.csv") ))
 frames=$(tail -n1 "$WORK/reference/vehicles.csv" | cut -d, -f1)
 per_frame=$(( (vehicles - 1) / (frames + 1) ))
 # The first checkpoint (the reference keeps only the newest ones: checkpoint.keep_last).
-first=$(sed -n 's/.*checkpoint of frame \([0-9]*\) .*/\1/p' "$WORK/reference.log" | head -n1)
+first=$(awk -F, 'NR == 2 {print $1}' "$WORK/checkpoints.csv")
 [ -n "$first" ] || { echo "bench_recover: $SCENARIO writes no checkpoints" >&2; exit 1; }
 same_files() {  # every result file of $1 equal in $2
   (cd "$1" && find . -type f ! -path './logs*' ! -path './checkpoints/*' ! -name 'summary.*' \
