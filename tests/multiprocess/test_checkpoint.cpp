@@ -2,9 +2,12 @@
 // processes were all killed resumes from its last complete checkpoint, and under
 // on_member_loss: recover a run in which one member is killed goes on; both end with exactly
 // the files of an undisturbed run.
+#include <algorithm>
 #include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -226,10 +229,39 @@ TEST(Checkpoint, AResumeWithoutTheScenarioUsesTheRecordedOne) {
 // keep_last (3) newest complete checkpoints stay.
 TEST(Checkpoint, ADistributedCheckpointResumesInOneProcess) {
   TestRun run;
-  const fs::path want = reference(run);
+  const fs::path log = run.dir / "checkpoints.csv";
+  const fs::path want = reference(run, kScenario, " --checkpoint-log " + log.string());
   const fs::path out = run.dir / "out";
   const std::vector<std::string> kept = {"frame_000000300", "frame_000000400", "frame_000000500"};
   EXPECT_EQ(checkpoint_folders(want), kept);
+  // --checkpoint-log: a row per member and checkpoint, the kept ones' bytes those of the files.
+  std::istringstream rows(read_file(log));
+  std::string row;
+  std::getline(rows, row);
+  EXPECT_EQ(row, "frame,sim_time_s,member,bytes,write_ms");
+  std::map<std::int64_t, std::size_t> members_per_frame;
+  while (std::getline(rows, row)) {
+    std::istringstream cells(row);
+    std::string frame, time, member, bytes, ms;
+    std::getline(cells, frame, ',');
+    std::getline(cells, time, ',');
+    std::getline(cells, member, ',');
+    std::getline(cells, bytes, ',');
+    std::getline(cells, ms, ',');
+    SCOPED_TRACE(row);
+    ++members_per_frame[std::stoll(frame)];
+    EXPECT_GE(std::stod(ms), 0.0);
+    std::replace(member.begin(), member.end(), '/', '.');
+    char folder[32];
+    std::snprintf(folder, sizeof folder, "frame_%09lld", std::stoll(frame));
+    const fs::path file = want / "checkpoints" / folder / (member + ".state");
+    if (std::find(kept.begin(), kept.end(), folder) != kept.end()) {
+      EXPECT_EQ(fs::file_size(file), std::stoull(bytes));
+    }
+  }
+  ASSERT_EQ(members_per_frame.size(), 5u);  // frames 100, ..., 500 (two pruned since)
+  EXPECT_EQ(members_per_frame.begin()->first, 100);
+  for (const auto& [frame, n] : members_per_frame) EXPECT_EQ(n, members_per_frame.at(100));
   auto launcher = start_launcher(run, kScenario);
   ASSERT_EQ(launcher->wait(180), std::optional<int>(0)) << launcher->log();
   expect_same_run(want, out);  // distributed, with checkpoints, as the single process
