@@ -138,6 +138,19 @@ void bitangents(Graph& g, int i, int j) {
 
 }  // namespace
 
+namespace {
+
+// True when `p` lies farther than `reach` from the bounding box of segment ab, so farther from
+// the segment too: the exact distance need not be computed. The 1e-9 m allowance keeps every
+// decision the one the exact distance makes, whatever the rounding.
+bool beyond_box(const Vec2& a, const Vec2& b, const Vec2& p, double reach) {
+  const double r = reach + 1e-9;
+  return p.x() < std::min(a.x(), b.x()) - r || p.x() > std::max(a.x(), b.x()) + r ||
+         p.y() < std::min(a.y(), b.y()) - r || p.y() > std::max(a.y(), b.y()) + r;
+}
+
+}  // namespace
+
 double segment_point_distance(const Vec2& a, const Vec2& b, const Vec2& p) {
   const Vec2 ab = b - a;
   const double l2 = ab.squaredNorm();
@@ -269,16 +282,8 @@ struct Problem {
     const std::vector<Vec2> pts = polyline(x);
     double c = polyline_length(pts);
     for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
-      const Vec2 lo = pts[i].cwiseMin(pts[i + 1]);
-      const Vec2 hi = pts[i].cwiseMax(pts[i + 1]);
       for (const Circle& o : inflated) {
-        // A centre farther than its radius from the segment's bounding box is farther from the
-        // segment too: no depth (the 1e-9 m keeps the cost the exact one whatever the rounding).
-        const double reach = o.radius + 1e-9;
-        if (o.centre.x() < lo.x() - reach || o.centre.x() > hi.x() + reach ||
-            o.centre.y() < lo.y() - reach || o.centre.y() > hi.y() + reach) {
-          continue;
-        }
+        if (beyond_box(pts[i], pts[i + 1], o.centre, o.radius)) continue;  // no depth
         // Inside the margin costs a little (narrow gaps stay usable), inside the clearance
         // a lot.
         const double depth = o.radius - segment_point_distance(pts[i], pts[i + 1], o.centre);
@@ -319,17 +324,9 @@ std::vector<double> grid_seed_path(const Problem& pr, int waypoints, double marg
     });
   };
   auto sees = [&](const Vec2& a, const Vec2& b) {
-    const Vec2 lo = a.cwiseMin(b);
-    const Vec2 hi = a.cwiseMax(b);
     return std::all_of(pr.inflated.begin(), pr.inflated.end(), [&](const Circle& c) {
-      // Outside the segment's bounding box grown by the reach: farther from the segment too
-      // (the 1e-9 m keeps the answer the exact one whatever the rounding).
-      const double reach = c.radius - slack + 1e-9;
-      if (c.centre.x() < lo.x() - reach || c.centre.x() > hi.x() + reach ||
-          c.centre.y() < lo.y() - reach || c.centre.y() > hi.y() + reach) {
-        return true;
-      }
-      return segment_point_distance(a, b, c.centre) >= c.radius - slack;
+      return beyond_box(a, b, c.centre, c.radius - slack) ||
+             segment_point_distance(a, b, c.centre) >= c.radius - slack;
     });
   };
   auto at = [&](int i) { return Vec2(pr.size * (i % n) / (n - 1), pr.size * (i / n) / (n - 1)); };

@@ -8,8 +8,8 @@
 #include <iostream>
 
 #include "agents/agent_factory.hpp"
-#include "core/error.hpp"
 #include "common/service_cli.hpp"
+#include "core/error.hpp"
 #include "dds/member_runtime.hpp"
 #include "learn/register_policy_controller.hpp"
 #include "protocol/local_runner.hpp"
