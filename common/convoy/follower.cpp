@@ -306,9 +306,9 @@ double ConvoyFollower::max_bicycle_angle() const {
   return std::atan(l / (l / std::tan(vehicle_.max_steer_rad) + vehicle_.half_track_m));
 }
 
-double ConvoyFollower::steering_input(double bicycle_angle) const {
+double ConvoyFollower::steering_input(double bicycle_angle, double limit) const {
   if (!vehicle_.inner_wheel_input) {
-    return std::clamp(bicycle_angle / vehicle_.max_steer_rad, -1.0, 1.0);
+    return std::clamp(bicycle_angle / vehicle_.max_steer_rad, -limit, limit);
   }
   // The input sets the inner road wheel (docs/vehicle-dynamics.md): for the bicycle's turn
   // radius R_rear = L / tan(delta) at the rear axle, tan(inner) = L / (R_rear - t/2).
@@ -317,7 +317,7 @@ double ConvoyFollower::steering_input(double bicycle_angle) const {
   const double l = vehicle_.wheelbase_m;
   const double denominator = l / t - vehicle_.half_track_m;
   const double inner = denominator > 1e-6 ? std::atan(l / denominator) : std::numbers::pi / 2.0;
-  return std::copysign(std::min(inner / vehicle_.max_steer_rad, 1.0), bicycle_angle);
+  return std::copysign(std::min(inner / vehicle_.max_steer_rad, limit), bicycle_angle);
 }
 
 void ConvoyFollower::learn_understeer(double dt, double v) {
@@ -417,6 +417,7 @@ void ConvoyFollower::observe_radar(const std::vector<proto::RadarScanMsg>& scans
 vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const OwnReadings& own,
                                              const std::vector<proto::V2VMessageMsg>& leader,
                                              std::vector<FollowerEvent>& events) {
+  steering_beyond_lock_ = 0.0;
   update_own(time_s, dt, own);
   const bool fused = update_leader(time_s, dt, leader);
   vehicle::DriverInputs hold;
@@ -495,6 +496,12 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
 
   vehicle::DriverInputs cmd;
   cmd.steering = steering_input(commanded);
+  // The same command without the lock (the bicycle angle's and the input's): the angle has
+  // no bound but the input's mapping saturates where the inner wheel would reach 90 degrees.
+  steering_beyond_lock_ = steering_input(
+      before_cross_track - std::atan(config_.cross_track_gain_per_s * (cross_track_m_ - keep_shift_) /
+                                     (v + kSoftSpeedMps)),
+      std::numeric_limits<double>::infinity());
   cmd.throttle = signal > 0.0 ? std::min(signal, 1.0) : 0.0;
   cmd.braking = signal < 0.0 ? std::min(-signal, 1.0) : 0.0;
   if (target_speed_ < kHoldMps && own_->speed < kHoldMps) {

@@ -173,6 +173,11 @@ class ConvoyFollower {
   void set_keep_out(KeepOut keep_out) { keep_out_ = std::move(keep_out); }
   /// The sideways shift of the trail the last update() tracked (> 0: left; 0 without a map).
   double keep_out_shift_m() const { return keep_shift_; }
+  /// The last update()'s steering as it would be without the steering lock: the command's
+  /// steering where that is inside [-1, 1], beyond it (up to about 3) where the command is held
+  /// at the lock; 0 when the update held the brake without steering. For a teacher whose
+  /// student's action is clamped after it (learn::ConvoyEnv, option teacher_steering_limit).
+  double steering_beyond_lock() const { return steering_beyond_lock_; }
   bool leader_lost() const { return lost_; }
   bool ready() const { return own_.has_value() && leader_.has_value(); }
   Vec2 position_estimate() const { return own_ ? own_->position : Vec2::Zero(); }
@@ -221,7 +226,9 @@ class ConvoyFollower {
   double trail_curvature(double s, double w) const;
   double trail_length() const { return trail_s_.empty() ? 0.0 : trail_s_.back(); }
   /// Steering input in [-1, 1] for a bicycle road-wheel angle (Ackermann inner wheel).
-  double steering_input(double bicycle_angle) const;
+  /// `limit`: the largest input returned (1: the lock; above it, the input the angle would
+  /// need with a larger lock).
+  double steering_input(double bicycle_angle, double limit = 1.0) const;
   /// Updates the understeer estimate from the own yaw rate and steering.
   void learn_understeer(double dt, double v);
   /// The largest bicycle road-wheel angle the steering reaches.
@@ -264,6 +271,7 @@ class ConvoyFollower {
   double cross_track_m_ = 0.0;
   KeepOut keep_out_;
   double keep_shift_ = 0.0;           // the last update's keep_out_shift (derived, not state)
+  double steering_beyond_lock_ = 0.0; // the last update's, derived, not state
   /// The shift of the trail at arc position `s_here` that keeps the map's obstacles clear.
   double keep_out_shift(double s_here) const;
   // Newest in-lane radar detection: measurement time (< 0: none), bumper gap, range rate.

@@ -403,10 +403,17 @@ StepResult ConvoyEnv::step(std::span<const float> action) {
 
 std::vector<float> ConvoyEnv::expert_action() const {
   if (!driver_) return {};
-  std::vector<float> a = driver_->observations().classical_action();
-  // The command minus what the action is added to (0 unless steering_residual).
-  if (!a.empty()) a[0] -= static_cast<float>(convoy_steering_command(options_, seen_, 0.0));
+  const ConvoyObservationBuilder& built = driver_->observations();
+  std::vector<float> a = built.classical_action();
   for (float& v : a) v = std::clamp(v, -1.0f, 1.0f);
+  if (a.empty()) return a;
+  const auto limit = static_cast<float>(options_.teacher_steering_limit);
+  if (limit > 1.0f) {
+    a[0] = std::clamp(static_cast<float>(built.classical_steering_beyond_lock()), -limit, limit);
+  }
+  // The command minus what the action is added to (0 unless steering_residual).
+  a[0] = std::clamp(a[0] - static_cast<float>(convoy_steering_command(options_, seen_, 0.0)),
+                    -limit, limit);
   return a;
 }
 

@@ -83,6 +83,12 @@ struct ConvoyEnvOptions {
   /// episode's obstacles and keeps their edges this far from the trail it tracks
   /// (convoy::KeepOut); the observation and the reward do not change.
   double teacher_keep_clear_m = 0.0;
+  /// Above 1: the expert's steering is the classical command without the steering lock
+  /// (ConvoyFollower::steering_beyond_lock), within +-teacher_steering_limit, so that a student
+  /// imitating it (its action is clamped to [-1, 1] after it) reaches the lock where the
+  /// teacher holds it; an expert clamped to the lock is a target a regression undershoots
+  /// there. 1: the command as the vehicle receives it.
+  double teacher_steering_limit = 1.0;
   /// With teacher_keep_clear_m: the expert keeps clear only of the obstacles the follower's
   /// camera sees at the moment (KeepOut::view_half_angle_rad from the rig's first camera), so
   /// that its shift is a function of what the policy observes now (needs `camera`).

@@ -149,6 +149,7 @@ void ConvoyObservationBuilder::consume(const proto::FrameContext& ctx,
         ctx.sim_time_s - ctx.heartbeat_s, ctx.heartbeat_s, own, s.v2v_messages, events);
     classical_action_ = {static_cast<float>(command.steering),
                          static_cast<float>(command.throttle - command.braking)};
+    classical_beyond_lock_ = estimator_->steering_beyond_lock();
     teacher_shift_m_ = estimator_->keep_out_shift_m();
     if (has_memory(config_.kind)) {
       const double largest = config_.teacher_keep_out.max_shift_m;

@@ -111,6 +111,10 @@ class ConvoyObservationBuilder {
   /// teacher a trainer may imitate (ConvoyEnv::expert_action). Empty for the paper kind and
   /// before the estimator's first update; not checkpointed (the next frame recomputes it).
   std::vector<float> classical_action() const { return classical_action_; }
+  /// The classical command's steering without the steering lock (ConvoyFollower::
+  /// steering_beyond_lock), as classical_action's: 0 before the estimator's first update,
+  /// not checkpointed.
+  double classical_steering_beyond_lock() const { return classical_beyond_lock_; }
   /// The action the controller applies from now on (clamped to [-1, 1], NaN as 0, as
   /// convoy_driver_inputs applies it); the trail_action kind observes it. Before the first:
   /// steering 0, brake 1 (the brake the controllers hold until they act).
@@ -143,6 +147,7 @@ class ConvoyObservationBuilder {
   std::optional<proto::ImageMsg> image_;
   std::optional<convoy::ConvoyFollower> estimator_;  // the trail kinds'
   std::vector<float> classical_action_;               // the estimator's newest command
+  double classical_beyond_lock_ = 0.0;                // its steering without the lock
   double previous_steering_ = 0.0;                    // note_action's
   double previous_throttle_brake_ = -1.0;
   double memory_ = 0.0;                               // note_action's (memory kinds)

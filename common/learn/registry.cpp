@@ -108,6 +108,7 @@ ConvoyEnvOptions convoy_env_options(const EnvOptions& options) {
   o.episode.leader_wobble_m = r.number("leader_wobble", 0.0, 0.0, 2.0);
   o.episode.chain_fraction = r.number("chain", 0.0, 0.0, 1.0);
   o.teacher_keep_clear_m = r.number("teacher_keep_clear", 0.0, 0.0, 10.0);
+  o.teacher_steering_limit = r.number("teacher_steering_limit", 1.0, 1.0, 3.0);
   const std::string view = r.choice("teacher_view", "map", {"map", "camera", "ranges"});
   o.teacher_view_camera = view == "camera";
   o.teacher_view_ranges = view == "ranges";

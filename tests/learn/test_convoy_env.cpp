@@ -683,6 +683,52 @@ TEST(ConvoyEnv, TheTeachersMapChangesTheExpertNotTheObservation) {
   EXPECT_GT(nearest[1], nearest[0] + 0.3);
 }
 
+// teacher_steering_limit: the expert's steering is the classical command without the lock,
+// so that a regression onto it reaches the lock where the teacher holds it. Two environments
+// on the same episode, one with the limit 1.5, both driven by the plain expert except for a
+// second of full opposite lock that throws the follower off the trail: the observations and
+// rewards are the same bit for bit; the pedal is the same; where the plain expert steers
+// inside the lock the other's steering is equal to it; where the plain expert is at the lock
+// the other's has its sign and reaches beyond it, never beyond the limit.
+TEST(ConvoyEnv, TheTeachersSteeringBeyondTheLockIsTheCommandWithoutIt) {
+  ConvoyEnvOptions o = test_options();
+  o.observation = ConvoyObservationKind::trail_ff;
+  o.reward_kind = ConvoyRewardKind::track;
+  o.max_steps = 200;
+  ConvoyEnvOptions beyond_lock = o;
+  beyond_lock.teacher_steering_limit = 1.5;
+  ConvoyEnv plain(o), beyond(beyond_lock);
+  Observation a = plain.reset(4), b = beyond.reset(4);
+  int inside = 0, at_lock = 0, beyond_it = 0;
+  for (int k = 0; k < o.max_steps; ++k) {
+    ASSERT_EQ(a.vector, b.vector) << "step " << k;
+    const std::vector<float> p = plain.expert_action(), q = beyond.expert_action();
+    ASSERT_EQ(p.size(), 2u);
+    ASSERT_EQ(q.size(), 2u);
+    EXPECT_EQ(p[1], q[1]) << "step " << k;
+    EXPECT_LE(std::abs(q[0]), 1.5f) << "step " << k;
+    if (std::abs(p[0]) < 1.0f) {
+      EXPECT_EQ(p[0], q[0]) << "step " << k;
+      ++inside;
+    } else {
+      EXPECT_GE(p[0] * q[0], 1.0f) << "step " << k << ": " << p[0] << " against " << q[0];
+      ++at_lock;
+      if (std::abs(q[0]) > 1.0f) ++beyond_it;
+    }
+    std::vector<float> act = p;
+    if (k >= 60 && k < 70) act[0] = -1.0f;  // a second at the opposite lock
+    const StepResult ra = plain.step(act), rb = beyond.step(act);
+    ASSERT_EQ(ra.reward, rb.reward) << "step " << k;
+    a = ra.observation;
+    b = rb.observation;
+    if (ra.terminated || ra.truncated) break;
+  }
+  std::printf("steps inside the lock %d, at it %d, of which beyond it %d\n", inside, at_lock,
+              beyond_it);
+  EXPECT_GT(inside, 100);
+  EXPECT_GE(beyond_it, 3);
+}
+
 // trail_ff_memory: a third action, the memory, which comes back clamped in the next
 // observation's last number and moves nothing else: two environments driven with the same
 // steering and pedal but different memories see the same other numbers and earn the same
