@@ -5,7 +5,9 @@
 # byte-identical ensemble.csv files, and its runs ran on both nodes (each task asks for a whole
 # node's 4 CPUs, so the two that run at a time are on different nodes). After one run's
 # summary.json is deleted, the same command submits exactly that run and the CSV is the same
-# again. Also: --slurm without sbatch on PATH, and --wait without --slurm, are refused.
+# again. --slurm-args is split as a shell splits words (a quoted comment reaches sbatch whole).
+# Also: --slurm without sbatch on PATH, --wait without --slurm and an unmatched quote in
+# --slurm-args are refused.
 #   tests/ensemble/test_ensemble_slurm.sh BUILD_DIR
 # Needs root (ip netns) and Debian's slurm-wlm; exits 77 (skipped) without them.
 set -euo pipefail
@@ -39,13 +41,17 @@ PATH=$WORK/job/nosbatch "$E" "${args[@]}" --output refused --slurm > nosbatch.lo
 code=0
 "$E" "${args[@]}" --output refused --wait > nowait.log 2>&1 || code=$?
 [ "$code" = 1 ] && grep -q -- "--wait needs --slurm" nowait.log || fail "--wait without --slurm: exit $code"
+code=0
+"$E" "${args[@]}" --output refused --slurm --slurm-args "-p test --comment 'unclosed" > quote.log 2>&1 || code=$?
+[ "$code" = 1 ] && grep -q -- "--slurm-args: cannot split" quote.log ||
+  fail "an unmatched quote in --slurm-args: exit $code, $(cat quote.log)"
 [ ! -e refused ] || fail "a refused command created its output folder"
 
 "$E" "${args[@]}" --output "$WORK/job/local" > local.log 2>&1 || fail "the local ensemble failed"
 [ "$(grep -c ',completed,' local/runs.csv)" = 4 ] || fail "local runs.csv: not 4 completed runs"
 
 # As a user on node 1 submits it, with a relative output folder; at most 100 s.
-slurm_args=(--slurm --slurm-args "-p test -c 4" --wait --output ens)
+slurm_args=(--slurm --slurm-args "-p test -c 4 --comment 'a study of 4'" --wait --output ens)
 in_n1 timeout 100 "$E" "${args[@]}" "${slurm_args[@]}" > slurm1.log 2>&1 || fail "--slurm --wait failed ($?)"
 grep -q "0 finished before, 4 to submit, 2 at a time" slurm1.log || fail "not 4 runs submitted"
 read -r _ array1 < ens/slurm/jobs
@@ -56,6 +62,10 @@ for n in "${NODES[@]}"; do
 done
 cmp local/ensemble.csv ens/ensemble.csv || fail "the Slurm ensemble.csv differs from the local one"
 [ "$(grep -c ',completed,' ens/runs.csv)" = 4 ] || fail "Slurm runs.csv: not 4 completed runs"
+# --slurm-args is split as a shell would: the quoted comment reached sbatch as one value.
+job_info=$(in_n1 scontrol show job -o "$array1")
+[[ $job_info == *"Comment=a study of 4 "* ]] ||
+  fail "array job $array1 has not the comment 'a study of 4': $job_info"
 grep -q "^| rigid | 3 | " ens/report.md || fail "the gather job wrote no report.md"
 
 # Resume: one run lost its summary; only it is submitted, and the CSV is the same again.
