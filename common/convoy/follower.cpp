@@ -498,10 +498,10 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
   cmd.steering = steering_input(commanded);
   // The same command without the lock (the bicycle angle's and the input's): the angle has
   // no bound but the input's mapping saturates where the inner wheel would reach 90 degrees.
-  steering_beyond_lock_ = steering_input(
-      before_cross_track - std::atan(config_.cross_track_gain_per_s * (cross_track_m_ - keep_shift_) /
-                                     (v + kSoftSpeedMps)),
-      std::numeric_limits<double>::infinity());
+  const double unlocked = before_cross_track - std::atan(config_.cross_track_gain_per_s *
+                                                         (cross_track_m_ - keep_shift_) /
+                                                         (v + kSoftSpeedMps));
+  steering_beyond_lock_ = steering_input(unlocked, std::numeric_limits<double>::infinity());
   cmd.throttle = signal > 0.0 ? std::min(signal, 1.0) : 0.0;
   cmd.braking = signal < 0.0 ? std::min(-signal, 1.0) : 0.0;
   if (target_speed_ < kHoldMps && own_->speed < kHoldMps) {

@@ -174,9 +174,9 @@ class ConvoyFollower {
   /// The sideways shift of the trail the last update() tracked (> 0: left; 0 without a map).
   double keep_out_shift_m() const { return keep_shift_; }
   /// The last update()'s steering as it would be without the steering lock: the command's
-  /// steering where that is inside [-1, 1], beyond it (up to about 3) where the command is held
-  /// at the lock; 0 when the update held the brake without steering. For a teacher whose
-  /// student's action is clamped after it (learn::ConvoyEnv, option teacher_steering_limit).
+  /// steering where that is inside [-1, 1], beyond it where the command is held at the lock;
+  /// 0 when the update held the brake without steering. For a teacher whose student's action
+  /// is clamped after it (learn::ConvoyEnv, option teacher_steering_limit).
   double steering_beyond_lock() const { return steering_beyond_lock_; }
   bool leader_lost() const { return lost_; }
   bool ready() const { return own_.has_value() && leader_.has_value(); }
