@@ -38,8 +38,9 @@
 # DIR/slurm/jobs). Each run's log is DIR/runs/<seed>_<terrain>.log, the jobs' output is in
 # DIR/slurm/. Every node must see DIR and this repository (programs, config/) at the same paths:
 # a shared filesystem. --slurm-args adds sbatch options to both jobs, split into words as a shell
-# would, quotes included (e.g. "-p short -t 30 --comment 'study 3'"); --wait waits for the gather job and exits as a local run does. --slurm
-# refuses --distributed (for one run across nodes: launch_scripts/slurm/run_scenario.sbatch).
+# would, quotes included (e.g. "-p short -t 30 --comment 'study 3'"); --wait waits for the
+# gather job and exits as a local run does. --slurm refuses --distributed (for one run across
+# nodes: launch_scripts/slurm/run_scenario.sbatch).
 # --gather-only runs nothing: it writes the CSVs, figures and report.md from the runs DIR holds
 # (the gather job runs it). --run-one SEED_TERRAIN runs that one run as the ensemble would (each
 # array task runs it).
@@ -109,9 +110,8 @@ else
     for p in scontrol squeue; do command -v "$p" > /dev/null || die "--wait needs Slurm's $p on PATH"; done
   fi
   # Split as a shell splits words, quotes kept together (xargs' quoting; no expansion, no eval).
-  words=$(printf '%s' "$SLURM_ARGS" | xargs -r printf '%s\0' 2>&1 > /dev/null) ||
-    die "--slurm-args: cannot split '$SLURM_ARGS' into sbatch options: ${words#xargs: }"
   mapfile -d '' -t SLURM_EXTRA < <(printf '%s' "$SLURM_ARGS" | xargs -r printf '%s\0')
+  wait $! || die "--slurm-args: cannot split '$SLURM_ARGS' into sbatch options (xargs' reason above)"
   for a in "${SLURM_EXTRA[@]}"; do
     case "$a" in
       -a|--array|--array=*|-d|--dependency|--dependency=*|-W|--wait|--parsable|--wrap|--wrap=*)
