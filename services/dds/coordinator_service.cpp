@@ -135,7 +135,9 @@ void CoordinatorService::on_join(const proto::MemberAnnounceMsg& a, const std::s
     note_intrusions_locked();
     return;
   }
+  announced_by_[a.member_id] = a.participant_guid;
   join_locked(a);
+  cv_.notify_all();  // reach_members_before_start waits for announcements
 }
 
 void CoordinatorService::join_locked(const proto::MemberAnnounceMsg& a) {
@@ -232,6 +234,12 @@ void CoordinatorService::on_process_exit(const std::string& guid) {
 
 void CoordinatorService::on_done(const proto::FrameDoneMsg& d, const std::string& writer) {
   std::lock_guard lock(mutex_);
+  if (d.finished) {
+    // Heard the verdict, whether or not its announcement has arrived yet (for
+    // reach_members_before_start only: it decides nothing about the run).
+    verdict_heard_by_.insert(d.member_id);
+    cv_.notify_all();
+  }
   // A done counts only from the participant admitted as its member: a second copy of a member
   // (or anybody writing in its name) cannot finish, fail or abort anything.
   if (!admission_.accept(d.member_id, writer, "frame_done")) {
@@ -423,6 +431,56 @@ void CoordinatorService::wait_for_finished(std::unique_lock<std::mutex>& lock) {
   }
 }
 
+// A verdict given before the start (a member refused at join, a join timeout) reaches only the
+// readers matched with the coordinator's writers. The processes started with the run that had
+// not yet matched them (the refused one included) would wait out their join timeout and end
+// "no coordinator". The verdict and the announcement are kept for late readers (transient
+// local): the coordinator stays until every start member confirmed the verdict or its
+// participant matched both writers, or kReachBeforeStartS after the verdict. Members missing at
+// a join timeout are not waited for.
+void CoordinatorService::reach_members_before_start() {
+  constexpr double kReachBeforeStartS = 5.0;
+  const double deadline = now() + kReachBeforeStartS;
+  std::vector<std::string> awaited;
+  {
+    std::lock_guard lock(mutex_);
+    const auto missing = barrier_->missing_members();
+    const bool timed_out = now() >= options_.barrier.join_timeout_s;
+    for (const auto& member : options_.barrier.members) {
+      if (!timed_out || announced_by_.contains(member) ||
+          std::find(missing.begin(), missing.end(), member) == missing.end()) {
+        awaited.push_back(member);
+      }
+    }
+  }
+  std::string unreached;
+  for (const auto& member : awaited) {
+    std::string guid;
+    {
+      std::unique_lock lock(mutex_);
+      cv_.wait_for(lock, std::chrono::duration<double>(std::max(0.0, deadline - now())), [&] {
+        return announced_by_.contains(member) || verdict_heard_by_.contains(member);
+      });
+      if (verdict_heard_by_.contains(member)) continue;
+      if (const auto it = announced_by_.find(member); it != announced_by_.end()) guid = it->second;
+    }
+    GuidPrefix prefix;
+    const bool reached =
+        !guid.empty() && parse_guid_prefix(guid, prefix) &&
+        control_writer_->wait_matched_by(prefix, std::max(0.0, deadline - now())) &&
+        announce_writer_->wait_matched_by(prefix, std::max(0.0, deadline - now()));
+    if (!reached) {
+      unreached += (unreached.empty() ? "" : ", ") + member +
+                   (guid.empty() ? " (not announced)" : " (participant " + guid + " not matched)");
+    }
+  }
+  announce_writer_->wait_for_acknowledgments(1.0);
+  if (!unreached.empty()) {
+    spdlog::warn("coordinator: within {:g} s of the verdict, not reached: {}", kReachBeforeStartS,
+                 unreached);
+  }
+}
+
 int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   t0_ = Clock::now();
   progress_every_ = std::max<std::int64_t>(1, options_.barrier.final_frame / 10);
@@ -470,7 +528,9 @@ int CoordinatorService::run(const std::atomic<bool>& interrupt) {
   write_status_locked(state, code);
   if (options_.on_verdict) options_.on_verdict(code);
   wait_for_finished(lock);
+  const bool before_start = granted_frame_ < 0;
   lock.unlock();
+  if (before_start && !interrupted) reach_members_before_start();
   control_writer_->wait_for_acknowledgments(1.0);
   if (end.kind == proto::Barrier::Action::Kind::stop) {
     // The run completed; a member that failed afterwards (while finishing) did not change that,

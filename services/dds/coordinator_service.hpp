@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <functional>
 #include <map>
+#include <set>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -91,6 +92,11 @@ class CoordinatorService {
   /// Declares a checkpoint every member reported written complete (complete.yaml).
   void declare_checkpoint(const proto::CheckpointReport& report);
   void wait_for_finished(std::unique_lock<std::mutex>& lock);
+  /// After a verdict given before the start: waits, at most kReachBeforeStartS, until every
+  /// member the start waited for (those missing at a join timeout excepted) confirmed the
+  /// verdict, or announced itself and its participant's readers matched the verdict and the
+  /// announcement.
+  void reach_members_before_start();
   /// Replaces options_.status_file (if any) with the run's current state; a failure to write
   /// is logged, not fatal (the run does not depend on its launcher).
   void write_status_locked(const std::string& state, int exit_code = -1, bool final = false);
@@ -123,6 +129,10 @@ class CoordinatorService {
   proto::RunControlMsg result_;
   std::map<std::string, std::string> failed_after_end_;
   std::int64_t granted_frame_ = -1;  // the newest frame granted (for the status file)
+  // Member -> the participant of its newest announcement, whatever became of it.
+  std::map<std::string, std::string> announced_by_;
+  // Members that confirmed the verdict (a finished frame_done), admitted or not.
+  std::set<std::string> verdict_heard_by_;
   std::vector<double> recovery_wall_s_;  // when each recovery was decided (Unix time, s)
 
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;

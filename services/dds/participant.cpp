@@ -211,11 +211,10 @@ void MatchedReaders::on_publication_matched(fdds::DataWriter*,
                                             const fdds::PublicationMatchedStatus& status) {
   const GuidPrefix prefix =
       eprosima::fastrtps::rtps::iHandle2GUID(status.last_subscription_handle).guidPrefix;
+  if (status.current_count_change <= 0) return;
   {
     std::lock_guard lock(mutex_);
-    int& n = matched_[prefix];
-    n += status.current_count_change;
-    if (n <= 0) matched_.erase(prefix);
+    ever_matched_.insert(prefix);
   }
   cv_.notify_all();
 }
@@ -223,7 +222,7 @@ void MatchedReaders::on_publication_matched(fdds::DataWriter*,
 bool MatchedReaders::wait_for(const GuidPrefix& prefix, double timeout_s) {
   std::unique_lock lock(mutex_);
   return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
-                      [&] { return matched_.count(prefix) > 0; });
+                      [&] { return ever_matched_.contains(prefix); });
 }
 
 std::string to_string(const GuidPrefix& prefix) {
