@@ -78,7 +78,9 @@ class Loop {
       // Start one process a turn, so that events (the coordinator's exit, a signal) are seen
       // between two starts: with hundreds of processes starting takes long.
       if (next < c_.processes.size() && !stopped_starting) {
-        if (result_.interrupted || ended_ ||
+        // Nor once every process was told to stop (a member exited before the start): one
+        // started after that would be stopped only at the next level, stop_s later.
+        if (result_.interrupted || ended_ || stop_level_ > 0 ||
             (has_coordinator() && next > 0 && !children_[0].running)) {
           say("the run ended while processes were starting; " + c_.processes[next].name +
               " and the rest were not started");

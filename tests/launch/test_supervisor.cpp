@@ -226,6 +226,26 @@ TEST(Supervisor, AProgramThatCannotStartIsReportedAs127) {
   EXPECT_NE(read(d.path / "logs" / "coordinator.log").find("cannot start"), std::string::npos);
 }
 
+// Once a member's early exit stopped every process, nothing more is started: a process started
+// after that would be stopped only at the next level, stop_s later (here 60 s). Vehicle/a exits
+// at once, while 40 controllers are still to be started one a turn.
+TEST(Supervisor, NothingStartsAfterAnEarlyExitStoppedTheRest) {
+  Dir d;
+  std::vector<SupervisedProcess> processes{
+      sh(d, "coordinator", write_status(d, "joining") + " && exec sleep 120"),
+      sh(d, "vehicle/a", "exit 3")};
+  for (int i = 0; i < 40; ++i) {
+    processes.push_back(sh(d, "controller/" + std::to_string(i), "exec sleep 120"));
+  }
+  auto c = config(d, std::move(processes));
+  c.stop_s = 60.0;
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = Supervisor(c).run();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+  EXPECT_EQ(r.early, "vehicle/a exited (status 3) before the run started");
+  EXPECT_EQ(r.processes[0].status, 128 + SIGTERM);
+}
+
 TEST(Supervisor, AMemberThatCannotStartEndsTheRunBeforeItStarted) {
   Dir d;
   auto c = config(d, {sh(d, "coordinator", write_status(d, "joining") + " && exec sleep 60"),
