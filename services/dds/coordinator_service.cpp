@@ -467,8 +467,8 @@ void CoordinatorService::reach_members_before_start() {
     GuidPrefix prefix;
     const bool reached =
         !guid.empty() && parse_guid_prefix(guid, prefix) &&
-        control_writer_->wait_matched_by(prefix, std::max(0.0, deadline - now())) &&
-        announce_writer_->wait_matched_by(prefix, std::max(0.0, deadline - now()));
+        control_writer_->wait_reached_by(prefix, std::max(0.0, deadline - now())) &&
+        announce_writer_->wait_reached_by(prefix, std::max(0.0, deadline - now()));
     if (!reached) {
       unreached += (unreached.empty() ? "" : ", ") + member +
                    (guid.empty() ? " (not announced)" : " (participant " + guid + " not matched)");

@@ -211,15 +211,23 @@ void MatchedReaders::on_publication_matched(fdds::DataWriter*,
                                             const fdds::PublicationMatchedStatus& status) {
   const GuidPrefix prefix =
       eprosima::fastrtps::rtps::iHandle2GUID(status.last_subscription_handle).guidPrefix;
-  if (status.current_count_change <= 0) return;
   {
     std::lock_guard lock(mutex_);
-    ever_matched_.insert(prefix);
+    int& n = matched_[prefix];
+    n += status.current_count_change;
+    if (n <= 0) matched_.erase(prefix);
+    if (status.current_count_change > 0) ever_matched_.insert(prefix);
   }
   cv_.notify_all();
 }
 
 bool MatchedReaders::wait_for(const GuidPrefix& prefix, double timeout_s) {
+  std::unique_lock lock(mutex_);
+  return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                      [&] { return matched_.contains(prefix); });
+}
+
+bool MatchedReaders::wait_reached(const GuidPrefix& prefix, double timeout_s) {
   std::unique_lock lock(mutex_);
   return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
                       [&] { return ever_matched_.contains(prefix); });

@@ -149,13 +149,16 @@ class MatchedReaders : public fdds::DataWriterListener {
  public:
   void on_publication_matched(fdds::DataWriter* writer,
                               const fdds::PublicationMatchedStatus& status) override;
-  /// Blocks until a reader of participant `prefix` is or was matched, at most `timeout_s`: a
-  /// reader matched and gone (its process read and left) was reached.
+  /// Blocks until a reader of participant `prefix` is matched, at most `timeout_s`.
   bool wait_for(const GuidPrefix& prefix, double timeout_s);
+  /// Blocks until a reader of participant `prefix` is or was matched, at most `timeout_s`: a
+  /// reader matched and gone (its process read what was kept for it and left) was reached.
+  bool wait_reached(const GuidPrefix& prefix, double timeout_s);
 
  private:
   std::mutex mutex_;
   std::condition_variable cv_;
+  std::map<GuidPrefix, int> matched_;  // readers per participant
   std::set<GuidPrefix> ever_matched_;  // participants with a reader matched at some time
 };
 
@@ -179,12 +182,16 @@ class Writer {
   fdds::DataWriter* raw() { return writer_; }
   /// Blocks until every matched reader acknowledged everything written (bounded).
   bool wait_for_acknowledgments(double timeout_s);
-  /// Blocks until a reader of participant `prefix` is or was matched (bounded). A writer is
-  /// matched with a remote reader some time after the remote participant's own writers were: a
-  /// sample written before is never seen by that reader, whatever wait_for_acknowledgments
-  /// says (unless it is kept for late readers, as the protocol topics' are).
+  /// Blocks until a reader of participant `prefix` is matched (bounded). A writer is matched
+  /// with a remote reader some time after the remote participant's own writers were: a sample
+  /// written before is never seen by that reader, whatever wait_for_acknowledgments says.
   bool wait_matched_by(const GuidPrefix& prefix, double timeout_s) {
     return matched_->wait_for(prefix, timeout_s);
+  }
+  /// Blocks until a reader of participant `prefix` is or was matched (bounded): for samples
+  /// kept for late readers (transient local), which a reader matched once has received.
+  bool wait_reached_by(const GuidPrefix& prefix, double timeout_s) {
+    return matched_->wait_reached(prefix, timeout_s);
   }
 
  private:

@@ -284,7 +284,9 @@ TEST(DdsMatching, WriterWaitsUntilAGivenParticipantsReaderIsMatched) {
   EXPECT_TRUE(writer->wait_matched_by(reader_prefix, 30.0));
   // Another participant (with no reader of this topic) is not taken for the reader's.
   EXPECT_FALSE(writer->wait_matched_by(bystander_prefix, 0.2));
-  // The reader goes away: no longer matched.
+  // The reader goes away: no longer matched, but it was reached; the bystander never was.
   reader.reset();
   EXPECT_TRUE(wait_until([&] { return !writer->wait_matched_by(reader_prefix, 0.0); }, 30.0));
+  EXPECT_TRUE(writer->wait_reached_by(reader_prefix, 0.0));
+  EXPECT_FALSE(writer->wait_reached_by(bystander_prefix, 0.0));
 }
