@@ -75,8 +75,9 @@ void Replication::apply_remote_changes(VertexGrid& grid, std::uint32_t source_id
 
 // The same decisions as the merge above makes for a vertex, on the vertex's slot instead of
 // its grid record: the first record of a window replaces what an older window left, a later
-// record of the same window replaces it if it beats it. The level bound is raised exactly when
-// the merge would have assigned, so every culling decision near the vehicle stays the same.
+// record of the same window replaces it if it beats it. The level bound is not raised: it is
+// raised when the tile is merged, and until then it only has to cover the soil under this
+// process's bodies, which is inside the box (ScmTerrain::place_bodies).
 void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexChange& c) {
   const std::uint64_t tile_key = vertex_key(c.i >> kTileShift, c.j >> kTileShift);
   if (!last_tile_ || last_tile_key_ != tile_key) {
@@ -97,8 +98,6 @@ void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexC
     slot.change = c;
     slot.source = source_id;
     slot.window = window_;
-    grid.note_level(c.level_m);
-    grid.note_level(c.level_initial_m - c.sinkage_plastic_m);
   }
 }
 

@@ -42,8 +42,8 @@ class Replication {
   /// Interest management. Vertex index box [i_lo, i_hi] x [j_lo, j_hi]: remote records outside
   /// it are kept aside per tile of kTileSize x kTileSize vertices, one slot per vertex holding
   /// what the merge would have left there (a newer frame's first record replaces it, a record
-  /// of the same frame replaces it if it beats it), and the level bound is raised as the merge
-  /// would have raised it. Tiles that meet the box are merged into the grid now, before this
+  /// of the same frame replaces it if it beats it); the grid's level bound takes them in when
+  /// they are merged. Tiles that meet the box are merged into the grid now, before this
   /// frame's lists. The caller guarantees that this process changes no vertex outside the box
   /// until the next call; then the grid inside the box equals the grid of a full merge.
   struct IndexBox {

@@ -250,7 +250,10 @@ std::size_t ScmTerrain::place_bodies(std::span<const ContactBody> bodies) {
       const double size = g.cylinder ? g.radius : g.half_extents.maxCoeff();
       g.slope_cap = std::sqrt(2.0 * size / delta);
     }
-    if (g.centre.z() - extent.z() >= level_bound) continue;  // above all soil
+    // Above all soil, with the patch test's margin: what follows then never depends on the
+    // bound's value as long as it covers the soil under the bodies (see cast_rays), so soil far
+    // away that this process has not merged yet cannot change a load here.
+    if (g.centre.z() - extent.z() >= level_bound + params_.patch_test_height_m) continue;
     const double xl = (g.centre.x() - extent.x()) / delta, xh = (g.centre.x() + extent.x()) / delta;
     const double yl = (g.centre.y() - extent.y()) / delta, yh = (g.centre.y() + extent.y()) / delta;
     if (!(xh >= i_min && xl <= i_max && yh >= j_min && yl <= j_max)) continue;
@@ -309,6 +312,8 @@ void ScmTerrain::cast_rays(std::size_t total) {
         if (g.lowest_on_vertical(i * delta, j * delta, dz, face)) {
           v.z_hit = g.centre.z() + dz;
           v.face = face;
+          // Without a level the vertex is neither a contact nor a patch vertex, as it would not
+          // be with one: z_hit >= bound + test_height >= its surface + test_height.
           if (v.z_hit < level_bound + test_height) {
             v.surface = grid_.surface_of(i, j);
             v.has_level = true;

@@ -207,7 +207,48 @@ TEST(ScmSync, DeferredRecordsMergeToTheSameGridAsAFullMerge) {
   EXPECT_EQ(lazy.deferred_vertices(), 0u);
   EXPECT_EQ(lazy.grid_hash(), full.grid_hash());
   EXPECT_EQ(lazy.stored_vertices(), full.stored_vertices());
-  EXPECT_EQ(lazy.level_bound(), full.level_bound());
+  // The bound takes in deferred records when they are merged, not on arrival: it never exceeds
+  // the full merge's, and loads do not depend on it (next test).
+  EXPECT_LE(lazy.level_bound(), full.level_bound());
+}
+
+// A load depends on the soil under the bodies only, not on the highest soil anywhere (the level
+// bound culls bodies and vertices). Two plates side by side over flat soil, one pressed 20 mm in,
+// the other hovering 50 mm above it (within the 0.1 m patch test height, so its footprint joins
+// the pressed plate's contact patch and changes its 1/b); one copy of the soil also holds a
+// 0.5 m mound 4 m away, which raises its bound above the hovering plate. (Before the bound was
+// given the patch test's margin where it culls bodies, the flat copy left the hovering plate
+// out and the pressed plate's load differed.)
+TEST(ScmSync, LoadsDoNotDependOnSoilAwayFromTheBodies) {
+  ScmParams p = params("hard", 0.05, 6.0);  // k_c > 0: the load depends on the patch's 1/b
+  ASSERT_GT(p.soil.bekker_kc, 0.0);
+  ASSERT_EQ(p.patch_test_height_m, 0.1);
+  ScmTerrain flat(p), mound(p);
+  std::vector<VertexChange> far;
+  for (int i = 80; i < 84; ++i) far.push_back({i, 0, 0.5, 0.5, 0.0, 0.0});
+  mound.apply_remote_changes(7, far);
+  ASSERT_EQ(flat.level_bound(), 0.0);
+  ASSERT_EQ(mound.level_bound(), 0.5);
+  std::vector<ContactBody> plates(2);
+  for (int k = 0; k < 2; ++k) {
+    plates[k].shape = BoxShape{Vec3(0.2, 0.2, 0.05)};
+    plates[k].pose.position = Vec3(0.4 * k, 0.0, k == 0 ? 0.05 - 0.02 : 0.05 + 0.05);
+  }
+  auto loads = [&](ScmTerrain& t) {
+    std::vector<terrain::WheelLoad> l(2);
+    std::vector<double> trace;
+    for (int n = 0; n < 3; ++n) {
+      t.compute_body_loads(plates, 2e-3, l);
+      for (const auto& w : l) {
+        for (int c = 0; c < 3; ++c) trace.insert(trace.end(), {w.force[c], w.torque[c]});
+      }
+    }
+    return trace;
+  };
+  const auto a = loads(flat), b = loads(mound);
+  ASSERT_GT(a[4], 1000.0);  // the pressed plate carries a load (force z of the first step)
+  EXPECT_TRUE(bit_equal(a, b));
+  EXPECT_EQ(flat.last_step_stats().patches, mound.last_step_stats().patches);
 }
 
 // The slot rule on hand-made records of one far vertex: within a frame the conflict rule picks
