@@ -239,6 +239,7 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   if (scenario.terrain.deformable()) {
     soil_ = std::make_unique<scm::ScmTerrain>(scenario.terrain.scm);
     soil_->set_source_id(static_cast<std::uint32_t>(members_.size()));  // never wins a tie
+    routing_ = scenario.terrain.scm.routing;
   }
   const fs::path dir(options_.output_dir);
   std::error_code ec;
@@ -293,6 +294,7 @@ std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
                                            {proto::Topic::vehicle_event, ""}};
   if (v2v_) subs.push_back({proto::Topic::v2v_message, ""});
   if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  if (routing_) subs.push_back({proto::Topic::soil_interest, ""});
   if (gps_) {
     for (auto t : {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
                    proto::Topic::wheel_speeds}) {
@@ -301,6 +303,11 @@ std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
   }
   if (radar_) subs.push_back({proto::Topic::radar, ""});
   return subs;
+}
+
+std::vector<proto::Topic> RecorderAgent::publications() const {
+  if (!routing_) return {};
+  return {proto::Topic::terrain_patch, proto::Topic::terrain_snapshot};
 }
 
 template <typename F>
@@ -318,6 +325,7 @@ void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
                          proto::FrameSamples& outputs) {
   guarded([&] {
     if (ctx.frame > 0) record(inputs, ctx.frame - 1);  // inputs are stamped ctx.frame - 1
+    if (routing_) keep_soil(ctx, inputs, outputs);
     // Members lost since the last frame (on_member_loss: continue): gone from this frame on.
     for (const auto& member : ctx.departed) {
       losses_.push_back({member, ctx.frame, ctx.sim_time_s});
@@ -339,6 +347,53 @@ void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
     if (seconds_since(summary_written_) >= kSummaryPeriodS) write_summary(nullptr);
   });
   if (soil_) soil_->take_local_changes();  // opens the merge window of this frame's lists
+}
+
+// What soil routing sends each vehicle of these lists (frame k-1's, the writers addressed them
+// by the boxes published up to frame k-2, which soil_boxes_ holds until keep_soil), packed as
+// they travel: the traffic a vehicle receives, for the summary.
+void RecorderAgent::count_routed(const proto::FrameSamples& samples) {
+  std::vector<proto::TerrainVertexMsg> in_box;
+  for (const auto& d : samples.terrain_deformations) {
+    for (const auto& [id, box] : soil_boxes_.boxes()) {
+      if (id == d.vehicle_id) continue;
+      in_box.clear();
+      for (const auto& v : d.vertices) {
+        if (scm::Replication::contains(box, v.i >> scm::Replication::kTileShift,
+                                       v.j >> scm::Replication::kTileShift)) {
+          in_box.push_back(v);
+        }
+      }
+      if (!in_box.empty()) routed_bytes_[id] += proto::packed_size(in_box);
+    }
+  }
+}
+
+// The soil keeper (routing): the recorder's copy has merged every list up to frame k-1. A
+// vehicle whose box grew in frame k-1 gets what that copy holds in the tiles it gained (boxes of
+// frame 0 start on untouched soil); a late joiner gets the whole copy and merges the lists of
+// frame k itself.
+void RecorderAgent::keep_soil(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                              proto::FrameSamples& outputs) {
+  for (const auto& change : soil_boxes_.update(inputs.soil_interests, "")) {
+    if (change.frame == 0) continue;
+    const auto state = soil_->added_tiles_state(change.now, change.before);
+    if (state.empty()) continue;
+    proto::TerrainPatchMsg m{change.vehicle_id, scenario::kRecorderMember, ctx.frame,
+                             soil_->source_id(), soil_->spacing(), true, {}};
+    m.vertices.reserve(state.size());
+    for (const auto& c : state) m.vertices.push_back(agents::to_message(c));
+    routed_bytes_[change.vehicle_id] += proto::packed_size(m.vertices);
+    outputs.terrain_patches.push_back(std::move(m));
+  }
+  if (!ctx.joiners.empty()) {
+    const scm::ScmSnapshot snap = soil_->snapshot();
+    proto::TerrainSnapshotMsg m{"", scenario::kRecorderMember, ctx.frame,  // key: no vehicle
+                               snap.spacing_m, {}};
+    m.vertices.reserve(snap.vertices.size());
+    for (const auto& v : snap.vertices) m.vertices.push_back(agents::to_message(v));
+    outputs.terrain_snapshots.push_back(std::move(m));
+  }
 }
 
 void RecorderAgent::finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) {
@@ -462,6 +517,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
       frame_bytes += proto::packed_size(d.vertices);
       terrain_vertices_ += d.vertices.size();
     }
+    if (routing_) count_routed(samples);
     terrain_bytes_ += frame_bytes;
     terrain_max_frame_bytes_ = std::max(terrain_max_frame_bytes_, frame_bytes);
     if (frame % terrain_every_ == 0) record_terrain_changes(frame);
@@ -669,7 +725,24 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
                     {"deformation_bytes_total", terrain_bytes_},
                     {"deformation_bytes_per_frame_mean", static_cast<double>(terrain_bytes_) / frames},
                     {"deformation_bytes_per_frame_max", terrain_max_frame_bytes_},
+                    {"routing", routing_},
                     {"grid_hash", fmt::format("{:016x}", soil_->grid_hash())}};
+    if (routing_) {
+      // Per vehicle: the bytes of records addressed to it (the others' changes in its box and
+      // the recorder's tiles as the box moved), per frame.
+      nlohmann::json per_vehicle = nlohmann::json::object();
+      nlohmann::json totals = nlohmann::json::object();
+      double sum = 0.0;
+      for (const auto& [id, bytes] : routed_bytes_) {
+        per_vehicle[id] = static_cast<double>(bytes) / frames;
+        totals[id] = bytes;
+        sum += static_cast<double>(bytes) / frames;
+      }
+      j["terrain"]["routed_bytes_total"] = totals;
+      j["terrain"]["routed_bytes_per_frame"] = per_vehicle;
+      j["terrain"]["routed_bytes_per_vehicle_per_frame_mean"] =
+          routed_bytes_.empty() ? 0.0 : sum / static_cast<double>(routed_bytes_.size());
+    }
   }
   if (!convoy_.empty()) j["convoy"] = convoy_json(convoy_);
   if (!metrics_.empty()) j["metrics"] = metrics_json(metrics_, leaders_, kMetricsSettings);
@@ -834,6 +907,14 @@ void RecorderAgent::save_state(core::StateWriter& w) {
   w.io(pending_frame_);
   w.io(soil_ != nullptr);
   if (soil_) soil_->save_state(w);
+  if (routing_) {  // routing is the scenario's (fingerprinted)
+    soil_boxes_.save_state(w);
+    w.io(static_cast<std::uint64_t>(routed_bytes_.size()));
+    for (const auto& [id, bytes] : routed_bytes_) {
+      w.io(id);
+      w.io(bytes);
+    }
+  }
   std::vector<std::int32_t> changed;  // (j, i) pairs, in order
   for (const auto& [j, i] : changed_vertices_) changed.insert(changed.end(), {j, i});
   w.io(changed);
@@ -870,6 +951,14 @@ void RecorderAgent::load_state(core::StateReader& r) {
   r.io(pending_frame_);
   if (r.get<bool>() != (soil_ != nullptr)) r.fail("the soil copy does not match the terrain");
   if (soil_) soil_->load_state(r);
+  if (routing_) {
+    soil_boxes_.load_state(r);
+    routed_bytes_.clear();
+    for (auto n = r.get<std::uint64_t>(); n > 0; --n) {
+      auto id = r.get<std::string>();
+      r.io(routed_bytes_[id]);
+    }
+  }
   std::vector<std::int32_t> changed;
   r.io(changed);
   if (changed.size() % 2 != 0) r.fail("changed soil vertices: an odd number of indices");

@@ -15,6 +15,7 @@
 #include <string>
 #include <utility>
 
+#include "agents/soil_routing.hpp"
 #include "convoy/convoy_report.hpp"
 #include "metrics/deviation.hpp"
 #include "protocol/agent.hpp"
@@ -93,7 +94,9 @@ class RecorderAgent final : public proto::Agent {
   const std::string& member_id() const override { return member_id_; }
   proto::MemberKind kind() const override { return proto::MemberKind::recorder; }
   std::vector<proto::Subscription> subscriptions() const override;
-  std::vector<proto::Topic> publications() const override { return {}; }
+  /// With soil routing the recorder keeps the whole soil for the vehicles: the tiles a
+  /// vehicle's box gains (terrain_patch, replay) and the late joiners' snapshots.
+  std::vector<proto::Topic> publications() const override;
   void step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
             proto::FrameSamples& outputs) override;
   void finish(const proto::RunEnd& end, const proto::FrameSamples& final_inputs) override;
@@ -130,6 +133,9 @@ class RecorderAgent final : public proto::Agent {
   void record_radar(const proto::FrameSamples& samples);
   /// Writes the rows gathered since the last commit, in every file, as one unit.
   void commit();
+  void count_routed(const proto::FrameSamples& samples);
+  void keep_soil(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,
+                 proto::FrameSamples& outputs);
   void write_summary(const proto::RunControlMsg* end);
   void write_convoy_report();
   void write_metrics();
@@ -171,6 +177,9 @@ class RecorderAgent final : public proto::Agent {
   std::map<std::string, metrics::SpeedSummary> leaders_;  // heads of the follow chains
   std::map<std::string, VehicleTotals> totals_;
   std::unique_ptr<scm::ScmTerrain> soil_;  // a copy of the deformable terrain, for the images
+  bool routing_ = false;                   // terrain.scm.routing: the soil keeper too
+  std::map<std::string, std::uint64_t> routed_bytes_;  // packed, by destination vehicle
+  agents::SoilBoxes soil_boxes_;                 // the routed vehicles' boxes
   std::uint64_t terrain_bytes_ = 0;        // vertex lists received, packed as they travel
   std::uint64_t terrain_vertices_ = 0;     // vertex records received
   std::uint64_t terrain_max_frame_bytes_ = 0;

@@ -9,6 +9,7 @@
 #include "agents/sensor_messages.hpp"
 #include "core/error.hpp"
 #include "protocol/contact_bodies.hpp"
+#include "protocol/vertex_codec.hpp"
 #include "vehicle/bicycle_model.hpp"
 #include "vehicle/ode_vehicle.hpp"
 
@@ -47,7 +48,9 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
     rank_ = member_rank(scenario, member_id_);
     soil_->set_source_id(rank_);
     spacing_m_ = scenario.terrain.scm.grid.spacing_m;
-    snapshot_provider_ = vehicle.id == scenario.vehicles.front().id;
+    // With routing no vehicle holds the whole soil: the recorder keeps it and writes snapshots.
+    snapshot_provider_ = vehicle.id == scenario.vehicles.front().id && !scenario.terrain.scm.routing;
+    if (scenario.terrain.scm.routing) subscription_.emplace(scenario.terrain.scm.interest_radius_m);
   }
   model_ = make_vehicle_model(scenario, vehicle, soil_);
   footprint_ = vehicle::footprint_of(vehicle.params);
@@ -71,7 +74,12 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
 
 std::vector<proto::Subscription> VehicleAgent::subscriptions() const {
   std::vector<proto::Subscription> subs = {{proto::Topic::driver_command, vehicle_id_}};
-  if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
+  if (subscription_) {
+    subs.push_back({proto::Topic::terrain_patch, vehicle_id_});
+    subs.push_back({proto::Topic::soil_interest, ""});
+  } else if (soil_) {
+    subs.push_back({proto::Topic::terrain_deformation, ""});
+  }
   return subs;
 }
 
@@ -79,6 +87,7 @@ std::vector<proto::Topic> VehicleAgent::publications() const {
   std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event,
                                     proto::Topic::vehicle_event};
   if (soil_) pubs.push_back(proto::Topic::terrain_deformation);
+  if (subscription_) pubs.insert(pubs.end(), {proto::Topic::soil_interest, proto::Topic::terrain_patch});
   if (snapshot_provider_) pubs.push_back(proto::Topic::terrain_snapshot);
   if (sensors_) {
     pubs.insert(pubs.end(), {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
@@ -89,6 +98,10 @@ std::vector<proto::Topic> VehicleAgent::publications() const {
 }
 
 void VehicleAgent::log_terrain_hashes(const std::string& file) {
+  if (subscription_) {
+    throw ConfigError("the terrain hash log needs the whole soil, which a vehicle does not "
+                      "receive with terrain.scm.routing");
+  }
   try {
     hash_log_ = std::make_unique<record::OutputFile>(file);
   } catch (const record::WriteError& e) {
@@ -112,7 +125,13 @@ void VehicleAgent::note_departed(const proto::FrameContext& ctx, proto::FrameSam
                                     controller_ + " was lost; braking to a stop, steering held"});
 }
 
-void VehicleAgent::finish(const proto::RunEnd&, const proto::FrameSamples&) {
+void VehicleAgent::finish(const proto::RunEnd&, const proto::FrameSamples& final_inputs) {
+  if (subscription_) {
+    for (const auto& d : final_inputs.terrain_patches) routed_bytes_ += proto::packed_size(d.vertices);
+    spdlog::info("{}: soil routing: received {} bytes of records addressed to it ({} records of "
+                 "the others' frames, {} records of the recorder's soil as its box moved)",
+                 member_id_, routed_bytes_, routed_live_, routed_replayed_);
+  }
   if (max_deferred_ > 0) {
     spdlog::info("{}: interest management held up to {} vertices of other vehicles' ruts aside "
                  "(merged when this vehicle came within {:g} m)",
@@ -138,25 +157,7 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
                                           std::to_string(r.frame) + ": " + r.reason});
   }
   intrusions_.clear();
-  if (soil_) {
-    // Interest management: only the soil around this vehicle is merged now (it cannot reach
-    // farther within a frame); the rest waits, exactly, until the vehicle comes near.
-    const double radius = soil_->params().interest_radius_m;
-    if (radius > 0.0) {
-      const Vec3& p = model_->snapshot().pose.position;
-      soil_->set_interest_region(p.x(), p.y(), radius);
-    }
-    // The other vehicles' deformations of frame k-1, merged by the SCM rule (order-free).
-    for (const auto& d : inputs.terrain_deformations) {
-      if (d.vehicle_id == vehicle_id_) continue;  // our own, applied in place already
-      soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
-    }
-    max_deferred_ = std::max(max_deferred_, soil_->deferred_vertices());
-    if (hash_log_ && ctx.frame > 0) {
-      soil_->flush_deferred();  // the hash covers the whole grid
-      hash_log_->write(fmt::format("{} {:016x}\n", ctx.frame - 1, soil_->grid_hash()));
-    }
-  }
+  if (soil_) merge_soil(ctx, inputs);
   // The newest valid command stamped k-1 (several writers: the last in canonical order wins).
   for (const auto& cmd : inputs.driver_commands) {
     const std::string error = proto::validate_command(cmd);
@@ -192,7 +193,69 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
   const vehicle::VehicleSnapshot snapshot = model_->snapshot();
   outputs.vehicle_states.push_back(state_message(snapshot, ctx.frame, ctx.sim_time_s));
   outputs.contact_bodies.push_back(body_message(snapshot));
-  if (soil_) {
+  if (soil_) publish_soil(ctx, outputs);
+  for (const auto& c : model_->take_collisions()) {
+    proto::CollisionEventMsg e;
+    e.vehicle_id = vehicle_id_;
+    e.source = member_id_;
+    e.frame = ctx.frame;
+    e.sim_time_s = ctx.sim_time_s;
+    e.obstacle_id = c.obstacle_id;
+    e.impulse_ns = c.impulse_ns;
+    e.position = c.position;
+    e.other_vehicle_id = c.other_vehicle;
+    e.relative_speed_mps = c.relative_speed_mps;
+    outputs.collision_events.push_back(std::move(e));
+  }
+}
+
+void VehicleAgent::merge_soil(const proto::FrameContext& ctx, const proto::FrameSamples& inputs) {
+  const double radius = soil_->params().interest_radius_m;
+  const Vec3& p = model_->snapshot().pose.position;
+  if (subscription_) {
+    // Soil routing: the boxes the others published in frame k-1 (used from this frame on), the
+    // recorder's state of the tiles this vehicle's box gained in frame k-2, then the check that
+    // the writers of frame k-1 covered the interest square.
+    peer_boxes_.update(inputs.soil_interests, vehicle_id_);
+    for (const auto& d : inputs.terrain_patches) routed_bytes_ += proto::packed_size(d.vertices);
+    for (const auto& change : subscription_->begin_frame(ctx.frame)) {
+      std::vector<scm::VertexChange> state;
+      for (const auto& patch : inputs.terrain_patches) {
+        if (!patch.replay) continue;
+        const auto records = from_messages(patch.vertices);
+        state.insert(state.end(), records.begin(), records.end());
+      }
+      routed_replayed_ += state.size();
+      soil_->load_added_tiles(change.now, change.before, state);
+      soil_->drop_tiles_outside(change.now);
+    }
+    subscription_->check_covers(vehicle_id_, ctx.frame, soil_->interest_box(p.x(), p.y(), radius));
+  }
+  // Interest management: only the soil around this vehicle is merged now (it cannot reach
+  // farther within a frame); the rest waits, exactly, until the vehicle comes near.
+  if (radius > 0.0) soil_->set_interest_region(p.x(), p.y(), radius);
+  // The other vehicles' deformations of frame k-1, merged by the SCM rule (order-free).
+  if (subscription_) {
+    for (const auto& d : inputs.terrain_patches) {
+      if (d.replay) continue;
+      soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
+      routed_live_ += d.vertices.size();
+    }
+  } else {
+    for (const auto& d : inputs.terrain_deformations) {
+      if (d.vehicle_id == vehicle_id_) continue;  // our own, applied in place already
+      soil_->apply_remote_changes(d.source_index, from_messages(d.vertices));
+    }
+  }
+  max_deferred_ = std::max(max_deferred_, soil_->deferred_vertices());
+  if (hash_log_ && ctx.frame > 0) {
+    soil_->flush_deferred();  // the hash covers the whole grid
+    hash_log_->write(fmt::format("{} {:016x}\n", ctx.frame - 1, soil_->grid_hash()));
+  }
+}
+
+void VehicleAgent::publish_soil(const proto::FrameContext& ctx, proto::FrameSamples& outputs) {
+  {
     // Every frame opens a new merge window; only non-empty lists travel.
     const auto changes = soil_->take_local_changes();
     if (!changes.empty()) {
@@ -205,6 +268,24 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
       d.vertices.reserve(changes.size());
       for (const auto& c : changes) d.vertices.push_back(to_message(c));
       outputs.terrain_deformations.push_back(std::move(d));
+    }
+    if (subscription_) {
+      // Routing: to each vehicle, the changes inside the box it published by frame k-1.
+      for (const auto& [id, box] : peer_boxes_.boxes()) {
+        proto::TerrainPatchMsg m{id, member_id_, ctx.frame, rank_, spacing_m_, false, {}};
+        for (const auto& c : changes) {
+          if (scm::Replication::contains(box, c.i >> scm::Replication::kTileShift,
+                                         c.j >> scm::Replication::kTileShift)) {
+            m.vertices.push_back(to_message(c));
+          }
+        }
+        if (!m.vertices.empty()) outputs.terrain_patches.push_back(std::move(m));
+      }
+      const Vec3& p = model_->snapshot().pose.position;
+      if (const auto box = subscription_->renew(ctx.frame, *soil_, p.x(), p.y())) {
+        outputs.soil_interests.push_back(
+            {vehicle_id_, member_id_, ctx.frame, box->i_lo, box->i_hi, box->j_lo, box->j_hi});
+      }
     }
     if (snapshot_provider_ && !ctx.joiners.empty()) {
       // Late joiners start from this copy as it is now (own changes of this frame included;
@@ -220,19 +301,6 @@ void VehicleAgent::step(const proto::FrameContext& ctx, const proto::FrameSample
       for (const auto& v : snap.vertices) m.vertices.push_back(to_message(v));
       outputs.terrain_snapshots.push_back(std::move(m));
     }
-  }
-  for (const auto& c : model_->take_collisions()) {
-    proto::CollisionEventMsg e;
-    e.vehicle_id = vehicle_id_;
-    e.source = member_id_;
-    e.frame = ctx.frame;
-    e.sim_time_s = ctx.sim_time_s;
-    e.obstacle_id = c.obstacle_id;
-    e.impulse_ns = c.impulse_ns;
-    e.position = c.position;
-    e.other_vehicle_id = c.other_vehicle;
-    e.relative_speed_mps = c.relative_speed_mps;
-    outputs.collision_events.push_back(std::move(e));
   }
 }
 
@@ -306,6 +374,10 @@ void VehicleAgent::save_state(core::StateWriter& w) {
   model_->save_state(w);
   w.io(soil_ != nullptr);
   if (soil_) soil_->save_state(w);
+  if (subscription_) {  // routing is the scenario's (fingerprinted): no flag needed
+    subscription_->save_state(w);
+    peer_boxes_.save_state(w);
+  }
   w.io(sensors_ != nullptr);
   if (sensors_) sensors_->save_state(w);
   w.io(v2v_ != nullptr);
@@ -327,6 +399,10 @@ void VehicleAgent::load_state(core::StateReader& r) {
     return has;
   };
   if (expect(soil_ != nullptr, "soil copy")) soil_->load_state(r);
+  if (subscription_) {
+    subscription_->load_state(r);
+    peer_boxes_.load_state(r);
+  }
   if (expect(sensors_ != nullptr, "sensors")) sensors_->load_state(r);
   if (expect(v2v_ != nullptr, "V2V broadcaster")) v2v_->load_state(r);
   r.end();

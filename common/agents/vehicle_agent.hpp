@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "agents/scm_messages.hpp"
+#include "agents/soil_routing.hpp"
 #include "convoy/v2v.hpp"
 #include "protocol/agent.hpp"
 #include "record/run_files.hpp"
@@ -67,6 +68,10 @@ class VehicleAgent final : public proto::Agent {
   /// The other vehicles within reach among the bodies of frame k-1, to the model.
   void set_peers(const std::vector<proto::VehicleBodyMsg>& bodies);
   void note_departed(const proto::FrameContext& ctx, proto::FrameSamples& outputs);
+  /// Start of a frame on soil: the interest square, then the others' records of frame k-1.
+  void merge_soil(const proto::FrameContext& ctx, const proto::FrameSamples& inputs);
+  /// End of a frame on soil: this frame's changes to whoever needs them.
+  void publish_soil(const proto::FrameContext& ctx, proto::FrameSamples& outputs);
 
   std::string vehicle_id_;
   std::string member_id_;
@@ -79,6 +84,12 @@ class VehicleAgent final : public proto::Agent {
   std::uint32_t rank_ = 0;
   double spacing_m_ = 0.0;
   bool snapshot_provider_ = false;  // writes the terrain snapshot late joiners start from
+  // Soil routing (terrain.scm.routing): this vehicle's box and the others'.
+  std::optional<SoilSubscription> subscription_;
+  SoilBoxes peer_boxes_;
+  std::uint64_t routed_live_ = 0;      // records received (log only)
+  std::uint64_t routed_replayed_ = 0;
+  std::uint64_t routed_bytes_ = 0;     // packed, as they travel
   std::unique_ptr<vehicle::VehicleModel> model_;
   vehicle::Footprint footprint_;
   // Every vehicle of the scenario (this one too): the shapes of the bodies it may meet.

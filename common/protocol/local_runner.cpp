@@ -1,6 +1,7 @@
 #include "protocol/local_runner.hpp"
 
 #include <chrono>
+#include <map>
 #include <thread>
 
 #include "core/error.hpp"
@@ -17,13 +18,19 @@ double seconds_since(Clock::time_point t0) {
 
 template <typename T>
 void check_list(const std::vector<T>& v, std::string_view topic, std::int64_t frame,
-                const std::string& source, const std::string& key, std::uint32_t max_per_frame) {
+                const std::string& source, const std::string& key, std::uint32_t max_per_frame,
+                bool addressed) {
   // The same limit as the DDS writer's history (TopicTraits::max_per_frame): a step that writes
   // more fails in one process exactly as it would distributed.
-  if (v.size() > max_per_frame) {
-    throw ProtocolError(source + " wrote " + std::to_string(v.size()) + " " + std::string(topic) +
-                        " samples in frame " + std::to_string(frame) + "; at most " +
-                        std::to_string(max_per_frame) + " per vehicle and frame");
+  std::map<std::string, std::uint32_t> per_key;
+  for (const auto& s : v) {
+    if (++per_key[addressed ? s.vehicle_id : key] > max_per_frame) {
+      throw ProtocolError(source + " wrote more than " + std::to_string(max_per_frame) + " " +
+                          std::string(topic) + " samples " +
+                          (addressed ? "for vehicle '" + s.vehicle_id + "' " : std::string()) +
+                          "in frame " + std::to_string(frame) + "; at most " +
+                          std::to_string(max_per_frame) + " per vehicle and frame");
+    }
   }
   for (const auto& s : v) {
     if (s.frame != frame || s.source != source) {
@@ -31,7 +38,12 @@ void check_list(const std::vector<T>& v, std::string_view topic, std::int64_t fr
                           std::to_string(s.frame) + " source '" + s.source + "' in frame " +
                           std::to_string(frame));
     }
-    if (s.vehicle_id != key) {
+    if (addressed) {
+      if (s.vehicle_id.empty()) {
+        throw ProtocolError(source + " wrote a " + std::string(topic) +
+                            " sample addressed to no vehicle");
+      }
+    } else if (s.vehicle_id != key) {
       throw ProtocolError(source + " wrote a " + std::string(topic) + " sample of vehicle '" +
                           s.vehicle_id + "'; its samples must be about '" + key + "'");
     }
@@ -45,7 +57,7 @@ void check_outputs(const FrameSamples& out, std::int64_t frame, const std::strin
   for_each_topic([&](auto t) {
     constexpr Topic T = decltype(t)::value;
     check_list(out.list<T>(), TopicTraits<T>::name, frame, source, vehicle_key,
-               TopicTraits<T>::max_per_frame);
+               TopicTraits<T>::max_per_frame, is_addressed(T));
   });
   if (out.contact_bodies.size() > 1) {
     throw ProtocolError(source + " reported " + std::to_string(out.contact_bodies.size()) +

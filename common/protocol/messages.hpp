@@ -28,7 +28,7 @@
 
 namespace syndds::proto {
 
-inline constexpr std::int32_t kProtocolVersion = 5;
+inline constexpr std::int32_t kProtocolVersion = 6;
 /// The files of two fingerprints ("ROLE HASH" lines) that differ: "ROLE (HASH here, HASH
 /// there)", or "ROLE (only here)" / "(only there)", joined by "; ". Empty when either list is
 /// empty (a peer that sends none) or they agree.
@@ -67,7 +67,9 @@ std::string_view to_string(MemberKind kind);
   X(point_cloud, PointCloudMsg, PointCloud, point_clouds, 4)                                \
   X(v2v_message, V2VMessageMsg, V2VMessage, v2v_messages, 32)                               \
   X(vehicle_event, VehicleEventMsg, VehicleEvent, vehicle_events, 256)                      \
-  X(radar, RadarScanMsg, RadarScan, radar_scans, 4)
+  X(radar, RadarScanMsg, RadarScan, radar_scans, 4)                                        \
+  X(soil_interest, SoilInterestMsg, SoilInterest, soil_interests, 4)                        \
+  X(terrain_patch, TerrainPatchMsg, TerrainPatch, terrain_patches, 4)
 
 /// The protocol messages (not data topics), one row each: X(message struct, IDL type).
 #define SYNDDS_PROTOCOL_MESSAGES(X)          \
@@ -155,6 +157,39 @@ struct TerrainSnapshotMsg {
   std::vector<TerrainVertexMsg> vertices;
 };
 SYNDDS_FIELDS(TerrainSnapshotMsg, vehicle_id, source, frame, spacing_m, vertices)
+
+/// Soil routing (docs/scm.md, "Routing"): the tiles of 32 x 32 vertices (inclusive index box)
+/// whose records vehicle `vehicle_id` receives, as terrain_patch samples, from the next frame
+/// on. Written in frame 0 and in every frame where the box changes.
+struct SoilInterestMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  std::int32_t tile_i_lo = 0;
+  std::int32_t tile_i_hi = -1;
+  std::int32_t tile_j_lo = 0;
+  std::int32_t tile_j_hi = -1;
+};
+SYNDDS_FIELDS(SoilInterestMsg, vehicle_id, source, frame, tile_i_lo, tile_i_hi, tile_j_lo,
+              tile_j_hi)
+
+/// Soil routing: vertex records addressed to vehicle `vehicle_id` (the key is the destination).
+/// Live (replay false): the writer's changes of `frame` inside the destination's box, merged by
+/// the sync rule like a terrain_deformation list. Replay (written by the soil keeper, the
+/// recorder): every stored vertex of the tiles the destination added to its box in frame - 1,
+/// as the whole soil was after the lists of that frame; it replaces what the destination held
+/// there.
+struct TerrainPatchMsg {
+  std::string vehicle_id;
+  std::string source;
+  std::int64_t frame = 0;
+  std::uint32_t source_index = 0;  // the writer's rank in the member list (merge tie-break)
+  double spacing_m = 0.0;
+  bool replay = false;
+  std::vector<TerrainVertexMsg> vertices;
+};
+SYNDDS_FIELDS(TerrainPatchMsg, vehicle_id, source, frame, source_index, spacing_m, replay,
+              vertices)
 
 /// The start of a collision episode of `vehicle_id`: with a static obstacle (obstacle_id) or
 /// with another vehicle (other_vehicle_id; each of the two vehicles reports its own event).
@@ -351,6 +386,11 @@ struct TopicOf;
   };
 SYNDDS_DATA_TOPICS(SYNDDS_TOPIC_TRAITS_)
 #undef SYNDDS_TOPIC_TRAITS_
+
+/// Addressed topics: a sample's key names the vehicle it is for, not the writer's vehicle, and a
+/// writer may write to every vehicle in a frame (max_per_frame then counts per key). The only
+/// one: terrain_patch (soil routing).
+constexpr bool is_addressed(Topic t) { return t == Topic::terrain_patch; }
 
 /// Calls f(std::integral_constant<Topic, T>{}) for every data topic, in enum order.
 template <typename F>

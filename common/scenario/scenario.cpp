@@ -771,6 +771,11 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
   if (auto n = m.optional("recorder")) {
     MapReader r(*n);
     s.recorder.enabled = r.get_or("enabled", true);
+    if (!s.recorder.enabled && s.terrain.deformable() && s.terrain.scm.routing) {
+      r.required("enabled").fail(
+          "the recorder keeps the whole soil that terrain.scm.routing sends to vehicles as they "
+          "come near: it cannot be disabled with routing");
+    }
     r.finish();
   }
   if (auto n = m.optional("checkpoint")) {

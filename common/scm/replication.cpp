@@ -53,7 +53,7 @@ void Replication::apply_remote_changes(VertexGrid& grid, std::uint32_t source_id
   }
   for (const VertexChange& c : changes) {
     if (outside_interest(c.i, c.j)) {
-      defer(grid, source_id, c);
+      defer(source_id, c);
       continue;
     }
     const std::uint64_t key = vertex_key(c.i, c.j);
@@ -78,7 +78,7 @@ void Replication::apply_remote_changes(VertexGrid& grid, std::uint32_t source_id
 // record of the same window replaces it if it beats it. The level bound is not raised: it is
 // raised when the tile is merged, and until then it only has to cover the soil under this
 // process's bodies, which is inside the box (ScmTerrain::place_bodies).
-void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexChange& c) {
+void Replication::defer(std::uint32_t source_id, const VertexChange& c) {
   const std::uint64_t tile_key = vertex_key(c.i >> kTileShift, c.j >> kTileShift);
   if (!last_tile_ || last_tile_key_ != tile_key) {
     last_tile_ = &deferred_[tile_key];
@@ -99,6 +99,68 @@ void Replication::defer(VertexGrid& grid, std::uint32_t source_id, const VertexC
     slot.source = source_id;
     slot.window = window_;
   }
+}
+
+Replication::IndexBox Replication::tiles_of(const IndexBox& v) {
+  return {v.i_lo >> kTileShift, v.i_hi >> kTileShift, v.j_lo >> kTileShift, v.j_hi >> kTileShift};
+}
+
+std::vector<VertexChange> Replication::added_tiles_state(const VertexGrid& grid,
+                                                         const IndexBox& now,
+                                                         const IndexBox& before) {
+  std::vector<VertexChange> out;
+  added_tiles(now, before, [&](std::int32_t ti, std::int32_t tj) {
+    const std::int32_t i0 = std::max(ti * kTileSize, grid.i_min());
+    const std::int32_t i1 = std::min(ti * kTileSize + kTileSize - 1, grid.i_max());
+    const std::int32_t j0 = std::max(tj * kTileSize, grid.j_min());
+    const std::int32_t j1 = std::min(tj * kTileSize + kTileSize - 1, grid.j_max());
+    for (std::int32_t i = i0; i <= i1; ++i) {
+      for (std::int32_t j = j0; j <= j1; ++j) {
+        const std::int32_t r = grid.find(i, j);
+        if (r >= 0) out.push_back(to_change(grid.records()[static_cast<std::size_t>(r)]));
+      }
+    }
+  });
+  std::sort(out.begin(), out.end(), ij_less);
+  return out;
+}
+
+void Replication::load_added_tiles(const VertexGrid& grid, const IndexBox& now,
+                                   const IndexBox& before, std::span<const VertexChange> state) {
+  if (window_ < 2) throw std::logic_error("Replication::load_added_tiles before the first frame");
+  for (const VertexChange& c : state) {
+    const std::int32_t ti = c.i >> kTileShift, tj = c.j >> kTileShift;
+    if (!contains(now, ti, tj) || contains(before, ti, tj) || !grid.in_area(c.i, c.j) ||
+        !std::isfinite(c.level_m) || !std::isfinite(c.level_initial_m) ||
+        !std::isfinite(c.sinkage_plastic_m) || !std::isfinite(c.sigma_yield_pa)) {
+      throw ProtocolError("SCM tile state at (" + std::to_string(c.i) + ", " +
+                          std::to_string(c.j) +
+                          ") is outside the tiles added to the box, outside the area or not "
+                          "finite");
+    }
+  }
+  const IndexBox interest_tiles = tiles_of(interest_);
+  added_tiles(now, before, [&](std::int32_t ti, std::int32_t tj) {
+    if (has_interest_ && contains(interest_tiles, ti, tj)) {
+      throw std::logic_error("Replication::load_added_tiles: tile (" + std::to_string(ti) + ", " +
+                             std::to_string(tj) + ") is in the interest box already");
+    }
+    if (deferred_.count(vertex_key(ti, tj)) > 0) erase_tile(vertex_key(ti, tj));
+  });
+  // The records of the previous window (what the keeper merged) are each vertex's state: this
+  // window's records replace them whatever they are.
+  const std::uint64_t window = window_;
+  window_ = window - 1;
+  for (const VertexChange& c : state) defer(0, c);
+  window_ = window;
+}
+
+void Replication::drop_tiles_outside(const IndexBox& keep) {
+  std::vector<std::uint64_t> gone;
+  for (const auto& [key, tile] : deferred_) {
+    if (!contains(keep, key_i(key), key_j(key))) gone.push_back(key);
+  }
+  for (const std::uint64_t key : gone) erase_tile(key);
 }
 
 void Replication::merge_tile(VertexGrid& grid, DeferredTile& tile) {

@@ -54,6 +54,36 @@ class Replication {
   void clear_interest(VertexGrid& grid);
   /// Merges every deferred tile (the grid then equals a full merge everywhere).
   void flush_deferred(VertexGrid& grid);
+  /// Soil routing (docs/scm.md, "Routing"). Tile boxes are IndexBoxes in tile indices (vertex
+  /// index >> kTileShift, inclusive). `tiles_of` is the box of the tiles a vertex box meets;
+  /// `added_tiles(now, before, fn)` calls fn(ti, tj) for the tiles of `now` not in `before`, in
+  /// key order.
+  static IndexBox tiles_of(const IndexBox& vertices);
+  static bool contains(const IndexBox& box, std::int32_t i, std::int32_t j) {
+    return i >= box.i_lo && i <= box.i_hi && j >= box.j_lo && j <= box.j_hi;
+  }
+  template <class Fn>
+  static void added_tiles(const IndexBox& now, const IndexBox& before, Fn&& fn) {
+    for (std::int32_t ti = now.i_lo; ti <= now.i_hi; ++ti) {
+      for (std::int32_t tj = now.j_lo; tj <= now.j_hi; ++tj) {
+        if (!contains(before, ti, tj)) fn(ti, tj);
+      }
+    }
+  }
+  /// Every stored vertex of `grid` in the tiles of `now` not in `before`, sorted by (i, j):
+  /// what the soil keeper sends a vehicle whose box grew from `before` to `now`.
+  static std::vector<VertexChange> added_tiles_state(const VertexGrid& grid, const IndexBox& now,
+                                                     const IndexBox& before);
+  /// A vehicle's side of it: what it held aside for the tiles of `now` not in `before` is
+  /// replaced by `state` (the keeper's, from added_tiles_state), older than this frame's merge
+  /// window, and merged into the grid when a tile meets the interest box; nothing of those
+  /// tiles may be inside the current box. Throws ProtocolError on a record outside those tiles
+  /// or the area, or not finite.
+  void load_added_tiles(const VertexGrid& grid, const IndexBox& now, const IndexBox& before,
+                        std::span<const VertexChange> state);
+  /// Forgets what is held aside for tiles outside `keep` (a tile box): they are no longer
+  /// received, and load_added_tiles replaces them if they come back.
+  void drop_tiles_outside(const IndexBox& keep);
   std::size_t deferred_tiles() const { return deferred_.size(); }
   std::size_t deferred_vertices() const { return deferred_vertices_; }
   static constexpr std::int32_t kTileShift = 5;  // tiles of 32 x 32 vertices
@@ -96,7 +126,7 @@ class Replication {
     return has_interest_ && (i < interest_.i_lo || i > interest_.i_hi || j < interest_.j_lo ||
                              j > interest_.j_hi);
   }
-  void defer(VertexGrid& grid, std::uint32_t source_id, const VertexChange& c);
+  void defer(std::uint32_t source_id, const VertexChange& c);
   void merge_tile(VertexGrid& grid, DeferredTile& tile);
 
   std::uint32_t source_id_ = 0;

@@ -141,6 +141,10 @@ ScmParams parse_scm_params(const YamlNode& node, const std::string& terrain_conf
         .fail("0 (off) or at least 5 m: a vehicle touches the soil up to about 3 m from its "
               "chassis, plus a frame's travel and the bulldozing rim");
   }
+  p.routing = m.get_or<bool>("routing", p.routing);
+  if (p.routing && p.interest_radius_m == 0.0) {
+    m.required("routing").fail("routing needs interest management (interest_radius_m > 0)");
+  }
   p.patch_test_height_m = m.number("patch_test_height_m", p.patch_test_height_m, 0.0, 10.0);
   p.shear_damping_time_s = m.number("shear_damping_time_s", p.shear_damping_time_s, 0.0, 1.0);
   m.finish();

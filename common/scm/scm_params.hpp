@@ -64,6 +64,11 @@ struct ScmParams {
   /// wait, per tile, exactly as the merge would leave them, and are merged when the vehicle
   /// comes near. 0 merges everything at once. Results are the same either way.
   double interest_radius_m = 12.0;
+  /// Soil routing (docs/scm.md, "Routing"; needs interest_radius_m > 0 and the recorder, which
+  /// keeps the whole soil): a vehicle receives only the records inside its subscription box
+  /// (the interest square plus a margin, in tiles), addressed to it by their writers, and the
+  /// recorder's copy of tiles as they enter the box. Results are the same either way.
+  bool routing = false;
   /// Footprint vertices per thread below which a step runs on the calling thread only (waking
   /// workers costs tens of microseconds). Does not change results.
   int thread_min_vertices = 4096;
@@ -95,6 +100,7 @@ SoilPreset load_soil_preset_file(const std::string& file, ConfigFiles* files = n
 ///   base_height_m: 0       # optional
 ///   threads: 1             # optional
 ///   interest_radius_m: 12  # optional; 0 = merge every deformation at once
+///   routing: false         # optional; true: each vehicle receives only nearby records
 ///   patch_test_height_m: 0.1  # optional
 ///   shear_damping_time_s: 0.005  # optional
 ///   bulldozing: {...}      # optional, overrides the preset's

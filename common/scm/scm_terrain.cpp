@@ -438,14 +438,18 @@ void ScmTerrain::apply_remote_changes(std::uint32_t source_id,
   replication_.apply_remote_changes(grid_, source_id, changes);
 }
 
-void ScmTerrain::set_interest_region(double x_m, double y_m, double radius_m) {
+Replication::IndexBox ScmTerrain::interest_box(double x_m, double y_m, double radius_m) const {
   const double d = grid_.spacing();
   Replication::IndexBox box;
   box.i_lo = static_cast<std::int32_t>(std::floor((x_m - radius_m) / d));
   box.i_hi = static_cast<std::int32_t>(std::ceil((x_m + radius_m) / d));
   box.j_lo = static_cast<std::int32_t>(std::floor((y_m - radius_m) / d));
   box.j_hi = static_cast<std::int32_t>(std::ceil((y_m + radius_m) / d));
-  replication_.set_interest(grid_, box);
+  return box;
+}
+
+void ScmTerrain::set_interest_region(double x_m, double y_m, double radius_m) {
+  replication_.set_interest(grid_, interest_box(x_m, y_m, radius_m));
 }
 
 namespace {
@@ -457,6 +461,12 @@ void require_merged(const Replication& r, const char* what) {
   }
 }
 }  // namespace
+
+std::vector<VertexChange> ScmTerrain::added_tiles_state(const Replication::IndexBox& now,
+                                                        const Replication::IndexBox& before) const {
+  require_merged(replication_, "added_tiles_state");
+  return Replication::added_tiles_state(grid_, now, before);
+}
 
 ScmSnapshot ScmTerrain::snapshot() const {
   require_merged(replication_, "snapshot");

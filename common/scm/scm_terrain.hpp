@@ -111,6 +111,20 @@ class ScmTerrain final : public terrain::TerrainSurface, public terrain::WheelTe
   /// start of a frame, before apply_remote_changes; this process's bodies must stay within the
   /// box until the next call.
   void set_interest_region(double x_m, double y_m, double radius_m);
+  /// The vertex box set_interest_region uses for a square of half-side radius_m around (x, y).
+  Replication::IndexBox interest_box(double x_m, double y_m, double radius_m) const;
+  /// Soil routing (docs/scm.md, "Routing"; tile boxes, see Replication). The keeper's state of
+  /// the tiles of `now` not in `before` (throws std::logic_error while records are deferred).
+  std::vector<VertexChange> added_tiles_state(const Replication::IndexBox& now,
+                                              const Replication::IndexBox& before) const;
+  /// A routed vehicle loads that state (Replication::load_added_tiles).
+  void load_added_tiles(const Replication::IndexBox& now, const Replication::IndexBox& before,
+                        std::span<const VertexChange> state) {
+    replication_.load_added_tiles(grid_, now, before, state);
+  }
+  void drop_tiles_outside(const Replication::IndexBox& keep) {
+    replication_.drop_tiles_outside(keep);
+  }
   /// Merges everything deferred (the grid then equals a full merge everywhere).
   void flush_deferred() { replication_.flush_deferred(grid_); }
   std::size_t deferred_vertices() const { return replication_.deferred_vertices(); }

@@ -37,7 +37,7 @@ enum {
   EXIT_INTERRUPTED = 130
 };
 
-enum { PROTOCOL_VERSION = 5, WRITER_DEPTH = 8, READER_DEPTH = 64 };
+enum { PROTOCOL_VERSION = 6, WRITER_DEPTH = 8, READER_DEPTH = 64 };
 
 /* Participant liveliness: the coordinator notices this process's death after the lease. */
 #define LEASE_DURATION "2s"

@@ -88,6 +88,7 @@ void get(std::vector<proto::TerrainVertexMsg>& o, const std::vector<std::uint8_t
 }
 void get(proto::TerrainDeformationMsg& o, const msg::TerrainDeformation& m);
 void get(proto::TerrainSnapshotMsg& o, const msg::TerrainSnapshot& m);
+void get(proto::TerrainPatchMsg& o, const msg::TerrainPatch& m);
 template <typename P, typename I>
 void get(std::vector<P>& o, const std::vector<I>& v);
 template <typename P, typename I>
@@ -136,6 +137,7 @@ void get(proto::TerrainDeformationMsg& o, const msg::TerrainDeformation& m) {
 void get(proto::TerrainSnapshotMsg& o, const msg::TerrainSnapshot& m) {
   get_vertex_message(o, m);
 }
+void get(proto::TerrainPatchMsg& o, const msg::TerrainPatch& m) { get_vertex_message(o, m); }
 
 void get(proto::TopicCount& o, const msg::TopicCount& c) {
   if (!proto::topic_from_string(c.topic(), o.topic)) {
@@ -181,6 +183,7 @@ void check_vertices(const P& m) {
 }
 void check(const proto::TerrainDeformationMsg& m) { check_vertices(m); }
 void check(const proto::TerrainSnapshotMsg& m) { check_vertices(m); }
+void check(const proto::TerrainPatchMsg& m) { check_vertices(m); }
 
 void check(const proto::ImageMsg& m) {
   if (m.width < 0 || m.height < 0 ||

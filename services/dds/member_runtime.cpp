@@ -96,6 +96,7 @@ void MemberRuntime::close() {
   announce_writer_.reset();
   done_writer_.reset();
   std::apply([](auto&... w) { (w.reset(), ...); }, data_writers_);
+  patch_writers_.clear();
   participant_.reset();
 }
 
@@ -197,6 +198,10 @@ void MemberRuntime::setup() {
           only_key(T));
     }
     if (std::find(publications.begin(), publications.end(), T) != publications.end()) {
+      if constexpr (proto::is_addressed(T)) {
+        writes_patches_ = true;  // writers per destination, made on first use (publish)
+        return;
+      }
       std::get<static_cast<std::size_t>(T)>(data_writers_) =
           participant_->make_writer<Dds>(name, writer_profile(T), agent_.vehicle_key());
     }
@@ -358,14 +363,27 @@ bool MemberRuntime::flush_writers(double timeout_s) {
     if (w && !w->wait_for_acknowledgments(timeout_s)) all = false;
   };
   std::apply([&](auto&... w) { (flush(w), ...); }, data_writers_);
+  for (auto& [key, w] : patch_writers_) flush(w);
   return all;
 }
 
 void MemberRuntime::publish(const proto::FrameSamples& out) {
   proto::for_each_topic([&](auto t) {
     constexpr proto::Topic T = decltype(t)::value;
-    write_all(std::get<static_cast<std::size_t>(T)>(data_writers_), out.list<T>(),
-              proto::TopicTraits<T>::name, agent_.vehicle_key());
+    if constexpr (proto::is_addressed(T)) {
+      static_assert(T == proto::Topic::terrain_patch, "one map of writers per addressed topic");
+      for (const auto& s : out.list<T>()) {
+        auto& w = patch_writers_[s.vehicle_id];
+        if (!w && writes_patches_) {
+          w = participant_->make_writer<typename DdsType<T>::type>(
+              topics::data(T), writer_profile(T), s.vehicle_id);
+        }
+        write_all(w, std::span(&s, 1), proto::TopicTraits<T>::name, s.vehicle_id);
+      }
+    } else {
+      write_all(std::get<static_cast<std::size_t>(T)>(data_writers_), out.list<T>(),
+                proto::TopicTraits<T>::name, agent_.vehicle_key());
+    }
   });
 }
 

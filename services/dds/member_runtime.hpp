@@ -162,6 +162,10 @@ class MemberRuntime {
   std::unique_ptr<Writer<msg::MemberAnnounce>> announce_writer_;
   std::unique_ptr<Writer<msg::FrameDone>> done_writer_;
   typename PerTopic<DataWriterPtr, AllTopics>::type data_writers_;
+  // Addressed topics (proto::is_addressed): a writer per destination vehicle, made when first
+  // written to, in that vehicle's partition only.
+  std::map<std::string, DataWriterPtr<proto::Topic::terrain_patch>> patch_writers_;
+  bool writes_patches_ = false;  // the agent declared terrain_patch
   std::unique_ptr<Reader<msg::MemberAnnounce>> announce_reader_;
   std::unique_ptr<Reader<msg::FrameGrant>> grant_reader_;
   std::unique_ptr<Reader<msg::RunControl>> control_reader_;

@@ -22,6 +22,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <set>
 #include <string>
@@ -278,13 +279,14 @@ class Participant : private fdds::DomainParticipantListener {
   /// may then be destroyed safely. Unknown ids are ignored.
   void remove_lost_callback(int id);
 
-  /// A writer of a protocol topic (`vehicle_id` empty) or of a data topic carrying the samples
-  /// of one vehicle: they reach the readers of every key and the readers of that key only.
+  /// A writer of a protocol topic (no `vehicle_id`) or of a data topic carrying the samples of
+  /// one vehicle key (possibly "", a member of no vehicle): they reach the readers of every key
+  /// and the readers of that key only.
   template <typename T>
   std::unique_ptr<Writer<T>> make_writer(const std::string& topic_name, const char* profile,
-                                         const std::string& vehicle_id = "") {
+                                         const std::optional<std::string>& vehicle_id = {}) {
     fdds::Topic* t = topic<T>(topic_name);
-    fdds::Publisher* publisher = vehicle_id.empty() ? publisher_ : data_publisher(vehicle_id);
+    fdds::Publisher* publisher = vehicle_id ? data_publisher(*vehicle_id) : publisher_;
     fdds::DataWriterQos qos;
     if (publisher->get_datawriter_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
       fail(std::string("no data writer QoS profile ") + profile);

@@ -4,7 +4,7 @@
 # network namespace when allowed), and the same scenario in one process (syndds_sim); with the
 # CPU time each kind of process used, sampled from /proc, so the cost per frame can be split.
 #
-#   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft] [--n "8 16 24 32"]
+#   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft|soft_routed] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
 #       [--dds-profiles FILE]
 #
@@ -17,7 +17,7 @@
 # controller on host (I-1) mod K + 1; needs root). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
-# lanes only). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
+# lanes only); soft_routed: the same with soil routing (docs/scm.md, "Routing"). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
 # time, RTF, CPU seconds per process kind and in all, the vehicles.csv digest and the recorder's
 # SCM grid hash), DIR/scaling.md (the same as a table, and whether every mode of an N recorded
 # byte-identical results; exit status 2 if not) and, with Debian's matplotlib, DIR/scaling.png
@@ -41,7 +41,7 @@ while [ $# -gt 0 ]; do
   esac
   shift
 done
-case "$TERRAIN" in rigid|soft) ;; *) echo "bench_scaling: --terrain rigid or soft" >&2; exit 1 ;; esac
+case "$TERRAIN" in rigid|soft|soft_routed) ;; *) echo "bench_scaling: --terrain rigid, soft or soft_routed" >&2; exit 1 ;; esac
 for mode in $MODES; do
   case "$mode" in
     distributed|per_vehicle|single|single_full) ;;
@@ -66,13 +66,14 @@ scenario() {  # $1 = N [$2 = SCM interest radius]; prints the file
     echo "name: scaling_${TERRAIN}_$n"
     echo "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: $DURATION}"
     echo "coordinator: {join_timeout_s: 120, frame_timeout_s: 60}"
-    if [ "$TERRAIN" = soft ]; then
+    if [ "$TERRAIN" != rigid ]; then
       echo "terrain:"
       echo "  type: scm"
       echo "  preset: soft"
       echo "  spacing_m: 0.05"
       echo "  area: {x_min_m: -10, x_max_m: 70, y_min_m: -5, y_max_m: $((5 * n + 5))}"
       [ -z "${2:-}" ] || echo "  interest_radius_m: $2"
+      [ "$TERRAIN" != soft_routed ] || echo "  routing: true"
     fi
     echo "vehicles:"
     for i in $(seq 1 "$n"); do
@@ -81,7 +82,7 @@ scenario() {  # $1 = N [$2 = SCM interest radius]; prints the file
       echo "    dynamics: full"
       echo "    controller:"
       echo "      type: path_follower"
-      if [ "$TERRAIN" = soft ]; then
+      if [ "$TERRAIN" != rigid ]; then
         local y=$((5 * i))
         echo "      path: {waypoints: [[0, $y], [60, $y]]}"
         echo "      speed: {profile: ramp, accel_mps2: 1.0, target_mps: 5}"

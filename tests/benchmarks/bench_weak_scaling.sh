@@ -5,7 +5,7 @@
 # machine would. Efficiency = RTF(N on 1) / RTF(2N on 2): 1 when twice the work on twice the
 # hardware runs as fast.
 #
-#   tests/benchmarks/bench_weak_scaling.sh [--terrain rigid|soft] [--n "4 8"] [--duration S]
+#   tests/benchmarks/bench_weak_scaling.sh [--terrain rigid|soft|soft_routed] [--n "4 8"] [--duration S]
 #       [--output DIR]
 #
 # Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, RTF on 1 host,

@@ -428,6 +428,34 @@ TEST(Checkpoint, VehicleKilledWhileTouchingIsRecovered) {
   expect_same_run(want, out, false, 0, 5);
 }
 
+// Soil routing (terrain.scm.routing) keeps state of its own: each vehicle's box, the box in
+// effect and the changes not yet loaded, the others' boxes, and the recorder's. Vehicle b and
+// then the recorder (the soil keeper) are killed -9 mid-run after a checkpoint; each time the
+// run ends with the files of the undisturbed run without routing, the grid hash included.
+TEST(Checkpoint, RoutedSoilMembersKilledAreRecoveredByteIdentical) {
+  TestRun run;
+  const fs::path want = reference(run);
+  std::string text = read_file(kScenario);
+  const std::string anchor = "  spacing_m: 0.05\n";
+  ASSERT_NE(text.find(anchor), std::string::npos);
+  text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
+  const std::string scenario = (run.dir / "routed.yaml").string();
+  std::ofstream(scenario) << text;
+  for (const auto& [victim, frame] : std::vector<std::pair<std::string, int>>{
+           {"vehicle/b", 250}, {"recorder", 380}}) {
+    SCOPED_TRACE(victim);
+    const fs::path out = run.dir / "out";
+    fs::remove_all(out);
+    auto launcher = start_launcher(run, scenario);
+    const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
+    kill_member_when(*launcher, out, victim,
+                     [&] { return any_complete(out) && rows() > 2u * frame; });
+    if (HasFatalFailure()) return;
+    EXPECT_NE(read_file(out / "recoveries.csv").find("," + victim + ","), std::string::npos);
+    expect_same_run(want, out);
+  }
+}
+
 // A shipped convoy (1L3F on rigid ground, its first 10 s) with checkpoint: and
 // on_member_loss: recover: kill -9 of the chase camera's sensor process mid-run, while it
 // writes the video; the run ends with the undisturbed run's files, the video included.

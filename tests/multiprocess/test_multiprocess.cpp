@@ -699,6 +699,43 @@ TEST(DeformableTerrain, InterestManagementGivesTheSameResultAsFullExchange) {
   EXPECT_EQ(grid_hash(run.dir / "interest"), grid_hash(run.dir / "full"));
 }
 
+// Soil routing (terrain.scm.routing): each vehicle process receives only the records inside its
+// box, addressed to it, and the recorder's copy of the tiles its box gains. Vehicle b's box
+// gains a's rut as b comes near; every recorded file, distributed and routed, equals the
+// single-process run that sends every vehicle every list.
+TEST(DeformableTerrain, RoutingGivesTheSameResultAsFullExchange) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/scm_rut.yaml";
+  std::string text = read_file(scenario);
+  const std::string anchor = "  spacing_m: 0.05\n";
+  ASSERT_NE(text.find(anchor), std::string::npos);
+  text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
+  const fs::path routed = run.dir / "scm_rut_routed.yaml";
+  std::ofstream(routed) << text;
+  single_process_csv(run, scenario, "");
+  const std::string distributed = distributed_csv(run, routed.string(), "");
+  const auto files = byte_identical_files(run.dir / "single");
+  ASSERT_TRUE(files.contains("vehicles.csv"));
+  EXPECT_EQ(byte_identical_files(run.dir / "distributed"), files);
+  for (const auto& f : files) {
+    EXPECT_EQ(read_file(run.dir / "distributed" / f), read_file(run.dir / "single" / f)) << f;
+  }
+  // b received a's rut from the recorder when its box reached it.
+  const std::string log_b = read_file(run.dir / log_name("vehicle/b"));
+  const std::string said = "vehicle/b: soil routing: received ";
+  const auto at = log_b.find(said);
+  ASSERT_NE(at, std::string::npos) << log_b;
+  EXPECT_EQ(log_b.find(", 0 records of the recorder's soil"), std::string::npos) << log_b;
+  // What b's process received over DDS is what the recorder's summary says routing sent it, and
+  // less than the lists b would receive without routing.
+  const auto summary = nlohmann::json::parse(read_file(run.dir / "distributed" / "summary.json"));
+  const auto& terrain = summary["terrain"];
+  const std::uint64_t received = std::stoull(log_b.substr(at + said.size()));
+  EXPECT_EQ(received, terrain["routed_bytes_total"]["b"].get<std::uint64_t>());
+  EXPECT_GT(received, 0u);
+  EXPECT_LT(received, terrain["deformation_bytes_total"].get<std::uint64_t>());
+}
+
 // Members grouped in processes (processes: per_vehicle, or all vehicles in one process) share a
 // DDS participant; the soil copies, the rut b crosses and every recorded file stay the same as
 // in the single-process run, byte for byte, and so does the recorder's grid hash.

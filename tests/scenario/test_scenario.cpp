@@ -449,6 +449,23 @@ TEST(Scenario, ProcessLayoutErrorsNameTheKey) {
       << err;
 }
 
+// Soil routing needs interest management and the recorder (which keeps the whole soil); each
+// refusal names the key and its line.
+TEST(Scenario, SoilRoutingNeedsInterestManagementAndTheRecorder) {
+  const std::string soil =
+      "terrain: {type: scm, preset: soft, spacing_m: 0.05, routing: true,\n"
+      "          area: {x_min_m: -5, x_max_m: 20, y_min_m: -5, y_max_m: 5}";
+  EXPECT_TRUE(parse(soil + "}\n" + kMinimal).terrain.scm.routing);
+  auto err = error_of(soil + ", interest_radius_m: 0}\n" + kMinimal);
+  EXPECT_NE(err.find("test.yaml:1:"), std::string::npos) << err;
+  EXPECT_NE(err.find("routing needs interest management (interest_radius_m > 0)"),
+            std::string::npos)
+      << err;
+  err = error_of(soil + "}\nrecorder: {enabled: false}\n" + kMinimal);
+  EXPECT_NE(err.find("test.yaml:3:"), std::string::npos) << err;
+  EXPECT_NE(err.find("cannot be disabled with routing"), std::string::npos) << err;
+}
+
 TEST(Scenario, CheckpointsComeEveryWholeNumberOfFrames) {
   const auto s = parse(kMinimal + "checkpoint: {every_s: 0.5}\n");
   EXPECT_TRUE(s.checkpoint.enabled());

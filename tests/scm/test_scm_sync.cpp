@@ -251,6 +251,75 @@ TEST(ScmSync, LoadsDoNotDependOnSoilAwayFromTheBodies) {
   EXPECT_EQ(flat.last_step_stats().patches, mound.last_step_stats().patches);
 }
 
+// Soil routing on two crossing wheels: a routed copy receives only the records inside its box
+// of tiles and, when the box grows, the full copy's state of the tiles it gained (as the full
+// copy was before the frame's lists: the recorder's state of the previous frame). Its box starts
+// far from the crossing, moves onto it a tile row at a time, then away again; inside its
+// interest square it agrees with the full merge vertex for vertex, and after it came back over
+// the crossing its copy there equals the full one.
+TEST(ScmSync, ARoutedCopyEqualsAFullMergeInsideItsBox) {
+  ScmTerrain t1(sync_params()), t2(sync_params()), full(sync_params()), routed(sync_params());
+  t1.set_source_id(1);
+  t2.set_source_id(2);
+  full.set_source_id(3);
+  routed.set_source_id(4);
+  using Box = Replication::IndexBox;
+  auto tiles = [](const Box& v) { return Replication::tiles_of(v); };
+  Box box{0, -1, 0, -1};
+  double t = 0.0;
+  std::size_t loaded = 0;
+  for (int frame = 0; frame < 120; ++frame) {
+    drive_crossing_frame(t1, t2, 5, t);
+    const auto c1 = t1.take_local_changes();
+    const auto c2 = t2.take_local_changes();
+    full.take_local_changes();
+    routed.take_local_changes();
+    // The interest square walks from x = 4.5 m down to the crossing and back; the box covers it
+    // with one tile (1.6 m) to spare.
+    const double x = frame < 60 ? 4.5 - 0.07 * frame : 0.3 + 0.07 * (frame - 60);
+    const Box square = routed.interest_box(x, 0.0, 0.5);
+    const Box need = tiles(routed.interest_box(x, 0.0, 0.5 + 1.6));
+    if (frame > 0 && !(need.i_lo >= box.i_lo && need.i_hi <= box.i_hi && need.j_lo >= box.j_lo &&
+                       need.j_hi <= box.j_hi)) {
+      const Box now = tiles(routed.interest_box(x, 0.0, 0.5 + 3.2));
+      const auto state = full.added_tiles_state(now, box);
+      loaded += state.size();
+      routed.load_added_tiles(now, box, state);
+      routed.drop_tiles_outside(now);
+      box = now;
+    } else if (frame == 0) {
+      box = tiles(routed.interest_box(x, 0.0, 0.5 + 3.2));
+    }
+    routed.set_interest_region(x, 0.0, 0.5);
+    full.apply_remote_changes(1, c1);
+    full.apply_remote_changes(2, c2);
+    for (const auto* c : {&c1, &c2}) {
+      std::vector<VertexChange> in_box;
+      for (const auto& v : *c) {
+        if (Replication::contains(box, v.i >> Replication::kTileShift,
+                                  v.j >> Replication::kTileShift)) {
+          in_box.push_back(v);
+        }
+      }
+      routed.apply_remote_changes(c == &c1 ? 1 : 2, in_box);
+    }
+    for (int i = square.i_lo; i <= square.i_hi; ++i) {
+      for (int j = square.j_lo; j <= square.j_hi; ++j) {
+        ASSERT_EQ(routed.vertex(i, j), full.vertex(i, j)) << "frame " << frame << " " << i << ","
+                                                          << j;
+      }
+    }
+  }
+  EXPECT_GT(loaded, 200u);  // the box gained tiles the wheels had deformed
+  // A record outside the tiles a box gains is refused; so is a gained tile inside the square.
+  const Box far{20, 21, 20, 21};
+  EXPECT_THROW(routed.load_added_tiles(far, box, std::vector<VertexChange>{{0, 0, 0, 0, 0, 0}}),
+               ProtocolError);
+  EXPECT_THROW(routed.load_added_tiles(tiles(routed.interest_box(0.0, 0.0, 10.0)), Box{0, -1, 0, -1},
+                                       {}),
+               std::logic_error);
+}
+
 // The slot rule on hand-made records of one far vertex: within a frame the conflict rule picks
 // the winner whatever the arrival order; a later frame's record replaces an earlier one even
 // when the earlier one would have won a conflict.
