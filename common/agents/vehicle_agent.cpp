@@ -49,8 +49,9 @@ VehicleAgent::VehicleAgent(const scenario::Scenario& scenario,
     soil_->set_source_id(rank_);
     spacing_m_ = scenario.terrain.scm.grid.spacing_m;
     // With routing no vehicle holds the whole soil: the recorder keeps it and writes snapshots.
-    snapshot_provider_ = vehicle.id == scenario.vehicles.front().id && !scenario.terrain.scm.routing;
-    if (scenario.terrain.scm.routing) subscription_.emplace(scenario.terrain.scm.interest_radius_m);
+    const bool routing = scenario.terrain.scm.routing;
+    snapshot_provider_ = vehicle.id == scenario.vehicles.front().id && !routing;
+    if (routing) subscription_.emplace(scenario.terrain.scm.interest_radius_m);
   }
   model_ = make_vehicle_model(scenario, vehicle, soil_);
   footprint_ = vehicle::footprint_of(vehicle.params);
@@ -87,7 +88,9 @@ std::vector<proto::Topic> VehicleAgent::publications() const {
   std::vector<proto::Topic> pubs = {proto::Topic::vehicle_state, proto::Topic::collision_event,
                                     proto::Topic::vehicle_event};
   if (soil_) pubs.push_back(proto::Topic::terrain_deformation);
-  if (subscription_) pubs.insert(pubs.end(), {proto::Topic::soil_interest, proto::Topic::terrain_patch});
+  if (subscription_) {
+    pubs.insert(pubs.end(), {proto::Topic::soil_interest, proto::Topic::terrain_patch});
+  }
   if (snapshot_provider_) pubs.push_back(proto::Topic::terrain_snapshot);
   if (sensors_) {
     pubs.insert(pubs.end(), {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
@@ -127,7 +130,9 @@ void VehicleAgent::note_departed(const proto::FrameContext& ctx, proto::FrameSam
 
 void VehicleAgent::finish(const proto::RunEnd&, const proto::FrameSamples& final_inputs) {
   if (subscription_) {
-    for (const auto& d : final_inputs.terrain_patches) routed_bytes_ += proto::packed_size(d.vertices);
+    for (const auto& d : final_inputs.terrain_patches) {
+      routed_bytes_ += proto::packed_size(d.vertices);
+    }
     spdlog::info("{}: soil routing: received {} bytes of records addressed to it ({} records of "
                  "the others' frames, {} records of the recorder's soil as its box moved)",
                  member_id_, routed_bytes_, routed_live_, routed_replayed_);
@@ -217,8 +222,21 @@ void VehicleAgent::merge_soil(const proto::FrameContext& ctx, const proto::Frame
     // recorder's state of the tiles this vehicle's box gained in frame k-2, then the check that
     // the writers of frame k-1 covered the interest square.
     peer_boxes_.update(inputs.soil_interests, vehicle_id_);
-    for (const auto& d : inputs.terrain_patches) routed_bytes_ += proto::packed_size(d.vertices);
-    for (const auto& change : subscription_->begin_frame(ctx.frame)) {
+    bool replayed = false;
+    for (const auto& d : inputs.terrain_patches) {
+      routed_bytes_ += proto::packed_size(d.vertices);
+      if (d.replay && d.source != scenario::kRecorderMember) {
+        throw ProtocolError(member_id_ + ": a terrain_patch replay from " + d.source +
+                            "; only the recorder keeps the whole soil");
+      }
+      replayed = replayed || d.replay;
+    }
+    const auto due = subscription_->begin_frame(ctx.frame);
+    if (replayed && due.empty()) {
+      throw ProtocolError(member_id_ + ": the recorder's tiles arrived in frame " +
+                          std::to_string(ctx.frame) + ", two frames after no change of its box");
+    }
+    for (const auto& change : due) {
       std::vector<scm::VertexChange> state;
       for (const auto& patch : inputs.terrain_patches) {
         if (!patch.replay) continue;
@@ -229,7 +247,8 @@ void VehicleAgent::merge_soil(const proto::FrameContext& ctx, const proto::Frame
       soil_->load_added_tiles(change.now, change.before, state);
       soil_->drop_tiles_outside(change.now);
     }
-    subscription_->check_covers(vehicle_id_, ctx.frame, soil_->interest_box(p.x(), p.y(), radius));
+    subscription_->check_covers(vehicle_id_, ctx.frame,
+                                soil_->interest_box(p.x(), p.y(), radius));
   }
   // Interest management: only the soil around this vehicle is merged now (it cannot reach
   // farther within a frame); the rest waits, exactly, until the vehicle comes near.

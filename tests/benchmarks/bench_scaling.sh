@@ -17,8 +17,8 @@
 # controller on host (I-1) mod K + 1; needs root). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
-# lanes only); soft_routed: the same with soil routing (docs/scm.md, "Routing"). Writes DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall
-# time, RTF, CPU seconds per process kind and in all, the vehicles.csv digest and the recorder's
+# lanes only); soft_routed: the same with soil routing (docs/scm.md, "Routing"). Writes
+# DIR/scaling.csv (one row per terrain, N and mode: processes, frames, wall time, RTF, CPU seconds per process kind and in all, the vehicles.csv digest and the recorder's
 # SCM grid hash), DIR/scaling.md (the same as a table, and whether every mode of an N recorded
 # byte-identical results; exit status 2 if not) and, with Debian's matplotlib, DIR/scaling.png
 # (RTF against N). DIR defaults to a new folder
