@@ -862,10 +862,27 @@ TEST(Sensors, CameraSeesTheOtherVehicleAtItsSyncedPose) {
 // there is time to start it). It is admitted at a frame boundary, gets a snapshot of the
 // deformed soil plus the states, and from then on renders exactly what it would have rendered
 // had it been there from the start (same images, byte for byte).
-TEST(LateJoiner, SensorProcessJoinsARunUnderWayAndSeesTheSameWorld) {
-  TestRun run;
-  const std::string scenario = kSource + "/tests/multiprocess/scenarios/late_camera.yaml";
-  single_process_csv(run, scenario, "");  // the reference: the sensor there from frame 1
+namespace {
+
+// A copy of `scenario` in `dir` with soil routing on (its terrain block has spacing_m: 0.05).
+std::string routed_copy(const std::string& scenario, const fs::path& dir) {
+  std::string text = read_file(scenario);
+  const std::string anchor = "  spacing_m: 0.05\n";
+  EXPECT_NE(text.find(anchor), std::string::npos) << scenario;
+  if (text.find(anchor) != std::string::npos) {
+    text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
+  }
+  const fs::path copy = dir / ("routed_" + fs::path(scenario).filename().string());
+  std::ofstream(copy) << text;
+  return copy.string();
+}
+
+// The sensor of `scenario` (sensor/a) joins 2 s into the distributed run; every image it
+// renders equals the single-process run's (of `reference`), and its soil copy ends with the
+// recorder's grid hash.
+void expect_late_sensor_sees_the_same_world(const TestRun& run, const std::string& scenario,
+                                            const std::string& reference) {
+  single_process_csv(run, reference, "");  // the sensor there from frame 1
   const fs::path out = run.dir / "distributed";
   auto processes = plan(run, scenario, out.string(), "--realtime");
   std::vector<Planned> sensor;
@@ -909,6 +926,23 @@ TEST(LateJoiner, SensorProcessJoinsARunUnderWayAndSeesTheSameWorld) {
   EXPECT_NE(read_file(run.dir / "sensor_a.log").find("terrain grid hash " + hash),
             std::string::npos)
       << read_file(run.dir / "sensor_a.log") << " vs " << hash;
+}
+
+}  // namespace
+
+TEST(LateJoiner, SensorProcessJoinsARunUnderWayAndSeesTheSameWorld) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/late_camera.yaml";
+  expect_late_sensor_sees_the_same_world(run, scenario, scenario);
+}
+
+// With soil routing no vehicle holds the whole soil: the recorder writes the late joiner's
+// snapshot (its copy after the lists of the frame before), and the joiner's world is still the
+// single-process run's without routing.
+TEST(LateJoiner, WithSoilRoutingTheRecordersSnapshotStartsTheJoiner) {
+  TestRun run;
+  const std::string scenario = kSource + "/tests/multiprocess/scenarios/late_camera.yaml";
+  expect_late_sensor_sees_the_same_world(run, routed_copy(scenario, run.dir), scenario);
 }
 
 TEST(Cli, BadScenariosGiveClearErrors) {
