@@ -5,7 +5,8 @@
 # encrypted) and a permissions document that lets each member write exactly its own topics:
 # a vehicle its state, ruts and sensor samples, its controller its driver commands (in its
 # vehicle's partition only: no other vehicle's reader ever matches them), the sensor process its
-# images, the coordinator the grants; everyone may read.
+# images, the coordinator the grants; with soil routing, vehicles and the recorder the ruts
+# addressed to another vehicle (in that vehicle's partition); everyone may read.
 #
 #   launch_scripts/make_security.sh SCENARIO.yaml [--output DIR] [--observer NAME]...
 #
@@ -76,12 +77,17 @@ protocol_out_coordinator="syndds/member_announce syndds/frame_grant syndds/run_c
 protocol_out_member="syndds/member_announce syndds/frame_done"
 data_out_vehicle="syndds/vehicle_state syndds/terrain_deformation syndds/collision_event
   syndds/terrain_snapshot syndds/gps_fix syndds/imu syndds/magnetometer syndds/wheel_speeds
-  syndds/v2v_message syndds/vehicle_event"
+  syndds/v2v_message syndds/vehicle_event syndds/soil_interest"
+# Addressed topics (soil routing): a sample goes to the partition of the vehicle it is for.
+addressed_out_vehicle="syndds/terrain_patch"
+data_out_recorder="syndds/terrain_snapshot"
+addressed_out_recorder="syndds/terrain_patch"
 data_out_controller="syndds/driver_command syndds/vehicle_event"
 data_out_sensor="syndds/image syndds/point_cloud syndds/radar"
 topics_xml() { for t in $1; do printf '            <topic>%s</topic>\n' "$t"; done; }
 
-grant() {  # $1 = name, $2 = protocol topics written, $3 = data topics written, $4 = vehicle id
+grant() {  # $1 = name, $2 = protocol topics written, $3 = data topics written, $4 = vehicle id,
+           # $5 = addressed topics written (to any vehicle's partition)
   cat <<XML
     <grant name="$(file_of "$1")">
       <subject_name>$(subject_of "$1")</subject_name>
@@ -118,6 +124,22 @@ $(topics_xml "$3")
       </allow_rule>
 XML
   fi
+  if [ -n "${5:-}" ]; then
+    cat <<XML
+      <allow_rule>
+        <domains><id_range><min>0</min><max>232</max></id_range></domains>
+        <publish>
+          <topics>
+$(topics_xml "$5")
+          </topics>
+          <partitions>
+            <partition>*/all</partition>
+            <partition>*/vehicle/*</partition>
+          </partitions>
+        </publish>
+      </allow_rule>
+XML
+  fi
   cat <<XML
       <allow_rule>
         <domains><id_range><min>0</min><max>232</max></id_range></domains>
@@ -141,7 +163,8 @@ XML
     identity "$m"
     id=${m#*/}
     case "$m" in
-      vehicle/*) grant "$m" "$protocol_out_member" "$data_out_vehicle" "$id" ;;
+      vehicle/*) grant "$m" "$protocol_out_member" "$data_out_vehicle" "$id" "$addressed_out_vehicle" ;;
+      recorder) grant "$m" "$protocol_out_member" "$data_out_recorder" "" "$addressed_out_recorder" ;;
       controller/*|external/*) grant "$m" "$protocol_out_member" "$data_out_controller" "$id" ;;
       sensor/*) grant "$m" "$protocol_out_member" "$data_out_sensor" "$id" ;;
       *) grant "$m" "$protocol_out_member" "" "" ;;

@@ -255,6 +255,32 @@ TEST(Launcher, DefaultScenarioRunsWithDdsSecurity) {
             single_process_csv(run, scenario, "--duration 15"));
 }
 
+// Soil routing under DDS Security: the permissions let a vehicle and the recorder write the
+// ruts addressed to another vehicle (terrain_patch, in that vehicle's partition) and the
+// recorder the snapshot; the routed scm_rut, every member authenticated, gives the plain
+// single-process run's vehicles.csv (without that rule the patch writers are refused).
+TEST(Launcher, SoilRoutingRunsWithDdsSecurity) {
+  TestRun run;
+  std::string text = read_file(kSource + "/tests/multiprocess/scenarios/scm_rut.yaml");
+  const std::string anchor = "  spacing_m: 0.05\n";
+  ASSERT_NE(text.find(anchor), std::string::npos);
+  text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
+  const std::string scenario = (run.dir / "scm_rut_routed.yaml").string();
+  std::ofstream(scenario) << text;
+  const fs::path security = run.dir / "security";
+  const std::string make = "env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
+                           "/launch_scripts/make_security.sh " + scenario + " --output " +
+                           security.string() + " > " + (run.dir / "make_security.log").string() +
+                           " 2>&1";
+  ASSERT_EQ(std::system(make.c_str()), 0) << read_file(run.dir / "make_security.log");
+  auto launcher = start_launcher(run, scenario, "--security-dir " + security.string());
+  const auto code = launcher->wait(150);
+  ASSERT_TRUE(code.has_value()) << launcher->log();
+  ASSERT_EQ(*code, 0) << launcher->log();
+  EXPECT_EQ(read_file(run.dir / "out" / "vehicles.csv"),
+            single_process_csv(run, kSource + "/tests/multiprocess/scenarios/scm_rut.yaml", ""));
+}
+
 // --resume RUN_DIR alone starts the run with the scenario and options in RUN_DIR/launch.args;
 // options typed with it replace recorded ones, a scenario typed before it the recorded one.
 TEST(Launcher, AResumeTakesTheRecordedScenarioAndOptionsUnlessTyped) {
