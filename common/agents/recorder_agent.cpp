@@ -353,17 +353,10 @@ void RecorderAgent::step(const proto::FrameContext& ctx, const proto::FrameSampl
 // by the boxes published up to frame k-2, which soil_boxes_ holds until keep_soil), packed as
 // they travel: the traffic a vehicle receives, for the summary.
 void RecorderAgent::count_routed(const proto::FrameSamples& samples) {
-  std::vector<proto::TerrainVertexMsg> in_box;
   for (const auto& d : samples.terrain_deformations) {
     for (const auto& [id, box] : soil_boxes_.boxes()) {
       if (id == d.vehicle_id) continue;
-      in_box.clear();
-      for (const auto& v : d.vertices) {
-        if (scm::Replication::contains(box, v.i >> scm::Replication::kTileShift,
-                                       v.j >> scm::Replication::kTileShift)) {
-          in_box.push_back(v);
-        }
-      }
+      const auto in_box = agents::records_in(d.vertices, box);
       if (!in_box.empty()) routed_bytes_[id] += proto::packed_size(in_box);
     }
   }

@@ -34,6 +34,18 @@ TileBox box_of(const proto::SoilInterestMsg& m) {
   return {m.tile_i_lo, m.tile_i_hi, m.tile_j_lo, m.tile_j_hi};
 }
 
+std::vector<proto::TerrainVertexMsg> records_in(const std::vector<proto::TerrainVertexMsg>& list,
+                                                const TileBox& box) {
+  using scm::Replication;
+  std::vector<proto::TerrainVertexMsg> out;
+  for (const auto& v : list) {
+    if (Replication::contains(box, v.i >> Replication::kTileShift, v.j >> Replication::kTileShift)) {
+      out.push_back(v);
+    }
+  }
+  return out;
+}
+
 std::vector<SoilBoxes::Change> SoilBoxes::update(
     const std::vector<proto::SoilInterestMsg>& samples, const std::string& self) {
   std::vector<Change> out;

@@ -30,6 +30,10 @@ inline constexpr double kRoutingMarginM = 2.0;
 bool box_contains(const TileBox& outer, const TileBox& inner);
 bool box_empty(const TileBox& b);
 TileBox box_of(const proto::SoilInterestMsg& m);
+/// The records of `list` (sorted) inside the tiles of `box`, in order: what a writer addresses
+/// to the vehicle of that box.
+std::vector<proto::TerrainVertexMsg> records_in(const std::vector<proto::TerrainVertexMsg>& list,
+                                                const TileBox& box);
 
 /// The boxes the routed vehicles subscribed to, from their soil_interest samples.
 class SoilBoxes {

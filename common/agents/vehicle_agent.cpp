@@ -274,52 +274,48 @@ void VehicleAgent::merge_soil(const proto::FrameContext& ctx, const proto::Frame
 }
 
 void VehicleAgent::publish_soil(const proto::FrameContext& ctx, proto::FrameSamples& outputs) {
-  {
-    // Every frame opens a new merge window; only non-empty lists travel.
-    const auto changes = soil_->take_local_changes();
-    if (!changes.empty()) {
-      proto::TerrainDeformationMsg d;
-      d.vehicle_id = vehicle_id_;
-      d.source = member_id_;
-      d.frame = ctx.frame;
-      d.source_index = rank_;
-      d.spacing_m = spacing_m_;
-      d.vertices.reserve(changes.size());
-      for (const auto& c : changes) d.vertices.push_back(to_message(c));
-      outputs.terrain_deformations.push_back(std::move(d));
-    }
+  // Every frame opens a new merge window; only non-empty lists travel.
+  const auto changes = soil_->take_local_changes();
+  if (!changes.empty()) {
+    proto::TerrainDeformationMsg d;
+    d.vehicle_id = vehicle_id_;
+    d.source = member_id_;
+    d.frame = ctx.frame;
+    d.source_index = rank_;
+    d.spacing_m = spacing_m_;
+    d.vertices.reserve(changes.size());
+    for (const auto& c : changes) d.vertices.push_back(to_message(c));
     if (subscription_) {
       // Routing: to each vehicle, the changes inside the box it published by frame k-1.
       for (const auto& [id, box] : peer_boxes_.boxes()) {
-        proto::TerrainPatchMsg m{id, member_id_, ctx.frame, rank_, spacing_m_, false, {}};
-        for (const auto& c : changes) {
-          if (scm::Replication::contains(box, c.i >> scm::Replication::kTileShift,
-                                         c.j >> scm::Replication::kTileShift)) {
-            m.vertices.push_back(to_message(c));
-          }
-        }
-        if (!m.vertices.empty()) outputs.terrain_patches.push_back(std::move(m));
-      }
-      const Vec3& p = model_->snapshot().pose.position;
-      if (const auto box = subscription_->renew(ctx.frame, *soil_, p.x(), p.y())) {
-        outputs.soil_interests.push_back(
-            {vehicle_id_, member_id_, ctx.frame, box->i_lo, box->i_hi, box->j_lo, box->j_hi});
+        auto in_box = records_in(d.vertices, box);
+        if (in_box.empty()) continue;
+        outputs.terrain_patches.push_back(
+            {id, member_id_, ctx.frame, rank_, spacing_m_, false, std::move(in_box)});
       }
     }
-    if (snapshot_provider_ && !ctx.joiners.empty()) {
-      // Late joiners start from this copy as it is now (own changes of this frame included;
-      // they apply the others' changes of this frame themselves, like everyone else).
-      soil_->flush_deferred();  // a late joiner gets the whole soil
-      const scm::ScmSnapshot snap = soil_->snapshot();
-      proto::TerrainSnapshotMsg m;
-      m.vehicle_id = vehicle_id_;
-      m.source = member_id_;
-      m.frame = ctx.frame;
-      m.spacing_m = snap.spacing_m;
-      m.vertices.reserve(snap.vertices.size());
-      for (const auto& v : snap.vertices) m.vertices.push_back(to_message(v));
-      outputs.terrain_snapshots.push_back(std::move(m));
+    outputs.terrain_deformations.push_back(std::move(d));
+  }
+  if (subscription_) {
+    const Vec3& p = model_->snapshot().pose.position;
+    if (const auto box = subscription_->renew(ctx.frame, *soil_, p.x(), p.y())) {
+      outputs.soil_interests.push_back(
+          {vehicle_id_, member_id_, ctx.frame, box->i_lo, box->i_hi, box->j_lo, box->j_hi});
     }
+  }
+  if (snapshot_provider_ && !ctx.joiners.empty()) {
+    // Late joiners start from this copy as it is now (own changes of this frame included;
+    // they apply the others' changes of this frame themselves, like everyone else).
+    soil_->flush_deferred();  // a late joiner gets the whole soil
+    const scm::ScmSnapshot snap = soil_->snapshot();
+    proto::TerrainSnapshotMsg m;
+    m.vehicle_id = vehicle_id_;
+    m.source = member_id_;
+    m.frame = ctx.frame;
+    m.spacing_m = snap.spacing_m;
+    m.vertices.reserve(snap.vertices.size());
+    for (const auto& v : snap.vertices) m.vertices.push_back(to_message(v));
+    outputs.terrain_snapshots.push_back(std::move(m));
   }
 }
 

@@ -167,6 +167,19 @@ inline std::vector<Planned> plan(const TestRun& run, const std::string& scenario
   return out_list;
 }
 
+/// A copy of `scenario` in `dir` with soil routing on (docs/scm.md, "Routing"); its terrain
+/// block must have the line "  spacing_m: 0.05".
+inline std::string routed_copy(const std::string& scenario, const fs::path& dir) {
+  std::string text = read_file(scenario);
+  const std::string anchor = "  spacing_m: 0.05\n";
+  const auto at = text.find(anchor);
+  if (at == std::string::npos) throw std::runtime_error(scenario + ": no '  spacing_m: 0.05' line");
+  text.replace(at, anchor.size(), anchor + "  routing: true\n");
+  const fs::path copy = dir / ("routed_" + fs::path(scenario).filename().string());
+  std::ofstream(copy) << text;
+  return copy.string();
+}
+
 inline std::string log_name(const std::string& member) {
   std::string s = member;
   for (char& c : s) {

@@ -435,12 +435,7 @@ TEST(Checkpoint, VehicleKilledWhileTouchingIsRecovered) {
 TEST(Checkpoint, RoutedSoilMembersKilledAreRecoveredByteIdentical) {
   TestRun run;
   const fs::path want = reference(run);
-  std::string text = read_file(kScenario);
-  const std::string anchor = "  spacing_m: 0.05\n";
-  ASSERT_NE(text.find(anchor), std::string::npos);
-  text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
-  const std::string scenario = (run.dir / "routed.yaml").string();
-  std::ofstream(scenario) << text;
+  const std::string scenario = routed_copy(kScenario, run.dir);
   for (const auto& [victim, frame] : std::vector<std::pair<std::string, int>>{
            {"vehicle/b", 250}, {"recorder", 380}}) {
     SCOPED_TRACE(victim);

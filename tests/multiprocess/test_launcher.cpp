@@ -261,12 +261,8 @@ TEST(Launcher, DefaultScenarioRunsWithDdsSecurity) {
 // single-process run's vehicles.csv (without that rule the patch writers are refused).
 TEST(Launcher, SoilRoutingRunsWithDdsSecurity) {
   TestRun run;
-  std::string text = read_file(kSource + "/tests/multiprocess/scenarios/scm_rut.yaml");
-  const std::string anchor = "  spacing_m: 0.05\n";
-  ASSERT_NE(text.find(anchor), std::string::npos);
-  text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
-  const std::string scenario = (run.dir / "scm_rut_routed.yaml").string();
-  std::ofstream(scenario) << text;
+  const std::string plain = kSource + "/tests/multiprocess/scenarios/scm_rut.yaml";
+  const std::string scenario = routed_copy(plain, run.dir);
   const fs::path security = run.dir / "security";
   const std::string make = "env SYNDDS_BUILD_DIR=" + kBin + "/.. " + kSource +
                            "/launch_scripts/make_security.sh " + scenario + " --output " +
@@ -278,7 +274,7 @@ TEST(Launcher, SoilRoutingRunsWithDdsSecurity) {
   ASSERT_TRUE(code.has_value()) << launcher->log();
   ASSERT_EQ(*code, 0) << launcher->log();
   EXPECT_EQ(read_file(run.dir / "out" / "vehicles.csv"),
-            single_process_csv(run, kSource + "/tests/multiprocess/scenarios/scm_rut.yaml", ""));
+            single_process_csv(run, plain, ""));
 }
 
 // --resume RUN_DIR alone starts the run with the scenario and options in RUN_DIR/launch.args;

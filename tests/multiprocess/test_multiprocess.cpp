@@ -706,14 +706,8 @@ TEST(DeformableTerrain, InterestManagementGivesTheSameResultAsFullExchange) {
 TEST(DeformableTerrain, RoutingGivesTheSameResultAsFullExchange) {
   TestRun run;
   const std::string scenario = kSource + "/tests/multiprocess/scenarios/scm_rut.yaml";
-  std::string text = read_file(scenario);
-  const std::string anchor = "  spacing_m: 0.05\n";
-  ASSERT_NE(text.find(anchor), std::string::npos);
-  text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
-  const fs::path routed = run.dir / "scm_rut_routed.yaml";
-  std::ofstream(routed) << text;
   single_process_csv(run, scenario, "");
-  const std::string distributed = distributed_csv(run, routed.string(), "");
+  const std::string distributed = distributed_csv(run, routed_copy(scenario, run.dir), "");
   const auto files = byte_identical_files(run.dir / "single");
   ASSERT_TRUE(files.contains("vehicles.csv"));
   EXPECT_EQ(byte_identical_files(run.dir / "distributed"), files);
@@ -863,19 +857,6 @@ TEST(Sensors, CameraSeesTheOtherVehicleAtItsSyncedPose) {
 // deformed soil plus the states, and from then on renders exactly what it would have rendered
 // had it been there from the start (same images, byte for byte).
 namespace {
-
-// A copy of `scenario` in `dir` with soil routing on (its terrain block has spacing_m: 0.05).
-std::string routed_copy(const std::string& scenario, const fs::path& dir) {
-  std::string text = read_file(scenario);
-  const std::string anchor = "  spacing_m: 0.05\n";
-  EXPECT_NE(text.find(anchor), std::string::npos) << scenario;
-  if (text.find(anchor) != std::string::npos) {
-    text.replace(text.find(anchor), anchor.size(), anchor + "  routing: true\n");
-  }
-  const fs::path copy = dir / ("routed_" + fs::path(scenario).filename().string());
-  std::ofstream(copy) << text;
-  return copy.string();
-}
 
 // The sensor of `scenario` (sensor/a) joins 2 s into the distributed run; every image it
 // renders equals the single-process run's (of `reference`), and its soil copy ends with the
