@@ -1,8 +1,11 @@
 #include "control/path.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
+#include <utility>
 
 namespace syndds::control {
 namespace {
@@ -98,18 +101,53 @@ PathPoint Path::closest(const Vec2& p, double near_s, double window_m) const {
   PathPoint best;
   double best_d2 = std::numeric_limits<double>::infinity();
   const std::size_t segments = points_.size() - 1;
-  for (std::size_t i = 0; i < segments; ++i) {
-    if (near_s >= 0.0) {
-      double ds = std::abs(s_[i] - near_s);
-      if (closed_) ds = std::min(ds, length() - ds);
-      if (ds > window_m && std::abs(s_[i + 1] - near_s) > window_m) continue;
+  // Segment i is searched when either of its ends lies within the window of near_s (for a
+  // closed path, the distance of its start is also taken the other way round). The arc
+  // lengths are sorted, so only the index ranges that can pass are visited; a slack far above
+  // rounding keeps them a superset, and the exact test below decides, in index order, as a
+  // scan of every segment would.
+  std::array<std::pair<std::size_t, std::size_t>, 3> ranges{};  // [first, last) of segments
+  std::size_t n_ranges = 0;
+  if (near_s < 0.0) {
+    ranges[n_ranges++] = {0, segments};
+  } else {
+    const double slack = 1e-6 * (1.0 + std::abs(near_s) + length() + window_m);
+    auto first_at = [&](double s) {  // first sample with s_ >= s
+      return static_cast<std::size_t>(std::lower_bound(s_.begin(), s_.end(), s) - s_.begin());
+    };
+    auto range = [&](double lo, double hi) {  // segments with an end in [lo, hi]
+      const std::size_t a = first_at(lo);
+      const std::size_t b = first_at(hi);  // samples [a, b] may lie in it (b: rounding)
+      ranges[n_ranges++] = {a == 0 ? 0 : a - 1, std::min(segments, b + 1)};
+    };
+    range(near_s - window_m - slack, near_s + window_m + slack);
+    if (closed_) {  // min(d, length - d) <= window for d far the other way
+      range(-std::numeric_limits<double>::infinity(), near_s - length() + window_m + slack);
+      range(near_s + length() - window_m - slack, std::numeric_limits<double>::infinity());
     }
-    PathPoint c = on_segment(i, p);
-    const double d2 = (c.position - p).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best = c;
+    for (std::size_t r = 1; r < n_ranges; ++r) {  // order by first index (at most three)
+      for (std::size_t q = r; q > 0 && ranges[q] < ranges[q - 1]; --q) {
+        std::swap(ranges[q], ranges[q - 1]);
+      }
     }
+  }
+  std::size_t next = 0;  // ranges overlap: visit each segment once, in index order
+  for (std::size_t r = 0; r < n_ranges; ++r) {
+    const auto [first, last] = ranges[r];
+    for (std::size_t i = std::max(first, next); i < last; ++i) {
+      if (near_s >= 0.0) {
+        double ds = std::abs(s_[i] - near_s);
+        if (closed_) ds = std::min(ds, length() - ds);
+        if (ds > window_m && std::abs(s_[i + 1] - near_s) > window_m) continue;
+      }
+      PathPoint c = on_segment(i, p);
+      const double d2 = (c.position - p).squaredNorm();
+      if (d2 < best_d2) {
+        best_d2 = d2;
+        best = c;
+      }
+    }
+    next = std::max(next, last);
   }
   if (!std::isfinite(best_d2)) return closest(p);  // window empty: search everything
   return best;

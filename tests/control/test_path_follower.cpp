@@ -1,5 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
 #include "control/path_follower.hpp"
 #include "scenario/scenario.hpp"
 #include "vehicle/bicycle_model.hpp"
@@ -28,6 +34,64 @@ TEST(Path, ClosedPathWrapsAndIsSmooth) {
   for (double s = 0; s < p.length(); s += 0.2) {
     const double turn = std::acos(std::clamp(p.at(s).tangent.dot(p.at(s + 0.2).tangent), -1.0, 1.0));
     EXPECT_LT(turn, deg_to_rad(3.0)) << "at s = " << s;
+  }
+}
+
+// The windowed search visits only the stretch near near_s; it must pick exactly the point a
+// scan of every segment with the window test picks (same segment, same tie-break), on open
+// and closed paths, for near_s anywhere (also beyond the length, as a follower's look-ahead
+// on a closed loop is) and windows down to an empty one.
+TEST(Path, WindowedClosestEqualsAScanOfEverySegment) {
+  const std::vector<Path> paths = {
+      Path({{0, 0}, {200, 0}, {200, 200}}, true),
+      Path({{0, 0}, {30, 5}, {10, 20}, {40, 40}, {0, 45}}, false),
+      Path({{0, 0}, {40, 0}, {40, 40}, {0, 40}}, true, 0.5)};
+  std::uint64_t seed = 7;
+  auto uniform = [&seed](double lo, double hi) {  // splitmix64: the same draws everywhere
+    seed += 0x9E3779B97F4A7C15ull;
+    std::uint64_t z = seed;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    return lo + (hi - lo) * static_cast<double>(z >> 11) / 9007199254740992.0;
+  };
+  for (const auto& path : paths) {
+    const auto& pts = path.samples();
+    std::vector<double> s(pts.size(), 0.0);
+    for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
+    const double length = s.back();
+    for (int trial = 0; trial < 2000; ++trial) {
+      const Vec2 p(uniform(-20, 220), uniform(-20, 220));
+      const double near_s = trial % 50 == 0 ? s[static_cast<std::size_t>(trial) % s.size()]
+                                            : uniform(0.0, 1.6 * length);
+      const double window = trial % 7 == 0 ? uniform(0.0, 0.3) : uniform(1.0, 60.0);
+      // The reference: every segment, the window test, the first strictly closest.
+      double best_d2 = std::numeric_limits<double>::infinity();
+      std::size_t best_i = 0;
+      double best_u = 0.0;
+      for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
+        double ds = std::abs(s[i] - near_s);
+        if (path.closed()) ds = std::min(ds, length - ds);
+        if (ds > window && std::abs(s[i + 1] - near_s) > window) continue;
+        const Vec2 d = pts[i + 1] - pts[i];
+        const double len2 = d.squaredNorm();
+        const double u = len2 > 0.0 ? std::clamp((p - pts[i]).dot(d) / len2, 0.0, 1.0) : 0.0;
+        const double d2 = (Vec2(pts[i] + u * d) - p).squaredNorm();
+        if (d2 < best_d2) {
+          best_d2 = d2;
+          best_i = i;
+          best_u = u;
+        }
+      }
+      const PathPoint got = path.closest(p, near_s, window);
+      if (!std::isfinite(best_d2)) {  // nothing in the window: the whole path is searched
+        const PathPoint all = path.closest(p);
+        EXPECT_EQ(got.s, all.s);
+        continue;
+      }
+      const double want_s = s[best_i] + best_u * (s[best_i + 1] - s[best_i]);
+      ASSERT_EQ(got.s, want_s) << "near_s " << near_s << " window " << window << " trial " << trial;
+    }
   }
 }
 
