@@ -28,6 +28,7 @@
 #include "common/service_cli.hpp"
 #include "core/error.hpp"
 #include "launch/launch_args.hpp"
+#include "launch/shm_ports.hpp"
 #include "launch/supervisor.hpp"
 #include "launch/verdict.hpp"
 
@@ -271,6 +272,7 @@ int main(int argc, char** argv) {
   std::vector<service::PlannedProcess> plan;
   bool recover = false;
   int max_restarts = 0;
+  int domain = 0;
   try {
     CLI::App app{"syndds launch"};
     service::add_common_options(app, common);
@@ -286,6 +288,7 @@ int main(int argc, char** argv) {
     plan = service::plan_run(common, s, po);
     recover = s.coordinator.on_member_loss == syndds::proto::LossPolicy::recover;
     max_restarts = s.coordinator.max_recoveries;
+    domain = s.dds.domain_id;
   } catch (const CLI::ParseError& e) {
     die(e.what());
   } catch (const std::exception& e) {
@@ -367,6 +370,16 @@ int main(int argc, char** argv) {
       die(std::to_string(n) + " processes would exceed this user's limit of " +
           std::to_string(nproc.rlim_cur) + " processes (" + std::to_string(running) +
           " running; ulimit -u)");
+    }
+  }
+
+  // Shared-memory ports an earlier run on this domain left behind break the next one's
+  // discovery (launch/shm_ports.hpp): remove those no process uses before starting any.
+  if (!mine.empty()) {
+    if (const auto stale = launch::remove_stale_shm_ports("/dev/shm", domain); !stale.empty()) {
+      say("removed the shared-memory files of " + std::to_string(stale.size()) +
+          " Fast DDS ports of DDS domain " + std::to_string(domain) +
+          " that an earlier run left behind (no process used them)");
     }
   }
 
