@@ -6,7 +6,7 @@
 #
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft|soft_routed] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
-#       [--dds-profiles FILE]
+#       [--dds-profiles FILE] [--recorder-host last]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -14,7 +14,10 @@
 # interest management off (every vehicle merges every rut at once); hostsK = one process per member on K
 # "hosts" (network namespaces on a bridge, each with its own address and /dev/shm, host k pinned
 # to CPU (k-1) mod the CPU count; coordinator and recorder on host 1, vehicle vI and its
-# controller on host (I-1) mod K + 1; needs root). See docs/deployment.md, "Processes".
+# controller on host (I-1) mod K + 1; needs root; with --recorder-host last the recorder runs on
+# host K instead, so the two services' work is spread over the first and the last host);
+# hostgroupsK = the same hosts with the vehicles and controllers of each host in one process
+# (the plan's K groups, --processes K: group k on host k). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
 # lanes only); soft_routed: the same with soil routing (docs/scm.md, "Routing"). Writes
@@ -27,7 +30,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
-PROFILES=()
+PROFILES=(); RECORDER_HOST=first
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -36,19 +39,21 @@ while [ $# -gt 0 ]; do
     --duration) DURATION=$2; shift ;;
     --output) OUT=$2; shift ;;
     --dds-profiles) PROFILES=(--dds-profiles "$2"); shift ;;
-    -h|--help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --recorder-host) RECORDER_HOST=$2; shift ;;
+    -h|--help) sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
 done
+case "$RECORDER_HOST" in first|last) ;; *) echo "bench_scaling: --recorder-host first or last" >&2; exit 1 ;; esac
 case "$TERRAIN" in rigid|soft|soft_routed) ;; *) echo "bench_scaling: --terrain rigid, soft or soft_routed" >&2; exit 1 ;; esac
 for mode in $MODES; do
   case "$mode" in
     distributed|per_vehicle|single|single_full) ;;
     groups[1-9]|groups[1-9][0-9]) ;;
-    hosts[1-9])
+    hosts[1-9]|hostgroups[1-9])
       [ "$(id -u)" -eq 0 ] || { echo "bench_scaling: mode $mode needs root (ip netns)" >&2; exit 1; } ;;
-    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, hostsK, single, single_full)" >&2
+    *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, hostsK, hostgroupsK, single, single_full)" >&2
        exit 1 ;;
   esac
 done
@@ -124,8 +129,8 @@ cpu_by_kind() {
 
 # Mode hostsK: every planned process in the network namespace of its host (see the header),
 # waited for; fails if any process fails. Logs in OUT/logs/.
-run_on_hosts() {  # scenario out K
-  local file=$1 out=$2 k_hosts=$3 k member cmd h failed=0
+run_on_hosts() {  # scenario out K [grouped]
+  local file=$1 out=$2 k_hosts=$3 grouped=${4:-} k member cmd h failed=0 group=0
   local hosts=() pids=()
   for k in $(seq 1 "$k_hosts"); do
     hosts+=("h$k")
@@ -135,12 +140,17 @@ run_on_hosts() {  # scenario out K
   trap hosts_down EXIT
   mkdir -p "$out/logs"
   local plan
+  local layout=()
+  [ -z "$grouped" ] || layout=(--processes "$k_hosts")
   plan=$("$BIN/syndds_plan" "$file" --format launcher --run-id "scaling-$(basename "$out")-$$" \
-         --output "$out" --bin-dir "$BIN" --config-dir "$ROOT/config" "${PROFILES[@]}") || return 1
+         --output "$out" --bin-dir "$BIN" --config-dir "$ROOT/config" "${layout[@]}" \
+         "${PROFILES[@]}") || return 1
   while IFS=$'\t' read -r member cmd; do
     case "$member" in
+      group/*) group=$((group + 1)); h=h$group ;;  # the plan's K groups, one per host
       */v*) h=h$(( (${member##*/v} - 1) % k_hosts + 1 )) ;;
-      *) h=h1 ;;  # coordinator, recorder
+      recorder) [ "$RECORDER_HOST" = first ] && h=h1 || h=h$k_hosts ;;
+      *) h=h1 ;;  # the coordinator
     esac
     on_host "$h" "$out/logs/${member//\//_}.log" sh -c "exec $cmd"
     pids+=($!)
@@ -159,6 +169,9 @@ for n in $NS; do
     if [[ "$mode" == hosts* ]]; then
       processes=$((2 * n + 2))
       run_on_hosts "$file" "$out" "${mode#hosts}" > "$WORK/launch.log" 2>&1 &
+    elif [[ "$mode" == hostgroups* ]]; then
+      processes=$((${mode#hostgroups} + 2))
+      run_on_hosts "$file" "$out" "${mode#hostgroups}" grouped > "$WORK/launch.log" 2>&1 &
     elif [[ "$mode" != single* ]]; then
       case "$mode" in
         distributed) layout=per_member; processes=$((2 * n + 2)) ;;

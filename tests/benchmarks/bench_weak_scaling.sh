@@ -6,7 +6,11 @@
 # hardware runs as fast.
 #
 #   tests/benchmarks/bench_weak_scaling.sh [--terrain rigid|soft|soft_routed] [--n "4 8"] [--duration S]
-#       [--output DIR]
+#       [--layout per_member|per_host] [--recorder-host first|last] [--output DIR]
+#
+# --layout per_host: each host's vehicles and controllers in one process (bench_scaling's
+# hostgroupsK) instead of one process per member. --recorder-host last: with 2 hosts the
+# recorder runs on the second (the coordinator stays on the first).
 #
 # Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, RTF on 1 host,
 # RTF of 2N on 2 hosts, ratio, efficiency, CPU seconds per host... from bench_scaling's CSVs)
@@ -14,29 +18,36 @@
 # Numbers go to docs/performance.md with the command and the machine's load.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
-TERRAIN=rigid; NS="4 8"; DURATION=10; OUT=""
+TERRAIN=rigid; NS="4 8"; DURATION=10; OUT=""; LAYOUT=per_member; RECORDER_HOST=first
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
     --n) NS=$2; shift ;;
     --duration) DURATION=$2; shift ;;
     --output) OUT=$2; shift ;;
-    -h|--help) sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --layout) LAYOUT=$2; shift ;;
+    --recorder-host) RECORDER_HOST=$2; shift ;;
+    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_weak_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
 done
 [ "$(nproc)" -ge 2 ] || { echo "bench_weak_scaling: needs 2 CPUs" >&2; exit 1; }
+case "$LAYOUT" in
+  per_member) MODE=hosts ;;
+  per_host) MODE=hostgroups ;;
+  *) echo "bench_weak_scaling: --layout per_member or per_host" >&2; exit 1 ;;
+esac
 [ -n "$OUT" ] || OUT="runs/weak-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$OUT"
 echo "terrain,n,rtf_1host,rtf_2hosts,ratio,efficiency,load_start_1,load_start_2" > "$OUT/weak.csv"
 for n in $NS; do
   two=$((2 * n))
-  "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes hosts1 \
+  "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
       --duration "$DURATION" --output "$OUT/${n}x1" > "$OUT/${n}x1.log" 2>&1 ||
     { echo "bench_weak_scaling: $n vehicles on 1 host failed: $(tail -n 3 "$OUT/${n}x1.log")" >&2; exit 2; }
-  "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$two" --modes hosts2 \
-      --duration "$DURATION" --output "$OUT/${two}x2" > "$OUT/${two}x2.log" 2>&1 ||
+  "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$two" --modes ${MODE}2 \
+      --recorder-host "$RECORDER_HOST" --duration "$DURATION" --output "$OUT/${two}x2" > "$OUT/${two}x2.log" 2>&1 ||
     { echo "bench_weak_scaling: $two vehicles on 2 hosts failed: $(tail -n 3 "$OUT/${two}x2.log")" >&2; exit 2; }
   /usr/bin/python3 - "$OUT/${n}x1/scaling.csv" "$OUT/${two}x2/scaling.csv" "$TERRAIN" "$n" \
       >> "$OUT/weak.csv" <<'EOF'
