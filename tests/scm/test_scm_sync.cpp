@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cstring>
 #include <map>
+#include <memory>
+#include <set>
 #include <numbers>
 
 #include "core/error.hpp"
@@ -157,6 +159,61 @@ TEST(ScmSync, CopiesExchangingChangesStayIdenticalWithConflicts) {
   EXPECT_GT(conflicts, 10);
   EXPECT_GT(differing_conflicts, 10);
   EXPECT_GT(t1.stored_vertices(), 500u);
+}
+
+// A late joiner starts from the first vehicle's snapshot taken after its own changes of frame
+// f (VehicleAgent::publish_soil), then merges every list of frame f, that vehicle's own list
+// included, and goes on with the lists of later frames: it must hold what the writers hold,
+// also where both wheels changed a vertex in frame f (the snapshot already has the first
+// writer's record there; the second writer's may beat it). Joiners start in every fifth frame,
+// merging a frame's lists in either order.
+TEST(ScmSync, ALateJoinerFromASnapshotMidConflictFollowsTheWriters) {
+  ScmTerrain t1(sync_params()), t2(sync_params());
+  t1.set_source_id(1);
+  t2.set_source_id(2);
+  std::vector<std::unique_ptr<ScmTerrain>> joiners;
+  std::vector<int> conflicts_at_start;
+  double t = 0.0;
+  for (int frame = 0; frame < 100; ++frame) {
+    drive_crossing_frame(t1, t2, 5, t);
+    const auto c1 = t1.take_local_changes();
+    const auto c2 = t2.take_local_changes();
+    if (frame % 5 == 0) {  // admitted now: the snapshot of t1 as publish_soil makes it
+      const ScmSnapshot snap = t1.snapshot();
+      for (int order = 0; order < 2; ++order) {
+        auto j = std::make_unique<ScmTerrain>(sync_params());
+        j->set_source_id(static_cast<std::uint32_t>(10 + joiners.size()));
+        j->load_snapshot(snap);
+        joiners.push_back(std::move(j));
+      }
+      std::set<std::pair<int, int>> in1;
+      for (const auto& c : c1) in1.insert({c.i, c.j});
+      int n = 0;
+      for (const auto& c : c2) n += in1.count({c.i, c.j}) != 0 ? 1 : 0;
+      conflicts_at_start.push_back(n);
+    }
+    t1.apply_remote_changes(2, c2);
+    t2.apply_remote_changes(1, c1);
+    for (std::size_t k = 0; k < joiners.size(); ++k) {
+      auto& j = *joiners[k];  // as SensorAgent: merge the lists, then open the next window
+      if (k % 2 == 0) {
+        j.apply_remote_changes(1, c1);
+        j.apply_remote_changes(2, c2);
+      } else {
+        j.apply_remote_changes(2, c2);
+        j.apply_remote_changes(1, c1);
+      }
+      EXPECT_TRUE(j.take_local_changes().empty());
+    }
+    const std::uint64_t h = t1.grid_hash();
+    ASSERT_EQ(t2.grid_hash(), h) << "frame " << frame;
+    for (std::size_t k = 0; k < joiners.size(); ++k) {
+      ASSERT_EQ(joiners[k]->grid_hash(), h)
+          << "frame " << frame << ", joiner admitted in frame " << 5 * (k / 2);
+    }
+  }
+  // Some joiners really started in a frame where both wheels changed the same vertices.
+  EXPECT_GT(*std::max_element(conflicts_at_start.begin(), conflicts_at_start.end()), 0);
 }
 
 // Interest management: a copy that holds the records outside its interest box aside (per tile,
