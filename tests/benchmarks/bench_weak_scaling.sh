@@ -6,11 +6,13 @@
 # hardware runs as fast.
 #
 #   tests/benchmarks/bench_weak_scaling.sh [--terrain rigid|soft|soft_routed] [--n "4 8"] [--duration S]
-#       [--layout per_member|per_host] [--recorder-host first|last] [--output DIR]
+#       [--layout per_member|per_host] [--recorder-host first|last] [--repeat R] [--output DIR]
 #
 # --layout per_host: each host's vehicles and controllers in one process (bench_scaling's
 # hostgroupsK) instead of one process per member. --recorder-host last: with 2 hosts the
-# recorder runs on the second (the coordinator stays on the first).
+# recorder runs on the second (the coordinator stays on the first). --repeat R: R pairs per N, the
+# two runs of a pair one right after the other (a busy machine's speed drifts over minutes), and
+# per N the median and range of the efficiency.
 #
 # Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, RTF on 1 host,
 # RTF of 2N on 2 hosts, ratio, efficiency, CPU seconds per host... from bench_scaling's CSVs)
@@ -18,7 +20,7 @@
 # Numbers go to docs/performance.md with the command and the machine's load.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
-TERRAIN=rigid; NS="4 8"; DURATION=10; OUT=""; LAYOUT=per_member; RECORDER_HOST=first
+TERRAIN=rigid; NS="4 8"; DURATION=10; OUT=""; LAYOUT=per_member; RECORDER_HOST=first; REPEAT=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -27,12 +29,14 @@ while [ $# -gt 0 ]; do
     --output) OUT=$2; shift ;;
     --layout) LAYOUT=$2; shift ;;
     --recorder-host) RECORDER_HOST=$2; shift ;;
-    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --repeat) REPEAT=$2; shift ;;
+    -h|--help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_weak_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
 done
 [ "$(nproc)" -ge 2 ] || { echo "bench_weak_scaling: needs 2 CPUs" >&2; exit 1; }
+[[ "$REPEAT" =~ ^[1-9][0-9]*$ ]] || { echo "bench_weak_scaling: --repeat takes a count >= 1" >&2; exit 1; }
 case "$LAYOUT" in
   per_member) MODE=hosts ;;
   per_host) MODE=hostgroups ;;
@@ -40,36 +44,48 @@ case "$LAYOUT" in
 esac
 [ -n "$OUT" ] || OUT="runs/weak-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$OUT"
-echo "terrain,n,rtf_1host,rtf_2hosts,ratio,efficiency,load_start_1,load_start_2" > "$OUT/weak.csv"
+echo "terrain,n,pair,rtf_1host,rtf_2hosts,ratio,efficiency,load_start_1,load_start_2" > "$OUT/weak.csv"
 for n in $NS; do
   two=$((2 * n))
-  "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
-      --duration "$DURATION" --output "$OUT/${n}x1" > "$OUT/${n}x1.log" 2>&1 ||
-    { echo "bench_weak_scaling: $n vehicles on 1 host failed: $(tail -n 3 "$OUT/${n}x1.log")" >&2; exit 2; }
-  "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$two" --modes ${MODE}2 \
-      --recorder-host "$RECORDER_HOST" --duration "$DURATION" --output "$OUT/${two}x2" > "$OUT/${two}x2.log" 2>&1 ||
-    { echo "bench_weak_scaling: $two vehicles on 2 hosts failed: $(tail -n 3 "$OUT/${two}x2.log")" >&2; exit 2; }
-  /usr/bin/python3 - "$OUT/${n}x1/scaling.csv" "$OUT/${two}x2/scaling.csv" "$TERRAIN" "$n" \
-      >> "$OUT/weak.csv" <<'EOF'
+  for pair in $(seq 1 "$REPEAT"); do
+    tag=""
+    [ "$REPEAT" = 1 ] || tag="_$pair"
+    one_dir=$OUT/${n}x1$tag two_dir=$OUT/${two}x2$tag
+    "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
+        --duration "$DURATION" --output "$one_dir" > "$one_dir.log" 2>&1 ||
+      { echo "bench_weak_scaling: $n vehicles on 1 host failed: $(tail -n 3 "$one_dir.log")" >&2; exit 2; }
+    "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$two" --modes ${MODE}2 \
+        --recorder-host "$RECORDER_HOST" --duration "$DURATION" --output "$two_dir" \
+        > "$two_dir.log" 2>&1 ||
+      { echo "bench_weak_scaling: $two vehicles on 2 hosts failed: $(tail -n 3 "$two_dir.log")" >&2; exit 2; }
+    /usr/bin/python3 - "$one_dir/scaling.csv" "$two_dir/scaling.csv" "$TERRAIN" "$n" "$pair" \
+        >> "$OUT/weak.csv" <<'EOF'
 import csv, sys
 one = list(csv.DictReader(open(sys.argv[1])))[-1]
 two = list(csv.DictReader(open(sys.argv[2])))[-1]
 r1, r2 = float(one["rtf"]), float(two["rtf"])
-print(f"{sys.argv[3]},{sys.argv[4]},{r1:.3f},{r2:.3f},{r2 / r1:.3f},{r1 / r2:.3f},"
+print(f"{sys.argv[3]},{sys.argv[4]},{sys.argv[5]},{r1:.3f},{r2:.3f},{r2 / r1:.3f},{r1 / r2:.3f},"
       f"{one['load_start']},{two['load_start']}")
 EOF
-  tail -n 1 "$OUT/weak.csv"
+    tail -n 1 "$OUT/weak.csv"
+  done
 done
 /usr/bin/python3 - "$OUT" <<'EOF'
 import csv, pathlib, sys
 out = pathlib.Path(sys.argv[1])
 rows = list(csv.DictReader(open(out / "weak.csv")))
-lines = ["| terrain | N on 1 host (1 CPU) | RTF | 2N on 2 hosts (2 CPUs) | RTF | RTF ratio | efficiency | load at start |",
-         "|---|---|---|---|---|---|---|---|"]
+lines = ["| terrain | N on 1 host (1 CPU) | pair | RTF | 2N on 2 hosts (2 CPUs) | RTF | RTF ratio | efficiency | load at start |",
+         "|---|---|---|---|---|---|---|---|---|"]
 for r in rows:
-    lines.append(f"| {r['terrain']} | {r['n']} | {r['rtf_1host']} | {2 * int(r['n'])} | "
+    lines.append(f"| {r['terrain']} | {r['n']} | {r['pair']} | {r['rtf_1host']} | {2 * int(r['n'])} | "
                  f"{r['rtf_2hosts']} | {r['ratio']} | {r['efficiency']} | "
                  f"{r['load_start_1']}, {r['load_start_2']} |")
+for n in dict.fromkeys(r["n"] for r in rows):
+    eff = sorted(float(r["efficiency"]) for r in rows if r["n"] == n)
+    mid = len(eff) // 2
+    median = eff[mid] if len(eff) % 2 else (eff[mid - 1] + eff[mid]) / 2
+    lines.append(f"\nN = {n}: efficiency median {median:.3f}, range {eff[0]:.3f}-{eff[-1]:.3f} "
+                 f"over {len(eff)} pair(s)")
 (out / "weak.md").write_text("\n".join(lines) + "\n")
 print("\n".join(lines))
 EOF
