@@ -80,6 +80,8 @@ class MemberSession {
   void on_grant(FrameGrantMsg grant, double now_s);
   void on_control(RunControlMsg control, double now_s);
   void on_coordinator_lost(double now_s);
+  /// The coordinator's process exited, or its DDS lease expired: nothing sent to it is read.
+  bool coordinator_lost() const { return coordinator_lost_; }
   void on_interrupt(double now_s);
   /// This member cannot go on (a malformed sample, a failed step); the first reason wins.
   void on_failure(const std::string& why, double now_s);

@@ -469,8 +469,14 @@ void MemberRuntime::run_frame(const proto::FrameContext& ctx,
 int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
   using Outcome = proto::MemberSession::Outcome;
   end_reason_ = end.control.reason;
-  if (!end.error.empty() && done_writer_) {
-    // Tell the coordinator why, so the run's one-line reason names the cause.
+  bool coordinator_lost = false;
+  {
+    std::lock_guard lock(mutex_);
+    coordinator_lost = session_->coordinator_lost();
+  }
+  if (!end.error.empty() && done_writer_ && !coordinator_lost) {
+    // Tell the coordinator why, so the run's one-line reason names the cause. Not a lost one:
+    // after its lease expired its readers are unmatched, and waiting for them took 5 s.
     try {
       reach_coordinator();
       send_done(end.error_frame, {}, 0.0, false, end.error);

@@ -18,7 +18,9 @@
 #                                   than the 10 s DDS lease: the run aborts naming all four as
 #                                   lost and no member of the other hosts. Every process in its
 #                                   own pid namespace (the lease decides, as between machines);
-#                                   frame deadline 30 s, so that the lease speaks first.
+#                                   frame deadline 30 s, so that the lease speaks first. The
+#                                   cut-off members end without waiting for the lost
+#                                   coordinator's readers.
 #   multihost.sh lossy-two-paths    every host drops 10 % of what it sends (nftables, at
 #                                   random) and has a second address on a second subnet; the
 #                                   lossy-network profile (heartbeats and NACK suppression
@@ -138,6 +140,11 @@ if [ "$MODE" = partition ]; then
   done
   if grep -Eq "(controller/|recorder).*lost" <<< "$reason"; then
     echo "multihost (partition): a member of another host was named lost"; exit 1
+  fi
+  # The cut-off members lost the coordinator by its lease: they end at once, without waiting
+  # for its readers (unmatched with the lease) to match theirs.
+  if grep -l "did not match within" "$WORK"/*.log; then
+    echo "multihost (partition): a member waited for a coordinator it knew was lost"; exit 1
   fi
   echo "multihost (partition): every member of the cut-off host named lost, no other"
   exit 0
