@@ -86,6 +86,26 @@ data_out_controller="syndds/driver_command syndds/vehicle_event"
 data_out_sensor="syndds/image syndds/point_cloud syndds/radar"
 topics_xml() { for t in $1; do printf '            <topic>%s</topic>\n' "$t"; done; }
 
+publish_rule() {  # $1 = topics written, then the partitions they may go to
+  local topics=$1 p
+  shift
+  cat <<XML
+      <allow_rule>
+        <domains><id_range><min>0</min><max>232</max></id_range></domains>
+        <publish>
+          <topics>
+$(topics_xml "$topics")
+          </topics>
+          <partitions>
+XML
+  for p in "$@"; do printf '            <partition>%s</partition>\n' "$p"; done
+  cat <<XML
+          </partitions>
+        </publish>
+      </allow_rule>
+XML
+}
+
 grant() {  # $1 = name, $2 = protocol topics written, $3 = data topics written, $4 = vehicle id,
            # $5 = addressed topics written (to any vehicle's partition)
   cat <<XML
@@ -93,53 +113,11 @@ grant() {  # $1 = name, $2 = protocol topics written, $3 = data topics written, 
       <subject_name>$(subject_of "$1")</subject_name>
       <validity><not_before>2020-01-01T00:00:00</not_before><not_after>2100-01-01T00:00:00</not_after></validity>
 XML
-  if [ -n "$2" ]; then
-    cat <<XML
-      <allow_rule>
-        <domains><id_range><min>0</min><max>232</max></id_range></domains>
-        <publish>
-          <topics>
-$(topics_xml "$2")
-          </topics>
-          <partitions><partition>*</partition></partitions>
-        </publish>
-      </allow_rule>
-XML
-  fi
-  if [ -n "$3" ]; then
-    # A vehicle's samples go to "<run>/all" and "<run>/vehicle/<id>" (services/dds/participant.cpp):
-    # no other partition is allowed, so they can never reach another vehicle's readers.
-    cat <<XML
-      <allow_rule>
-        <domains><id_range><min>0</min><max>232</max></id_range></domains>
-        <publish>
-          <topics>
-$(topics_xml "$3")
-          </topics>
-          <partitions>
-            <partition>*/all</partition>
-            <partition>*/vehicle/$4</partition>
-          </partitions>
-        </publish>
-      </allow_rule>
-XML
-  fi
-  if [ -n "${5:-}" ]; then
-    cat <<XML
-      <allow_rule>
-        <domains><id_range><min>0</min><max>232</max></id_range></domains>
-        <publish>
-          <topics>
-$(topics_xml "$5")
-          </topics>
-          <partitions>
-            <partition>*/all</partition>
-            <partition>*/vehicle/*</partition>
-          </partitions>
-        </publish>
-      </allow_rule>
-XML
-  fi
+  if [ -n "$2" ]; then publish_rule "$2" '*'; fi
+  # A vehicle's samples go to "<run>/all" and "<run>/vehicle/<id>" (services/dds/participant.cpp):
+  # no other partition is allowed, so they can never reach another vehicle's readers.
+  if [ -n "$3" ]; then publish_rule "$3" '*/all' "*/vehicle/$4"; fi
+  if [ -n "${5:-}" ]; then publish_rule "$5" '*/all' '*/vehicle/*'; fi
   cat <<XML
       <allow_rule>
         <domains><id_range><min>0</min><max>232</max></id_range></domains>
