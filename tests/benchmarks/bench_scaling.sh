@@ -6,7 +6,8 @@
 #
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft|soft_routed] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
-#       [--dds-profiles FILE] [--recorder-host last]
+#       [--dds-profiles FILE] [--recorder-host last] [--cpu-offset C]
+#       [--placement interleaved|blocks]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -14,8 +15,11 @@
 # interest management off (every vehicle merges every rut at once); hostsK = one process per member on K
 # "hosts" (network namespaces on a bridge, each with its own address and /dev/shm, host k pinned
 # to CPU (k-1) mod the CPU count; coordinator and recorder on host 1, vehicle vI and its
-# controller on host (I-1) mod K + 1; needs root; with --recorder-host last the recorder runs on
-# host K instead, so the two services' work is spread over the first and the last host);
+# controller on host (I-1) mod K + 1, or with --placement blocks on host ceil(I K / N), so that
+# neighbouring lanes share a host as with hostgroupsK; needs root; with --recorder-host last the recorder runs on
+# host K instead, so the two services' work is spread over the first and the last host; with
+# --cpu-offset C host k is pinned to CPU (k-1+C) mod the CPU count, so that two runs of hosts1
+# at once can each have a CPU of their own);
 # hostgroupsK = the same hosts with the vehicles and controllers of each host in one process
 # (the plan's K groups, --processes K: group k on host k). See docs/deployment.md, "Processes".
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
@@ -30,7 +34,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
-PROFILES=(); RECORDER_HOST=first
+PROFILES=(); RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -40,12 +44,16 @@ while [ $# -gt 0 ]; do
     --output) OUT=$2; shift ;;
     --dds-profiles) PROFILES=(--dds-profiles "$2"); shift ;;
     --recorder-host) RECORDER_HOST=$2; shift ;;
-    -h|--help) sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --cpu-offset) CPU_OFFSET=$2; shift ;;
+    --placement) PLACEMENT=$2; shift ;;
+    -h|--help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
 done
 case "$RECORDER_HOST" in first|last) ;; *) echo "bench_scaling: --recorder-host first or last" >&2; exit 1 ;; esac
+[[ "$CPU_OFFSET" =~ ^[0-9]+$ ]] || { echo "bench_scaling: --cpu-offset takes a CPU number" >&2; exit 1; }
+case "$PLACEMENT" in interleaved|blocks) ;; *) echo "bench_scaling: --placement interleaved or blocks" >&2; exit 1 ;; esac
 case "$TERRAIN" in rigid|soft|soft_routed) ;; *) echo "bench_scaling: --terrain rigid, soft or soft_routed" >&2; exit 1 ;; esac
 for mode in $MODES; do
   case "$mode" in
@@ -129,12 +137,12 @@ cpu_by_kind() {
 
 # Mode hostsK: every planned process in the network namespace of its host (see the header),
 # waited for; fails if any process fails. Logs in OUT/logs/.
-run_on_hosts() {  # scenario out K [grouped]
-  local file=$1 out=$2 k_hosts=$3 grouped=${4:-} k member cmd h failed=0 group=0
+run_on_hosts() {  # scenario out K N [grouped]
+  local file=$1 out=$2 k_hosts=$3 n_vehicles=$4 grouped=${5:-} k member cmd h i failed=0 group=0
   local hosts=() pids=()
   for k in $(seq 1 "$k_hosts"); do
     hosts+=("h$k")
-    HOST_CPUS[h$k]=$(( (k - 1) % NCPU ))
+    HOST_CPUS[h$k]=$(( (k - 1 + CPU_OFFSET) % NCPU ))
   done
   hosts_up "sb$$" "$WORK/hosts" on "${hosts[@]}"
   trap hosts_down EXIT
@@ -148,7 +156,13 @@ run_on_hosts() {  # scenario out K [grouped]
   while IFS=$'\t' read -r member cmd; do
     case "$member" in
       group/*) group=$((group + 1)); h=h$group ;;  # the plan's K groups, one per host
-      */v*) h=h$(( (${member##*/v} - 1) % k_hosts + 1 )) ;;
+      */v*)
+        i=${member##*/v}
+        if [ "$PLACEMENT" = blocks ]; then
+          h=h$(( (i * k_hosts + n_vehicles - 1) / n_vehicles ))
+        else
+          h=h$(( (i - 1) % k_hosts + 1 ))
+        fi ;;
       recorder) [ "$RECORDER_HOST" = first ] && h=h1 || h=h$k_hosts ;;
       *) h=h1 ;;  # the coordinator
     esac
@@ -168,10 +182,10 @@ for n in $NS; do
     rm -rf "$out"
     if [[ "$mode" == hosts* ]]; then
       processes=$((2 * n + 2))
-      run_on_hosts "$file" "$out" "${mode#hosts}" > "$WORK/launch.log" 2>&1 &
+      run_on_hosts "$file" "$out" "${mode#hosts}" "$n" > "$WORK/launch.log" 2>&1 &
     elif [[ "$mode" == hostgroups* ]]; then
       processes=$((${mode#hostgroups} + 2))
-      run_on_hosts "$file" "$out" "${mode#hostgroups}" grouped > "$WORK/launch.log" 2>&1 &
+      run_on_hosts "$file" "$out" "${mode#hostgroups}" "$n" grouped > "$WORK/launch.log" 2>&1 &
     elif [[ "$mode" != single* ]]; then
       case "$mode" in
         distributed) layout=per_member; processes=$((2 * n + 2)) ;;
