@@ -18,18 +18,24 @@ std::string_view to_string(MemberKind kind) {
   return "unknown";
 }
 
+namespace {
+// Indexed by the enum's value (the rows of SYNDDS_DATA_TOPICS, in order): every manifest entry
+// of every grant is named through these, so a lookup is one index or one pass.
+#define SYNDDS_TOPIC_NAME_(TOPIC, MSG, IDL, LIST, PER_FRAME) std::string_view(#TOPIC),
+constexpr std::string_view kTopicNames[] = {SYNDDS_DATA_TOPICS(SYNDDS_TOPIC_NAME_)};
+#undef SYNDDS_TOPIC_NAME_
+static_assert(std::size(kTopicNames) == std::size(kAllDataTopics));
+}  // namespace
+
 std::string_view to_string(Topic topic) {
-  std::string_view name = "unknown";
-  for_each_topic([&](auto t) {
-    if (t.value == topic) name = TopicTraits<decltype(t)::value>::name;
-  });
-  return name;
+  const auto i = static_cast<std::size_t>(topic);
+  return i < std::size(kTopicNames) ? kTopicNames[i] : std::string_view("unknown");
 }
 
 bool topic_from_string(std::string_view name, Topic& topic) {
-  for (Topic t : kAllDataTopics) {
-    if (to_string(t) == name) {
-      topic = t;
+  for (std::size_t i = 0; i < std::size(kTopicNames); ++i) {
+    if (kTopicNames[i] == name) {
+      topic = kAllDataTopics[i];
       return true;
     }
   }

@@ -65,3 +65,24 @@ TEST(FrameInbox, UnannouncedSamplesAreDroppedAndCounted) {
   EXPECT_EQ(f.vehicle_states.size(), 1u);
   EXPECT_EQ(inbox.unexpected_samples(), 1u);
 }
+
+// Manifest entries travel with the topic's name: every data topic's name is its TopicTraits
+// name and reads back as the same topic; anything else is refused.
+TEST(TopicNames, EveryTopicReadsBackFromItsName) {
+  std::size_t seen = 0;
+  for_each_topic([&](auto t) {
+    constexpr Topic T = decltype(t)::value;
+    EXPECT_EQ(to_string(T), TopicTraits<T>::name);
+    Topic back = T == Topic::vehicle_state ? Topic::driver_command : Topic::vehicle_state;
+    ASSERT_TRUE(topic_from_string(TopicTraits<T>::name, back)) << TopicTraits<T>::name;
+    EXPECT_EQ(back, T);
+    ++seen;
+  });
+  EXPECT_EQ(seen, std::size(kAllDataTopics));
+  Topic untouched = Topic::imu;
+  EXPECT_FALSE(topic_from_string("vehicle_stat", untouched));
+  EXPECT_FALSE(topic_from_string("vehicle_state ", untouched));
+  EXPECT_FALSE(topic_from_string("", untouched));
+  EXPECT_EQ(untouched, Topic::imu);
+  EXPECT_EQ(to_string(static_cast<Topic>(250)), "unknown");
+}
