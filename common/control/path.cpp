@@ -63,14 +63,20 @@ Path::Path(std::vector<Vec2> waypoints, bool closed, double sample_spacing_m)
   }
 }
 
-PathPoint Path::on_segment(std::size_t i, const Vec2& p) const {
+Vec2 Path::foot_point(std::size_t i, const Vec2& p, double& u) const {
   const Vec2& a = points_[i];
-  const Vec2& b = points_[i + 1];
-  const Vec2 d = b - a;
+  const Vec2 d = points_[i + 1] - a;
   const double len2 = d.squaredNorm();
-  const double u = len2 > 0.0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  u = len2 > 0.0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return a + u * d;
+}
+
+PathPoint Path::on_segment(std::size_t i, const Vec2& p) const {
+  double u = 0.0;
   PathPoint out;
-  out.position = a + u * d;
+  out.position = foot_point(i, p, u);
+  const Vec2 d = points_[i + 1] - points_[i];
+  const double len2 = d.squaredNorm();
   out.tangent = len2 > 0.0 ? Vec2(d / std::sqrt(len2)) : Vec2::UnitX();
   out.s = s_[i] + u * (s_[i + 1] - s_[i]);
   const Vec2 r = p - out.position;
@@ -132,6 +138,7 @@ PathPoint Path::closest(const Vec2& p, double near_s, double window_m) const {
     }
   }
   std::size_t next = 0;  // ranges overlap: visit each segment once, in index order
+  std::size_t best_i = segments;
   for (std::size_t r = 0; r < n_ranges; ++r) {
     const auto [first, last] = ranges[r];
     for (std::size_t i = std::max(first, next); i < last; ++i) {
@@ -140,17 +147,19 @@ PathPoint Path::closest(const Vec2& p, double near_s, double window_m) const {
         if (closed_) ds = std::min(ds, length() - ds);
         if (ds > window_m && std::abs(s_[i + 1] - near_s) > window_m) continue;
       }
-      PathPoint c = on_segment(i, p);
-      const double d2 = (c.position - p).squaredNorm();
+      // The foot point only; the tangent, arc length and lateral error (on_segment, from the
+      // same foot point) only for the segment that wins.
+      double u = 0.0;
+      const double d2 = (foot_point(i, p, u) - p).squaredNorm();
       if (d2 < best_d2) {
         best_d2 = d2;
-        best = c;
+        best_i = i;
       }
     }
     next = std::max(next, last);
   }
   if (!std::isfinite(best_d2)) return closest(p);  // window empty: search everything
-  return best;
+  return on_segment(best_i, p);
 }
 
 }  // namespace syndds::control

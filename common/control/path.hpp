@@ -32,6 +32,8 @@ class Path {
   PathPoint closest(const Vec2& p, double near_s = -1.0, double window_m = 30.0) const;
 
  private:
+  /// The point of segment i nearest to p, and its parameter u in [0, 1] along the segment.
+  Vec2 foot_point(std::size_t i, const Vec2& p, double& u) const;
   PathPoint on_segment(std::size_t i, const Vec2& p) const;
   std::vector<Vec2> waypoints_;
   bool closed_;
