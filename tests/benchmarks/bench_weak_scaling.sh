@@ -7,7 +7,7 @@
 #
 #   tests/benchmarks/bench_weak_scaling.sh [--terrain rigid|soft|soft_routed] [--n "4 8"] [--duration S]
 #       [--layout per_member|per_host] [--recorder-host first|last] [--repeat R] [--ceiling]
-#       [--placement interleaved|blocks] [--output DIR]
+#       [--placement interleaved|blocks] [--versus "BENCH_SCALING_OPTIONS"] [--output DIR]
 #
 # --layout per_host: each host's vehicles and controllers in one process (bench_scaling's
 # hostgroupsK) instead of one process per member. --placement blocks (per_member): vehicles
@@ -20,16 +20,22 @@
 # runs of N vehicles at once, one on each host and CPU, with nothing between them; their
 # efficiency, RTF(N alone) / RTF(the slower of the two), bounds what any layout of 2N vehicles on
 # the two CPUs can reach on this machine (the CPUs share caches, memory and the hypervisor).
+# --versus "OPTS": an A/B comparison on this noisy machine: each pair runs the 1-host and 2-host
+# runs as given (setting A), then again with OPTS added to both bench_scaling.sh commands
+# (setting B, e.g. "--dds-profiles FILE"; SYNDDS_BUILD_DIR is read by bench_scaling.sh), so the
+# two settings are compared minutes, not an invocation, apart; weak.md adds the median of B's
+# RTF over A's for each host count.
 #
-# Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, pair, RTF on 1 host,
+# Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, pair, setting, RTF on 1 host,
 # RTF of 2N on 2 hosts, ratio, efficiency, load averages at the start; with --ceiling the two
 # independent runs' RTFs and the ceiling) and DIR/weak.md; the bench_scaling outputs of each run
-# (CPU seconds per kind of process) are in DIR/<N>x1, DIR/<2N>x2 and DIR/<N>x1_apart_cpuC.
+# (CPU seconds per kind of process) are in DIR/<N>x1, DIR/<2N>x2 and DIR/<N>x1_apart_cpuC
+# (setting B: with _B at the end).
 # Numbers go to docs/performance.md with the command and the machine's load.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 TERRAIN=rigid; NS="4 8"; DURATION=10; OUT=""; LAYOUT=per_member; RECORDER_HOST=first; REPEAT=1
-CEILING=0; PLACEMENT=interleaved
+CEILING=0; PLACEMENT=interleaved; VERSUS=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -41,7 +47,8 @@ while [ $# -gt 0 ]; do
     --repeat) REPEAT=$2; shift ;;
     --ceiling) CEILING=1 ;;
     --placement) PLACEMENT=$2; shift ;;
-    -h|--help) sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --versus) VERSUS=$2; shift ;;
+    -h|--help) sed -n '2,34p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_weak_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
@@ -55,61 +62,70 @@ case "$LAYOUT" in
 esac
 [ -n "$OUT" ] || OUT="runs/weak-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$OUT"
-echo "terrain,n,pair,rtf_1host,rtf_2hosts,ratio,efficiency,load_start_1,load_start_2,rtf_apart_cpu0,rtf_apart_cpu1,ceiling" > "$OUT/weak.csv"
+echo "terrain,n,pair,setting,rtf_1host,rtf_2hosts,ratio,efficiency,load_start_1,load_start_2,rtf_apart_cpu0,rtf_apart_cpu1,ceiling" > "$OUT/weak.csv"
 for n in $NS; do
   two=$((2 * n))
   for pair in $(seq 1 "$REPEAT"); do
-    tag=""
-    [ "$REPEAT" = 1 ] || tag="_$pair"
-    one_dir=$OUT/${n}x1$tag two_dir=$OUT/${two}x2$tag
-    "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
-        --duration "$DURATION" --output "$one_dir" > "$one_dir.log" 2>&1 ||
-      { echo "bench_weak_scaling: $n vehicles on 1 host failed: $(tail -n 3 "$one_dir.log")" >&2; exit 2; }
-    "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$two" --modes ${MODE}2 \
-        --recorder-host "$RECORDER_HOST" --placement "$PLACEMENT" --duration "$DURATION" \
-        --output "$two_dir" \
-        > "$two_dir.log" 2>&1 ||
-      { echo "bench_weak_scaling: $two vehicles on 2 hosts failed: $(tail -n 3 "$two_dir.log")" >&2; exit 2; }
-    apart=()
-    if [ "$CEILING" = 1 ]; then
-      # Two runs of N at once, each on a host (and CPU) of its own, sharing nothing but the machine.
-      for cpu in 0 1; do
-        "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
-            --cpu-offset "$cpu" --duration "$DURATION" --output "$OUT/${n}x1_apart_cpu$cpu$tag" \
-            > "$OUT/${n}x1_apart_cpu$cpu$tag.log" 2>&1 &
-        apart+=($!)
-      done
-      for p in "${apart[@]}"; do
-        wait "$p" || { echo "bench_weak_scaling: the independent runs of $n vehicles failed" >&2; exit 2; }
-      done
-      apart=("$OUT/${n}x1_apart_cpu0$tag/scaling.csv" "$OUT/${n}x1_apart_cpu1$tag/scaling.csv")
-    fi
-    /usr/bin/python3 - "$one_dir/scaling.csv" "$two_dir/scaling.csv" "$TERRAIN" "$n" "$pair" \
-        "${apart[@]}" >> "$OUT/weak.csv" <<'EOF'
+    for setting in A B; do
+      extra=()
+      if [ "$setting" = B ]; then
+        [ -n "$VERSUS" ] || continue
+        read -r -a extra <<< "$VERSUS"
+      fi
+      tag=""
+      [ "$REPEAT" = 1 ] || tag="_$pair"
+      [ "$setting" = A ] || tag="${tag}_B"
+      one_dir=$OUT/${n}x1$tag two_dir=$OUT/${two}x2$tag
+      "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
+          --duration "$DURATION" --output "$one_dir" "${extra[@]}" > "$one_dir.log" 2>&1 ||
+        { echo "bench_weak_scaling: $n vehicles on 1 host failed: $(tail -n 3 "$one_dir.log")" >&2; exit 2; }
+      "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$two" --modes ${MODE}2 \
+          --recorder-host "$RECORDER_HOST" --placement "$PLACEMENT" --duration "$DURATION" \
+          --output "$two_dir" "${extra[@]}" > "$two_dir.log" 2>&1 ||
+        { echo "bench_weak_scaling: $two vehicles on 2 hosts failed: $(tail -n 3 "$two_dir.log")" >&2; exit 2; }
+      apart=()
+      if [ "$CEILING" = 1 ]; then
+        # Two runs of N at once, each on a host (and CPU) of its own, sharing nothing but the machine.
+        for cpu in 0 1; do
+          "$ROOT/tests/benchmarks/bench_scaling.sh" --terrain "$TERRAIN" --n "$n" --modes ${MODE}1 \
+              --cpu-offset "$cpu" --duration "$DURATION" --output "$OUT/${n}x1_apart_cpu$cpu$tag" \
+              "${extra[@]}" > "$OUT/${n}x1_apart_cpu$cpu$tag.log" 2>&1 &
+          apart+=($!)
+        done
+        for p in "${apart[@]}"; do
+          wait "$p" || { echo "bench_weak_scaling: the independent runs of $n vehicles failed" >&2; exit 2; }
+        done
+        apart=("$OUT/${n}x1_apart_cpu0$tag/scaling.csv" "$OUT/${n}x1_apart_cpu1$tag/scaling.csv")
+      fi
+      /usr/bin/python3 - "$one_dir/scaling.csv" "$two_dir/scaling.csv" "$TERRAIN" "$n" "$pair" \
+          "$setting" "${apart[@]}" >> "$OUT/weak.csv" <<'EOF'
 import csv, sys
 one = list(csv.DictReader(open(sys.argv[1])))[-1]
 two = list(csv.DictReader(open(sys.argv[2])))[-1]
 r1, r2 = float(one["rtf"]), float(two["rtf"])
 apart = ",,"
-if len(sys.argv) > 6:
-    a, b = (float(list(csv.DictReader(open(f)))[-1]["rtf"]) for f in sys.argv[6:8])
+if len(sys.argv) > 7:
+    a, b = (float(list(csv.DictReader(open(f)))[-1]["rtf"]) for f in sys.argv[7:9])
     apart = f"{a:.3f},{b:.3f},{r1 / max(a, b):.3f}"
-print(f"{sys.argv[3]},{sys.argv[4]},{sys.argv[5]},{r1:.3f},{r2:.3f},{r2 / r1:.3f},{r1 / r2:.3f},"
-      f"{one['load_start']},{two['load_start']},{apart}")
+print(f"{sys.argv[3]},{sys.argv[4]},{sys.argv[5]},{sys.argv[6]},{r1:.3f},{r2:.3f},{r2 / r1:.3f},"
+      f"{r1 / r2:.3f},{one['load_start']},{two['load_start']},{apart}")
 EOF
-    tail -n 1 "$OUT/weak.csv"
+      tail -n 1 "$OUT/weak.csv"
+    done
   done
 done
-/usr/bin/python3 - "$OUT" <<'EOF'
+/usr/bin/python3 - "$OUT" "$VERSUS" <<'EOF'
 import csv, pathlib, sys
 out = pathlib.Path(sys.argv[1])
 rows = list(csv.DictReader(open(out / "weak.csv")))
 ceiling = any(r["ceiling"] for r in rows)
 extra = (" two runs of N apart (CPU 0, CPU 1): RTF | ceiling |", "---|---|") if ceiling else ("", "")
-lines = ["| terrain | N on 1 host (1 CPU) | pair | RTF | 2N on 2 hosts (2 CPUs) | RTF | RTF ratio | efficiency | load at start |" + extra[0],
-         "|---|---|---|---|---|---|---|---|---|" + extra[1]]
+versus = any(r["setting"] == "B" for r in rows)
+lines = ([f"Setting B: bench_scaling.sh options {sys.argv[2]!r} added to A's.", ""] if versus else []) + \
+        ["| terrain | N on 1 host (1 CPU) | pair | setting | RTF | 2N on 2 hosts (2 CPUs) | RTF | RTF ratio | efficiency | load at start |" + extra[0],
+         "|---|---|---|---|---|---|---|---|---|---|" + extra[1]]
 for r in rows:
-    lines.append(f"| {r['terrain']} | {r['n']} | {r['pair']} | {r['rtf_1host']} | {2 * int(r['n'])} | "
+    lines.append(f"| {r['terrain']} | {r['n']} | {r['pair']} | {r['setting']} | {r['rtf_1host']} | {2 * int(r['n'])} | "
                  f"{r['rtf_2hosts']} | {r['ratio']} | {r['efficiency']} | "
                  f"{r['load_start_1']}, {r['load_start_2']} |" +
                  (f" {r['rtf_apart_cpu0']}, {r['rtf_apart_cpu1']} | {r['ceiling']} |" if ceiling else ""))
@@ -121,11 +137,19 @@ def spread(values):
     return f"median {median:.3f}, range {v[0]:.3f}-{v[-1]:.3f} over {len(v)} pair(s)"
 
 for n in dict.fromkeys(r["n"] for r in rows):
-    pick = [r for r in rows if r["n"] == n]
-    lines.append(f"\nN = {n}: efficiency {spread(float(r['efficiency']) for r in pick)}")
-    if ceiling:
-        lines.append(f"N = {n}: ceiling (two independent runs of N) "
-                     f"{spread(float(r['ceiling']) for r in pick)}")
+    for setting in ("A", "B") if versus else ("A",):
+        pick = [r for r in rows if r["n"] == n and r["setting"] == setting]
+        name = f"N = {n}, setting {setting}" if versus else f"N = {n}"
+        lines.append(f"\n{name}: efficiency {spread(float(r['efficiency']) for r in pick)}")
+        if ceiling:
+            lines.append(f"{name}: ceiling (two independent runs of N) "
+                         f"{spread(float(r['ceiling']) for r in pick)}")
+    if versus:
+        a = {r["pair"]: r for r in rows if r["n"] == n and r["setting"] == "A"}
+        b = {r["pair"]: r for r in rows if r["n"] == n and r["setting"] == "B"}
+        for col, what in (("rtf_1host", f"{n} on 1 host"), ("rtf_2hosts", f"{2 * int(n)} on 2 hosts")):
+            ratios = [float(b[p][col]) / float(a[p][col]) for p in a if p in b]
+            lines.append(f"N = {n}: RTF of B / A, {what}: {spread(ratios)} (below 1: B faster)")
 (out / "weak.md").write_text("\n".join(lines) + "\n")
 print("\n".join(lines))
 EOF
