@@ -7,7 +7,7 @@
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft|soft_routed] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
 #       [--dds-profiles FILE] [--recorder-host last] [--cpu-offset C]
-#       [--placement interleaved|blocks]
+#       [--placement interleaved|blocks] [--build-dir DIR]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -29,7 +29,9 @@
 # SCM grid hash), DIR/scaling.md (the same as a table, and whether every mode of an N recorded
 # byte-identical results; exit status 2 if not) and, with Debian's matplotlib, DIR/scaling.png
 # (RTF against N). DIR defaults to a new folder
-# under runs/. Numbers go to docs/performance.md with the command and the machine's load.
+# under runs/. Programs: build/bin, or DIR/bin with --build-dir (or $SYNDDS_BUILD_DIR/bin), so
+# that two builds can be compared (bench_weak_scaling.sh --versus "--build-dir DIR"). Numbers go
+# to docs/performance.md with the command and the machine's load.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
@@ -46,7 +48,8 @@ while [ $# -gt 0 ]; do
     --recorder-host) RECORDER_HOST=$2; shift ;;
     --cpu-offset) CPU_OFFSET=$2; shift ;;
     --placement) PLACEMENT=$2; shift ;;
-    -h|--help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --build-dir) export SYNDDS_BUILD_DIR=$2; BIN=$2/bin; shift ;;
+    -h|--help) sed -n '2,34p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift

@@ -22,7 +22,7 @@
 # the two CPUs can reach on this machine (the CPUs share caches, memory and the hypervisor).
 # --versus "OPTS": an A/B comparison on this noisy machine: each pair runs the 1-host and 2-host
 # runs as given (setting A), then again with OPTS added to both bench_scaling.sh commands
-# (setting B, e.g. "--dds-profiles FILE"; SYNDDS_BUILD_DIR is read by bench_scaling.sh), so the
+# (setting B, e.g. "--dds-profiles FILE" or "--build-dir DIR" for another build), so the
 # two settings are compared minutes, not an invocation, apart; weak.md adds the median of B's
 # RTF over A's for each host count.
 #
