@@ -16,8 +16,9 @@
 # "hosts" (network namespaces on a bridge, each with its own address and /dev/shm, host k pinned
 # to CPU (k-1) mod the CPU count; coordinator and recorder on host 1, vehicle vI and its
 # controller on host (I-1) mod K + 1, or with --placement blocks on host ceil(I K / N), so that
-# neighbouring lanes share a host as with hostgroupsK; needs root; with --recorder-host last the recorder runs on
-# host K instead, so the two services' work is spread over the first and the last host; with
+# neighbouring lanes share a host as with hostgroupsK; needs root; with --recorder-host last the
+# recorder runs on host K instead, so the two services' work is spread over the first and the
+# last host; with
 # --cpu-offset C host k is pinned to CPU (k-1+C) mod the CPU count, so that two runs of hosts1
 # at once can each have a CPU of their own);
 # hostgroupsK = the same hosts with the vehicles and controllers of each host in one process
