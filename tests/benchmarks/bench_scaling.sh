@@ -50,7 +50,7 @@ while [ $# -gt 0 ]; do
     --cpu-offset) CPU_OFFSET=$2; shift ;;
     --placement) PLACEMENT=$2; shift ;;
     --build-dir) export SYNDDS_BUILD_DIR=$2; BIN=$2/bin; shift ;;
-    -h|--help) sed -n '2,34p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,35p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
