@@ -13,10 +13,10 @@
 # hostgroupsK) instead of one process per member. --placement blocks (per_member): vehicles
 # 1..N on host 1 and N+1..2N on host 2, as per_host groups them, instead of alternating (with
 # lanes side by side, alternating puts every vehicle's neighbours on the other host).
-# --recorder-host last: with 2 hosts the
-# recorder runs on the second (the coordinator stays on the first). --repeat R: R pairs per N, the
-# two runs of a pair one right after the other (a busy machine's speed drifts over minutes), and
-# per N the median and range of the efficiency. --ceiling: each pair also runs two independent
+# --recorder-host last: with 2 hosts the recorder runs on the second (the coordinator stays on
+# the first). --repeat R: R pairs per N, the two runs of a pair one right after the other (a busy
+# machine's speed drifts over minutes), and per N the median and range of the efficiency.
+# --ceiling: each pair also runs two independent
 # runs of N vehicles at once, one on each host and CPU, with nothing between them; their
 # efficiency, RTF(N alone) / RTF(the slower of the two), bounds what any layout of 2N vehicles on
 # the two CPUs can reach on this machine (the CPUs share caches, memory and the hypervisor).
@@ -26,9 +26,9 @@
 # two settings are compared minutes, not an invocation, apart; weak.md adds the median of B's
 # RTF over A's for each host count.
 #
-# Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, pair, setting, RTF on 1 host,
-# RTF of 2N on 2 hosts, ratio, efficiency, load averages at the start; with --ceiling the two
-# independent runs' RTFs and the ceiling) and DIR/weak.md; the bench_scaling outputs of each run
+# Needs root (ip netns) and at least 2 CPUs. Writes DIR/weak.csv (terrain, N, pair, setting,
+# RTF on 1 host, RTF of 2N on 2 hosts, ratio, efficiency, load averages at the start; with
+# --ceiling the two independent runs' RTFs and the ceiling) and DIR/weak.md; the bench_scaling outputs of each run
 # (CPU seconds per kind of process) are in DIR/<N>x1, DIR/<2N>x2 and DIR/<N>x1_apart_cpuC
 # (setting B: with _B at the end).
 # Numbers go to docs/performance.md with the command and the machine's load.
