@@ -1,5 +1,6 @@
 #include "protocol/messages.hpp"
 
+#include <array>
 #include <cmath>
 #include <map>
 #include <string>
@@ -19,12 +20,15 @@ std::string_view to_string(MemberKind kind) {
 }
 
 namespace {
-// Indexed by the enum's value (the rows of SYNDDS_DATA_TOPICS, in order): every manifest entry
-// of every grant is named through these, so a lookup is one index or one pass.
-#define SYNDDS_TOPIC_NAME_(TOPIC, MSG, IDL, LIST, PER_FRAME) std::string_view(#TOPIC),
-constexpr std::string_view kTopicNames[] = {SYNDDS_DATA_TOPICS(SYNDDS_TOPIC_NAME_)};
-#undef SYNDDS_TOPIC_NAME_
-static_assert(std::size(kTopicNames) == std::size(kAllDataTopics));
+// TopicTraits' names indexed by the enum's value (kAllDataTopics lists the enum in order):
+// every manifest entry of every grant is named through these, so a lookup is one index or one
+// pass.
+template <std::size_t... I>
+constexpr std::array<std::string_view, sizeof...(I)> topic_names(std::index_sequence<I...>) {
+  static_assert(((static_cast<std::size_t>(kAllDataTopics[I]) == I) && ...));
+  return {std::string_view(TopicTraits<kAllDataTopics[I]>::name)...};
+}
+constexpr auto kTopicNames = topic_names(std::make_index_sequence<std::size(kAllDataTopics)>{});
 }  // namespace
 
 std::string_view to_string(Topic topic) {
