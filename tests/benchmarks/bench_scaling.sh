@@ -7,7 +7,7 @@
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft|soft_routed] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
 #       [--dds-profiles FILE] [--recorder-host last] [--cpu-offset C]
-#       [--placement interleaved|blocks] [--build-dir DIR]
+#       [--placement interleaved|blocks] [--build-dir DIR] [--heartbeat S]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -32,12 +32,14 @@
 # (RTF against N). DIR defaults to a new folder
 # under runs/. Programs: build/bin, or DIR/bin with --build-dir (or $SYNDDS_BUILD_DIR/bin), so
 # that two builds can be compared (bench_weak_scaling.sh --versus "--build-dir DIR"). Numbers go
-# to docs/performance.md with the command and the machine's load.
+# to docs/performance.md with the command and the machine's load. --heartbeat S: the scenario's
+# synchronisation period (default 0.01 s, the shipped scenarios'); the controllers act once a
+# period, so another value is another scenario, for measuring what a frame costs.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
-PROFILES=(); RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved
+PROFILES=(); RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved; HEARTBEAT=0.01
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -50,13 +52,15 @@ while [ $# -gt 0 ]; do
     --cpu-offset) CPU_OFFSET=$2; shift ;;
     --placement) PLACEMENT=$2; shift ;;
     --build-dir) export SYNDDS_BUILD_DIR=$2; BIN=$2/bin; shift ;;
-    -h|--help) sed -n '2,35p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --heartbeat) HEARTBEAT=$2; shift ;;
+    -h|--help) sed -n '2,37p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
 done
 case "$RECORDER_HOST" in first|last) ;; *) echo "bench_scaling: --recorder-host first or last" >&2; exit 1 ;; esac
 [[ "$CPU_OFFSET" =~ ^[0-9]+$ ]] || { echo "bench_scaling: --cpu-offset takes a CPU number" >&2; exit 1; }
+[[ "$HEARTBEAT" =~ ^0\.[0-9]+$ ]] || { echo "bench_scaling: --heartbeat takes seconds below 1 (0.01)" >&2; exit 1; }
 case "$PLACEMENT" in interleaved|blocks) ;; *) echo "bench_scaling: --placement interleaved or blocks" >&2; exit 1 ;; esac
 case "$TERRAIN" in rigid|soft|soft_routed) ;; *) echo "bench_scaling: --terrain rigid, soft or soft_routed" >&2; exit 1 ;; esac
 for mode in $MODES; do
@@ -81,7 +85,7 @@ scenario() {  # $1 = N [$2 = SCM interest radius]; prints the file
   local n=$1 f=$WORK/scaling_$1${2:+_r$2}.yaml
   {
     echo "name: scaling_${TERRAIN}_$n"
-    echo "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: $DURATION}"
+    echo "time: {step_s: 0.002, heartbeat_s: $HEARTBEAT, end_time_s: $DURATION}"
     echo "coordinator: {join_timeout_s: 120, frame_timeout_s: 60}"
     if [ "$TERRAIN" != rigid ]; then
       echo "terrain:"
