@@ -66,9 +66,25 @@ std::uint32_t FrameInbox::held(std::int64_t frame, const TopicCount& e) const {
   return n;
 }
 
+std::uint64_t FrameInbox::held_samples(std::int64_t frame) const {
+  auto it = pending_.find(frame);
+  if (it == pending_.end()) return 0;
+  std::uint64_t n = 0;
+  for_each_topic([&](auto t) { n += it->second.list<decltype(t)::value>().size(); });
+  return n;
+}
+
 bool FrameInbox::complete(std::int64_t frame, const Manifest& manifest) const {
-  for (const auto& e : needed(manifest)) {
-    if (held(frame, e) < e.count) return false;
+  // Called for every sample that arrives (MemberSession::sample_may_unblock): first the count,
+  // which settles most calls without a look at each entry. A sample counts towards one entry at
+  // most, so fewer samples held than announced means some entry is short.
+  std::uint64_t announced = 0;
+  for (const auto& e : manifest) {
+    if (e.count > 0 && wants(e.topic, e.key)) announced += e.count;
+  }
+  if (held_samples(frame) < announced) return false;
+  for (const auto& e : manifest) {
+    if (e.count > 0 && wants(e.topic, e.key) && held(frame, e) < e.count) return false;
   }
   return true;
 }

@@ -61,6 +61,7 @@ class FrameInbox {
 
  private:
   std::uint32_t held(std::int64_t frame, const TopicCount& entry) const;
+  std::uint64_t held_samples(std::int64_t frame) const;
 
   std::vector<Subscription> subscriptions_;
   std::map<std::int64_t, FrameSamples> pending_;

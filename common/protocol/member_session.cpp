@@ -48,6 +48,9 @@ void MemberSession::on_rolled_back(FrameSamples inputs, double now_s) {
 }
 
 void MemberSession::on_grant(FrameGrantMsg grant, double now_s) {
+  // The manifest names every member's samples; this member waits for and takes only those it
+  // subscribes to, so it keeps only their entries (checked for every sample that arrives).
+  grant.manifest = inbox_.needed(grant.manifest);
   grants_.push_back(std::move(grant));
 }
 

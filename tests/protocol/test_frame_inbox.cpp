@@ -31,6 +31,19 @@ TEST(FrameInbox, IncompleteUntilEveryAnnouncedSampleArrived) {
   EXPECT_TRUE(inbox.complete(4, manifest));
 }
 
+// Enough samples in number is not enough: each announced entry needs its own. A sample that
+// no entry announces (here a second one from b) must not stand in for a's.
+TEST(FrameInbox, AsManySamplesAsAnnouncedButOneEntryShortIsIncomplete) {
+  FrameInbox inbox({{Topic::vehicle_state, ""}});
+  const Manifest manifest = {{Topic::vehicle_state, "a", "vehicle/a", 1},
+                             {Topic::vehicle_state, "b", "vehicle/b", 1}};
+  inbox.add(state("b", 4));
+  inbox.add(state("b", 4));
+  EXPECT_FALSE(inbox.complete(4, manifest));
+  inbox.add(state("a", 4));
+  EXPECT_TRUE(inbox.complete(4, manifest));
+}
+
 TEST(FrameInbox, OnlySubscribedEntriesAreNeeded) {
   FrameInbox inbox({{Topic::driver_command, "a"}});
   const Manifest manifest = {{Topic::vehicle_state, "a", "vehicle/a", 1},
