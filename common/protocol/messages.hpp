@@ -76,6 +76,7 @@ std::string_view to_string(MemberKind kind);
   X(MemberAnnounceMsg, MemberAnnounce)       \
   X(FrameGrantMsg, FrameGrant)               \
   X(FrameDoneMsg, FrameDone)                 \
+  X(FrameDonesMsg, FrameDones)               \
   X(RunControlMsg, RunControl)
 
 #define SYNDDS_TOPIC_ENUM_(TOPIC, MSG, IDL, LIST, PER_FRAME) TOPIC,
@@ -470,6 +471,13 @@ struct FrameDoneMsg {
 };
 SYNDDS_FIELDS(FrameDoneMsg, member_id, frame, published, compute_s, finished, error,
               checkpoint_bytes, epoch, body)
+
+/// The regular dones of several members of one process for one grant, sent together
+/// (DoneGather): the coordinator takes each as if it had come alone.
+struct FrameDonesMsg {
+  std::vector<FrameDoneMsg> dones;
+};
+SYNDDS_FIELDS(FrameDonesMsg, dones)
 
 /// Checkpoints are written of every frame K that is a positive multiple of `every` frames
 /// (every <= 0: never), by each member before it steps frame K + 1.

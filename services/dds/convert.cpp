@@ -260,6 +260,9 @@ void check_body(const proto::VehicleBodyMsg& b, const std::string& what) {
 void check(const proto::FrameDoneMsg& m) {
   for (const auto& b : m.body) check_body(b, "frame_done from " + m.member_id);
 }
+void check(const proto::FrameDonesMsg& m) {
+  for (const auto& d : m.dones) check(d);
+}
 void check(const proto::FrameGrantMsg& m) {
   for (const auto& b : m.bodies) check_body(b, "frame_grant " + std::to_string(m.frame));
 }

@@ -38,6 +38,7 @@ void CoordinatorService::close() {
   watch_.stop();
   announce_reader_.reset();
   done_reader_.reset();
+  dones_reader_.reset();
   announce_writer_.reset();
   grant_writer_.reset();
   control_writer_.reset();
@@ -83,10 +84,26 @@ void CoordinatorService::setup() {
       topics::kFrameDone, profiles::kProtocolReader,
       [this](msg::FrameDone&& m, const fdds::SampleInfo& info) {
         try {
+          count_done_sample();
           on_done(from_dds(m), to_string(writer_prefix(info)));
         } catch (const std::exception& e) {
           malformed("frame_done from " + m.member_id(), e.what());
         }
+      });
+  // Several members' dones from one process: each counts as if it had come alone.
+  dones_reader_ = participant_->make_reader<msg::FrameDones>(
+      topics::kFrameDones, profiles::kProtocolReader,
+      [this](msg::FrameDones&& m, const fdds::SampleInfo& info) {
+        proto::FrameDonesMsg batch;
+        try {
+          count_done_sample();
+          batch = from_dds(m);
+        } catch (const std::exception& e) {
+          malformed("frame_dones from participant " + to_string(writer_prefix(info)), e.what());
+          return;
+        }
+        const std::string writer = to_string(writer_prefix(info));
+        for (const auto& d : batch.dones) on_done(d, writer);
       });
   std::lock_guard lock(mutex_);
   announce_locked();
@@ -230,6 +247,11 @@ void CoordinatorService::on_process_exit(const std::string& guid) {
   note_recovering_locked();
   replay_held_locked();
   advance_locked();
+}
+
+void CoordinatorService::count_done_sample() {
+  std::lock_guard lock(mutex_);
+  ++done_samples_;
 }
 
 void CoordinatorService::on_done(const proto::FrameDoneMsg& d, const std::string& writer) {
@@ -585,10 +607,13 @@ void CoordinatorService::write_status_locked(const std::string& state, int exit_
   // recorder: frames completed, simulated and wall time, and their ratio.
   if (state == "completed") {
     const auto& s = result_.stats;
+    // done_samples: the FrameDone and FrameDones samples received (a process with several
+    // members sends one per frame for all of them).
     j["stats"] = {{"frames", s.frames},
                   {"sim_time_s", s.sim_time_s},
                   {"wall_time_s", s.wall_time_s},
-                  {"real_time_factor", s.real_time_factor}};
+                  {"real_time_factor", s.real_time_factor},
+                  {"done_samples", done_samples_}};
   }
   j["reason"] = result_.reason;
   j["exit_code"] = exit_code;

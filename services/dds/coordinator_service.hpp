@@ -75,6 +75,7 @@ class CoordinatorService {
   /// Once the member is awaited, they are taken as its return.
   void replay_held_locked();
   void on_done(const proto::FrameDoneMsg& done, const std::string& writer);
+  void count_done_sample();
   /// Writes the coordinator's announcement with the current admitted and refused lists.
   void announce_locked();
   /// The files that make a member's fingerprint differ, or the hint how to find them.
@@ -140,6 +141,8 @@ class CoordinatorService {
   std::unique_ptr<Writer<msg::RunControl>> control_writer_;
   std::unique_ptr<Reader<msg::MemberAnnounce>> announce_reader_;
   std::unique_ptr<Reader<msg::FrameDone>> done_reader_;
+  std::unique_ptr<Reader<msg::FrameDones>> dones_reader_;  // processes with several members
+  std::uint64_t done_samples_ = 0;  // FrameDone and FrameDones samples received (status file)
 };
 
 }  // namespace syndds::dds

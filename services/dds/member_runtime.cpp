@@ -9,6 +9,7 @@
 #include "core/build_identity.hpp"
 #include "core/error.hpp"
 #include "dds/convert.hpp"
+#include "dds/done_batch.hpp"
 #include "protocol/admission.hpp"
 #include "protocol/local_runner.hpp"
 #include "record/checkpoint.hpp"
@@ -400,6 +401,10 @@ void MemberRuntime::send_done(std::int64_t frame, const proto::Manifest& publish
   d.checkpoint_bytes = finished || !error.empty() ? 0 : checkpoint_bytes_;
   d.epoch = session_->epoch();
   d.body = std::move(body);
+  if (options_.done_batch && !finished && error.empty()) {
+    options_.done_batch->add(std::move(d));
+    return;
+  }
   if (!done_writer_->write(to_dds(d))) throw std::runtime_error("DDS refused a frame_done sample");
 }
 
@@ -469,6 +474,14 @@ void MemberRuntime::run_frame(const proto::FrameContext& ctx,
 int MemberRuntime::end_run(const proto::MemberSession::Action& end) {
   using Outcome = proto::MemberSession::Outcome;
   end_reason_ = end.control.reason;
+  if (options_.done_batch) {
+    // This member answers no more grants: the process's other members no longer wait for it.
+    try {
+      options_.done_batch->leave(agent_.member_id());
+    } catch (const std::exception& e) {
+      spdlog::warn("{}: {}", agent_.member_id(), e.what());
+    }
+  }
   bool coordinator_lost = false;
   {
     std::lock_guard lock(mutex_);

@@ -24,6 +24,8 @@
 
 namespace syndds::dds {
 
+class DoneBatch;
+
 struct MemberRuntimeOptions {
   DdsOptions dds;
   std::uint64_t config_fingerprint = 0;
@@ -43,6 +45,9 @@ struct MemberRuntimeOptions {
   /// last DDS exchanges (flushing, confirming): nothing after it changes this member's outcome
   /// (see service::DdsTeardownGuard).
   std::function<void(int)> on_outcome;
+  /// A process hosting several members: their regular dones go out together through it (one
+  /// sample per grant, created on the members' shared participant); null: each done alone.
+  std::shared_ptr<DoneBatch> done_batch;
 
   // Test knobs (never set by the launcher):
   int debug_frame_delay_ms = 0;    // sleep this long in every frame: a slow process

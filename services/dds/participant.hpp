@@ -70,6 +70,7 @@ namespace topics {
 inline constexpr const char* kMemberAnnounce = "syndds/member_announce";
 inline constexpr const char* kFrameGrant = "syndds/frame_grant";
 inline constexpr const char* kFrameDone = "syndds/frame_done";
+inline constexpr const char* kFrameDones = "syndds/frame_dones";
 inline constexpr const char* kRunControl = "syndds/run_control";
 std::string data(proto::Topic topic);  // "syndds/vehicle_state", ...
 }  // namespace topics

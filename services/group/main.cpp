@@ -14,6 +14,7 @@
 
 #include "agents/agent_factory.hpp"
 #include "common/service_cli.hpp"
+#include "dds/done_batch.hpp"
 #include "dds/member_runtime.hpp"
 #include "core/error.hpp"
 #include "learn/register_policy_controller.hpp"
@@ -75,9 +76,13 @@ int main(int argc, char** argv) {
     std::vector<int> outcomes;
     std::optional<service::DdsTeardownGuard> leaving;
     auto participant = std::make_shared<sdds::Participant>(dds);
+    // The members' dones of each frame go to the coordinator as one sample.
+    std::shared_ptr<sdds::DoneBatch> batch;
+    if (members.size() > 1) batch = std::make_shared<sdds::DoneBatch>(participant);
     std::vector<std::unique_ptr<sdds::MemberRuntime>> runtimes;
     for (std::size_t i = 0; i < agents.size(); ++i) {
       auto options = service::member_options(common, debug, s, members[i]);
+      options.done_batch = batch;
       options.on_outcome = [&](int code) {
         std::lock_guard lock(outcome_mutex);
         outcomes.push_back(code);
@@ -98,6 +103,12 @@ int main(int argc, char** argv) {
           } catch (const std::exception& e) {
             spdlog::error("{}: failed: {}", members[i], e.what());
             codes[i] = sdds::kExitFailed;
+            if (batch) {
+              try {
+                batch->leave(members[i]);
+              } catch (const std::exception&) {
+              }
+            }
           }
         });
       }
@@ -114,6 +125,8 @@ int main(int argc, char** argv) {
     {
       service::DdsTeardownGuard guard(code);
       for (auto& r : runtimes) r->close();
+      runtimes.clear();  // they hold the batch, the batch and they the participant
+      batch.reset();
       participant.reset();
     }
     return code;

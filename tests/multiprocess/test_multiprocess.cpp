@@ -765,6 +765,17 @@ TEST(ProcessLayout, GroupedMembersGiveByteIdenticalResultsOnSoil) {
       EXPECT_EQ(read_file(out / f), read_file(run.dir / "single" / f)) << layout << " " << f;
     }
     EXPECT_EQ(grid_hash(out), single_hash) << layout;
+    // A process with several members answers each grant with one sample for all of them: the
+    // coordinator received about one done sample per frame and process, not per member (plus
+    // frame 0's, which go alone, and each member's reply to the verdict).
+    const auto status = nlohmann::json::parse(read_file(out / "logs" / "run_status.json"));
+    const auto frames = status["stats"]["frames"].get<std::uint64_t>();
+    const auto samples = status["stats"]["done_samples"].get<std::uint64_t>();
+    const auto members =
+        nlohmann::json::parse(read_file(out / "summary.json"))["members"].size();
+    const std::uint64_t senders = processes.size() - 1;  // all but the coordinator
+    EXPECT_GT(members, senders) << layout;
+    EXPECT_LE(samples, frames * senders + 2 * members) << layout;
   }
 }
 
