@@ -162,6 +162,14 @@ dds::DdsOptions dds_options(const CommonArgs& a, const scenario::Scenario& s) {
       a.dds_profiles.empty() ? (std::filesystem::path(a.config_dir) / "dds" / "profiles.xml").string()
                              : a.dds_profiles;
   d.security_dir = a.security_dir.empty() ? s.dds.security_dir : a.security_dir;
+  if (a.rejoin) {
+    // A killed process leaves its Fast DDS shared-memory ports behind, and a participant that
+    // reuses them (the restarted process gets the dead one's participant id) is never heard
+    // by the others, which still hold the dead port (measured: the rejoin timed out in 1 of 4
+    // restarts of one member, in 3 of 3 of a group process, whose participant was made here
+    // and not through member_options). Over UDP it is a new address to every peer.
+    if (d.transport == "default") d.transport = "udp";
+  }
   return d;
 }
 
@@ -188,13 +196,6 @@ dds::MemberRuntimeOptions member_options(const CommonArgs& a, const DebugArgs& d
   }
   if (!a.resume_from.empty()) o.resume_frame = resume_frame(a, a.run_dir);
   o.rejoin = a.rejoin;
-  if (a.rejoin) {
-    // A killed process leaves its Fast DDS shared-memory ports behind, and a participant that
-    // reuses them (the restarted process gets the dead one's participant id) is never heard
-    // by the others, which still hold the dead port (measured: the rejoin timed out in 1 of 4
-    // restarts). Over UDP it is a new address to every peer.
-    if (o.dds.transport == "default") o.dds.transport = "udp";
-  }
   if (a.rejoin && s.coordinator.on_member_loss != proto::LossPolicy::recover) {
     throw ConfigError("--rejoin: " + s.file + " does not recover lost members "
                       "(coordinator.on_member_loss is not recover)");

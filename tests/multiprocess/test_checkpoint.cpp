@@ -363,6 +363,26 @@ TEST(Checkpoint, EveryKindOfMemberKilledIsRecoveredByteIdentical) {
   }
 }
 
+// A process hosting several members (processes: per_vehicle: vehicle a, its controller and its
+// sensor process in one) killed mid-run is restarted whole; its members rejoin together and the
+// run ends byte-identical. (The restarted group's participant once reused the dead one's
+// shared-memory ports and was never heard: every such recovery timed out.)
+TEST(Checkpoint, AKilledGroupProcessIsRecoveredByteIdentical) {
+  TestRun run;
+  const fs::path want = reference(run);
+  const fs::path out = run.dir / "out";
+  auto launcher = start_launcher(run, kScenario, "--processes per_vehicle");
+  const auto rows = [&] { return count_lines(read_file(out / "vehicles.csv")); };
+  kill_member_when(*launcher, out, "group/a", [&] { return any_complete(out) && rows() > 700u; });
+  if (HasFatalFailure()) return;
+  const std::string recoveries = read_file(out / "recoveries.csv");
+  for (const std::string member : {"vehicle/a", "controller/a", "sensor/a"}) {
+    EXPECT_NE(recoveries.find("," + member + ",\"its process exited\""), std::string::npos)
+        << member << "\n" << recoveries;
+  }
+  expect_same_run(want, out);
+}
+
 // The launcher decides nothing on log text: with --log-level error (no info line of the
 // coordinator's is written) a run completes without anything stopped, and a vehicle killed
 // mid-run under recover is restarted and the run ends byte-identical.
