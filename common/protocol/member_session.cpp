@@ -48,9 +48,14 @@ void MemberSession::on_rolled_back(FrameSamples inputs, double now_s) {
 }
 
 void MemberSession::on_grant(FrameGrantMsg grant, double now_s) {
+  const Manifest manifest = std::move(grant.manifest);
+  on_grant(std::move(grant), manifest, now_s);
+}
+
+void MemberSession::on_grant(FrameGrantMsg grant, const Manifest& manifest, double now_s) {
   // The manifest names every member's samples; this member waits for and takes only those it
   // subscribes to, so it keeps only their entries (checked for every sample that arrives).
-  grant.manifest = inbox_.needed(grant.manifest);
+  grant.manifest = inbox_.needed(manifest);
   grants_.push_back(std::move(grant));
 }
 

@@ -78,6 +78,10 @@ class MemberSession {
   /// Events. on_coordinator returns a non-empty message when the announcement is refused.
   std::string on_coordinator(const MemberAnnounceMsg& announce, double now_s);
   void on_grant(FrameGrantMsg grant, double now_s);
+  /// The same, with the grant's manifest apart (grant.manifest is ignored): a process that
+  /// decodes a grant once for several members hands each the manifest by reference, and each
+  /// keeps only its own entries.
+  void on_grant(FrameGrantMsg grant, const Manifest& manifest, double now_s);
   void on_control(RunControlMsg control, double now_s);
   void on_coordinator_lost(double now_s);
   /// The coordinator's process exited, or its DDS lease expired: nothing sent to it is read.

@@ -10,6 +10,7 @@
 #include "core/error.hpp"
 #include "dds/convert.hpp"
 #include "dds/done_batch.hpp"
+#include "dds/grant_hub.hpp"
 #include "protocol/admission.hpp"
 #include "protocol/local_runner.hpp"
 #include "record/checkpoint.hpp"
@@ -92,6 +93,8 @@ void MemberRuntime::close() {
   coordinator_watch_.stop();
   announce_reader_.reset();
   grant_reader_.reset();
+  if (options_.grant_hub && grant_hub_id_ >= 0) options_.grant_hub->remove(grant_hub_id_);
+  grant_hub_id_ = -1;
   control_reader_.reset();
   std::apply([](auto&... r) { (r.reset(), ...); }, data_readers_);
   announce_writer_.reset();
@@ -146,15 +149,29 @@ void MemberRuntime::setup() {
           cv_.notify_all();
         });
       });
-  grant_reader_ = participant_->make_reader<msg::FrameGrant>(
-      topics::kFrameGrant, profiles::kProtocolReader, [this, guard](msg::FrameGrant&& m) {
-        guard("frame_grant", [&] {
-          auto g = from_dds(m);
+  if (options_.grant_hub) {
+    grant_hub_id_ = options_.grant_hub->add(
+        [this](proto::FrameGrantMsg g, const proto::Manifest& manifest) {
           std::unique_lock lock(mutex_);
-          session_->on_grant(std::move(g), now());
+          session_->on_grant(std::move(g), manifest, now());
+          cv_.notify_all();
+        },
+        [this](const std::string& why) {
+          std::lock_guard lock(mutex_);
+          session_->on_failure("received a malformed frame_grant sample: " + why, now());
           cv_.notify_all();
         });
-      });
+  } else {
+    grant_reader_ = participant_->make_reader<msg::FrameGrant>(
+        topics::kFrameGrant, profiles::kProtocolReader, [this, guard](msg::FrameGrant&& m) {
+          guard("frame_grant", [&] {
+            auto g = from_dds(m);
+            std::unique_lock lock(mutex_);
+            session_->on_grant(std::move(g), now());
+            cv_.notify_all();
+          });
+        });
+  }
   control_reader_ = participant_->make_reader<msg::RunControl>(
       topics::kRunControl, profiles::kProtocolReader, [this, guard](msg::RunControl&& m) {
         guard("run_control", [&] {

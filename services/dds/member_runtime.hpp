@@ -25,6 +25,7 @@
 namespace syndds::dds {
 
 class DoneBatch;
+class GrantHub;
 
 struct MemberRuntimeOptions {
   DdsOptions dds;
@@ -48,6 +49,9 @@ struct MemberRuntimeOptions {
   /// A process hosting several members: their regular dones go out together through it (one
   /// sample per grant, created on the members' shared participant); null: each done alone.
   std::shared_ptr<DoneBatch> done_batch;
+  /// The same process's grant reader, shared: each grant is decoded once for all its members
+  /// (created before any of them announces itself); null: the member reads grants itself.
+  std::shared_ptr<GrantHub> grant_hub;
 
   // Test knobs (never set by the launcher):
   int debug_frame_delay_ms = 0;    // sleep this long in every frame: a slow process
@@ -173,6 +177,7 @@ class MemberRuntime {
   bool writes_patches_ = false;  // the agent declared terrain_patch
   std::unique_ptr<Reader<msg::MemberAnnounce>> announce_reader_;
   std::unique_ptr<Reader<msg::FrameGrant>> grant_reader_;
+  int grant_hub_id_ = -1;  // with options_.grant_hub: this member's handlers there
   std::unique_ptr<Reader<msg::RunControl>> control_reader_;
   typename PerTopic<DataReaderPtr, AllTopics>::type data_readers_;
 

@@ -15,6 +15,7 @@
 #include "agents/agent_factory.hpp"
 #include "common/service_cli.hpp"
 #include "dds/done_batch.hpp"
+#include "dds/grant_hub.hpp"
 #include "dds/member_runtime.hpp"
 #include "core/error.hpp"
 #include "learn/register_policy_controller.hpp"
@@ -76,13 +77,19 @@ int main(int argc, char** argv) {
     std::vector<int> outcomes;
     std::optional<service::DdsTeardownGuard> leaving;
     auto participant = std::make_shared<sdds::Participant>(dds);
-    // The members' dones of each frame go to the coordinator as one sample.
+    // One grant reader for all members (each grant decoded once), and their dones of each
+    // frame to the coordinator as one sample.
+    std::shared_ptr<sdds::GrantHub> grants;
     std::shared_ptr<sdds::DoneBatch> batch;
-    if (members.size() > 1) batch = std::make_shared<sdds::DoneBatch>(participant);
+    if (members.size() > 1) {
+      grants = std::make_shared<sdds::GrantHub>(participant);
+      batch = std::make_shared<sdds::DoneBatch>(participant);
+    }
     std::vector<std::unique_ptr<sdds::MemberRuntime>> runtimes;
     for (std::size_t i = 0; i < agents.size(); ++i) {
       auto options = service::member_options(common, debug, s, members[i]);
       options.done_batch = batch;
+      options.grant_hub = grants;
       options.on_outcome = [&](int code) {
         std::lock_guard lock(outcome_mutex);
         outcomes.push_back(code);
@@ -125,7 +132,8 @@ int main(int argc, char** argv) {
     {
       service::DdsTeardownGuard guard(code);
       for (auto& r : runtimes) r->close();
-      runtimes.clear();  // they hold the batch, the batch and they the participant
+      runtimes.clear();  // they hold the hub and the batch, all of them the participant
+      grants.reset();
       batch.reset();
       participant.reset();
     }
