@@ -11,6 +11,7 @@
 #include "agents/agent_factory.hpp"
 #include "dds/coordinator_service.hpp"
 #include "dds/member_runtime.hpp"
+#include "dds_test_util.hpp"
 #include "protocol/local_runner.hpp"
 
 using namespace syndds;
@@ -28,13 +29,7 @@ std::string read_file(const fs::path& p) {
   return s.str();
 }
 
-sdds::DdsOptions dds_options(int domain, const std::string& run_id) {
-  sdds::DdsOptions o;
-  o.domain_id = domain;
-  o.run_id = run_id;
-  o.profiles_file = kConfig + "/dds/profiles.xml";
-  return o;
-}
+using dds_test::options;
 
 }  // namespace
 
@@ -54,7 +49,7 @@ TEST(InProcessDds, RunMatchesTheLocalRunner) {
   const int domain = 230;
   const std::string run_id = "inproc-" + std::to_string(getpid());
   sdds::CoordinatorOptions co;
-  co.dds = dds_options(domain, run_id);
+  co.dds = options(domain, run_id);
   co.config_fingerprint = s.fingerprint;
   co.barrier.members = s.member_ids();
   co.barrier.final_frame = s.time.final_frame();
@@ -69,7 +64,7 @@ TEST(InProcessDds, RunMatchesTheLocalRunner) {
   for (std::size_t i = 0; i < agents.size(); ++i) {
     threads.emplace_back([&, i] {
       sdds::MemberRuntimeOptions mo;
-      mo.dds = dds_options(domain, run_id);
+      mo.dds = options(domain, run_id);
       mo.config_fingerprint = s.fingerprint;
       mo.heartbeat_s = s.time.heartbeat_s;
       sdds::MemberRuntime runtime(*agents[i], mo);

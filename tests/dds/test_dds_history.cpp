@@ -19,6 +19,7 @@
 #include "core/error.hpp"
 #include "dds/convert.hpp"
 #include "dds/participant.hpp"
+#include "dds_test_util.hpp"
 
 using namespace syndds;
 namespace sdds = syndds::dds;
@@ -26,17 +27,10 @@ namespace fdds = eprosima::fastdds::dds;
 
 namespace {
 
-const std::string kConfig = SYNDDS_TEST_CONFIG_DIR;
 constexpr int kDataWriterDepth = 8;  // config/dds/profiles.xml, data_writer (terrain topics)
 constexpr int kDomain = 61;
 
-sdds::DdsOptions options(const std::string& run_id) {
-  sdds::DdsOptions o;
-  o.domain_id = kDomain;
-  o.run_id = run_id;
-  o.profiles_file = kConfig + "/dds/profiles.xml";
-  return o;
-}
+sdds::DdsOptions options(const std::string& run_id) { return dds_test::options(kDomain, run_id); }
 
 msg::TerrainDeformation deformation(const std::string& vehicle, std::int64_t frame) {
   proto::TerrainDeformationMsg d;
@@ -48,16 +42,7 @@ msg::TerrainDeformation deformation(const std::string& vehicle, std::int64_t fra
   return sdds::to_dds(d);
 }
 
-// Polls `done` every 10 ms for at most `limit_s`; true once it holds.
-template <typename F>
-bool wait_until(F done, double limit_s) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > end) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return true;
-}
+using dds_test::wait_until;
 
 int matched_readers(sdds::Writer<msg::TerrainDeformation>& w) {
   fdds::PublicationMatchedStatus s;

@@ -3,12 +3,11 @@
 // (dds::DoneBatch). These count what arrives; they do not time.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <map>
 #include <mutex>
-#include <thread>
 
 #include "dds/convert.hpp"
+#include "dds_test_util.hpp"
 #include "dds/done_batch.hpp"
 #include "dds/grant_hub.hpp"
 #include "dds/participant.hpp"
@@ -18,27 +17,10 @@ namespace sdds = syndds::dds;
 
 namespace {
 
-const std::string kConfig = SYNDDS_TEST_CONFIG_DIR;
 constexpr int kDomain = 62;
 
-sdds::DdsOptions options(const std::string& run_id) {
-  sdds::DdsOptions o;
-  o.domain_id = kDomain;
-  o.run_id = run_id;
-  o.profiles_file = kConfig + "/dds/profiles.xml";
-  return o;
-}
-
-// Polls `done` every 10 ms for at most `limit_s`; true once it holds.
-template <typename F>
-bool wait_until(F done, double limit_s) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > end) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return true;
-}
+sdds::DdsOptions options(const std::string& run_id) { return dds_test::options(kDomain, run_id); }
+using dds_test::wait_until;
 
 proto::FrameDoneMsg done_of(const std::string& member, std::int64_t frame) {
   proto::FrameDoneMsg d;
