@@ -16,7 +16,8 @@ double antenna_x(const scenario::VehicleConfig& v) {
 }  // namespace
 
 convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
-                                         const scenario::VehicleConfig* leader) {
+                                         const scenario::VehicleConfig* leader,
+                                         const scenario::VehicleConfig* trail_source) {
   const vehicle::VehicleParams& p = own.params;
   convoy::FollowerVehicle v;
   v.wheelbase_m = p.wheelbase_m();
@@ -35,6 +36,7 @@ convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
     v.leader_rear_m = c.half_extents_m.x() - c.box_centre_m.x() + antenna_x(*leader);
     v.leader_wheelbase_m = leader->params.wheelbase_m();
   }
+  if (trail_source) v.trail_wheelbase_m = trail_source->params.wheelbase_m();
   return v;
 }
 
@@ -47,9 +49,12 @@ FollowerAgent::FollowerAgent(const scenario::Scenario& scenario,
                              const scenario::VehicleConfig& vehicle)
     : vehicle_id_(vehicle.id),
       leader_id_(vehicle.controller.convoy.leader),
+      trail_of_(vehicle.controller.convoy.trail_of == leader_id_ ? ""
+                                                                 : vehicle.controller.convoy.trail_of),
       member_id_(scenario::controller_member(vehicle.id)),
       follower_(vehicle.controller.convoy,
-                follower_vehicle(vehicle, scenario.find_vehicle(vehicle.controller.convoy.leader)),
+                follower_vehicle(vehicle, scenario.find_vehicle(vehicle.controller.convoy.leader),
+                                 scenario.find_vehicle(vehicle.controller.convoy.trail_of)),
                 follower_converter(vehicle)),
       radar_(!vehicle.controller.convoy.radar_sensor.empty()) {}
 
@@ -58,6 +63,7 @@ std::vector<proto::Subscription> FollowerAgent::subscriptions() const {
                                            {proto::Topic::magnetometer, vehicle_id_},
                                            {proto::Topic::wheel_speeds, vehicle_id_},
                                            {proto::Topic::v2v_message, leader_id_}};
+  if (!trail_of_.empty()) subs.push_back({proto::Topic::v2v_message, trail_of_});
   if (radar_) subs.push_back({proto::Topic::radar, vehicle_id_});
   return subs;
 }

@@ -10,9 +10,10 @@
 namespace syndds::agents {
 
 /// What a convoy follower knows of its own vehicle and, from the scenario, of the one it
-/// follows (may be null): dimensions, not states.
+/// follows and of its trail's source (either may be null): dimensions, not states.
 convoy::FollowerVehicle follower_vehicle(const scenario::VehicleConfig& own,
-                                         const scenario::VehicleConfig* leader);
+                                         const scenario::VehicleConfig* leader,
+                                         const scenario::VehicleConfig* trail_source = nullptr);
 /// The follower converts latitude / longitude with its own (first) GPS's origin and model.
 sensors::GeodeticConverter follower_converter(const scenario::VehicleConfig& v);
 
@@ -39,6 +40,7 @@ class FollowerAgent final : public proto::Agent {
  private:
   std::string vehicle_id_;
   std::string leader_id_;
+  std::string trail_of_;  // the trail's source when not the leader (controller trail: head)
   std::string member_id_;
   convoy::ConvoyFollower follower_;
   bool radar_ = false;  // reads its own radar's scans (controller radar.sensor)

@@ -121,85 +121,85 @@ void ConvoyFollower::update_own(double time_s, double dt, const OwnReadings& own
   }
 }
 
-bool ConvoyFollower::update_leader(double time_s, double dt,
-                                   const std::vector<proto::V2VMessageMsg>& msgs) {
-  if (leader_) {
-    const double slip = mid_slip(vehicle_.leader_wheelbase_m, leader_yaw_rate_, leader_->speed);
-    const double heading = leader_->yaw + 0.5 * leader_yaw_rate_ * dt + slip;
-    leader_->position += leader_->speed * dt * direction(heading);
-    leader_->yaw = wrap_angle(leader_->yaw + leader_yaw_rate_ * dt);
+bool ConvoyFollower::track(Tracked& t, const std::string& id, double wheelbase_m, double time_s,
+                           double dt, const std::vector<proto::V2VMessageMsg>& msgs) const {
+  if (t.estimate) {
+    auto& e = *t.estimate;
+    const double slip = mid_slip(wheelbase_m, t.yaw_rate, e.speed);
+    const double heading = e.yaw + 0.5 * t.yaw_rate * dt + slip;
+    e.position += e.speed * dt * direction(heading);
+    e.yaw = wrap_angle(e.yaw + t.yaw_rate * dt);
   }
   bool fused = false;
   for (const auto& m : msgs) {
-    if (m.vehicle_id != config_.leader) continue;
+    if (m.vehicle_id != id) continue;
     // A message older than one already used (reordered, replayed) tells nothing new.
-    if (has_leader_sequence_ && m.sequence <= leader_sequence_) continue;
-    leader_sequence_ = m.sequence;
-    has_leader_sequence_ = true;
-    leader_seen_s_ = std::max(leader_seen_s_, m.sensor_time_s);
+    if (t.has_sequence && m.sequence <= t.sequence) continue;
+    t.sequence = m.sequence;
+    t.has_sequence = true;
+    t.seen_s = std::max(t.seen_s, m.sensor_time_s);
     const Vec3 enu = converter_.to_enu({m.latitude_deg, m.longitude_deg, m.altitude_m});
     const double yaw = yaw_from_heading(m.heading_rad);
     const double age = std::max(0.0, time_s - m.sensor_time_s);
-    if (!leader_) {
+    if (!t.estimate) {
       const Vec2 now = Vec2(enu.x(), enu.y()) + m.speed_mps * age * direction(yaw);
-      leader_ = Estimate{now, yaw, m.speed_mps};
+      t.estimate = Estimate{now, yaw, m.speed_mps};
     } else {
       // Acceleration and yaw rate: the changes of the tachometer speed and of the compass
       // heading since the previous message, over the time between their arrivals (a fixed
       // number of frames after each was built); the yaw rate smoothed over about two messages.
-      const double between = time_s - leader_speed_time_s_;
-      if (leader_speed_time_s_ >= 0.0 && between > 1e-9) {
-        leader_accel_ = std::clamp((m.speed_mps - leader_speed_) / between, -kMaxDecelMps2,
-                                   kMaxAccelMps2);
-        const double rate =
-            std::clamp(wrap_angle(yaw - leader_heading_yaw_) / between, -2.0, 2.0);
-        leader_yaw_rate_ += 0.5 * (rate - leader_yaw_rate_);
+      const double between = time_s - t.speed_time_s;
+      if (t.speed_time_s >= 0.0 && between > 1e-9) {
+        t.accel = std::clamp((m.speed_mps - t.speed) / between, -kMaxDecelMps2, kMaxAccelMps2);
+        const double rate = std::clamp(wrap_angle(yaw - t.heading_yaw) / between, -2.0, 2.0);
+        t.yaw_rate += 0.5 * (rate - t.yaw_rate);
       }
-      const double slip = mid_slip(vehicle_.leader_wheelbase_m, leader_yaw_rate_, m.speed_mps);
+      const double slip = mid_slip(wheelbase_m, t.yaw_rate, m.speed_mps);
       const Vec2 now = Vec2(enu.x(), enu.y()) + m.speed_mps * age * direction(yaw + slip);
-      const double first = 1.0 / static_cast<double>(++leader_fixes_ + 1);
-      fuse(leader_->position, now, yaw, std::max(config_.leader_fix_gain, first),
+      const double first = 1.0 / static_cast<double>(++t.fixes + 1);
+      fuse(t.estimate->position, now, yaw, std::max(config_.leader_fix_gain, first),
            std::max(kAcrossShare * config_.leader_fix_gain, first));
-      leader_->yaw = yaw;
-      leader_->speed = m.speed_mps;
+      t.estimate->yaw = yaw;
+      t.estimate->speed = m.speed_mps;
     }
-    leader_speed_ = m.speed_mps;
-    leader_heading_yaw_ = yaw;
-    leader_speed_time_s_ = time_s;
+    t.speed = m.speed_mps;
+    t.heading_yaw = yaw;
+    t.speed_time_s = time_s;
     fused = true;
   }
   return fused;
 }
 
 void ConvoyFollower::extend_trail() {
+  const Estimate& source = *trail_source().estimate;
   if (trail_.empty()) {
-    // The trail starts where the follower stands: the stretch to the leader's first reported
-    // position is the one part it has not seen the leader drive (its direction is its yaw).
+    // The trail starts where the follower stands: the stretch to the source's first reported
+    // position is the one part it has not seen the source drive (its direction is its yaw).
     trail_.push_back(own_->position);
-    trail_yaw_.push_back(leader_->yaw);
+    trail_yaw_.push_back(source.yaw);
     trail_s_.push_back(0.0);
   }
-  // Only a moving leader lays crumbs: standing, its estimate wanders with the GPS noise, and
+  // Only a moving source lays crumbs: standing, its estimate wanders with the GPS noise, and
   // crumbs laid back and forth would lengthen the trail (the gap) that is not there.
-  const double d = (leader_->position - trail_.back()).norm();
-  if (d < config_.crumb_spacing_m || leader_->speed < kMovingMps) return;
+  const double d = (source.position - trail_.back()).norm();
+  if (d < config_.crumb_spacing_m || source.speed < kMovingMps) return;
   if (trail_.size() == 1 && d > 1.0) {
-    const Vec2 to = leader_->position - trail_.back();
+    const Vec2 to = source.position - trail_.back();
     trail_yaw_[0] = std::atan2(to.y(), to.x());
   }
-  trail_.push_back(leader_->position);
-  trail_yaw_.push_back(leader_->yaw);
+  trail_.push_back(source.position);
+  trail_yaw_.push_back(source.yaw);
   trail_s_.push_back(trail_s_.back() + d);
 }
 
-ConvoyFollower::Projection ConvoyFollower::projection(const Vec2& p) const {
+ConvoyFollower::Projection ConvoyFollower::projection(const Vec2& p, std::size_t from) const {
   // Search forward from the last segment: progress is monotone, so a trail that loops back
   // near itself is never taken by its later part too early.
   double best_d2 = std::numeric_limits<double>::infinity();
   Projection best;
-  best.s = trail_s_.empty() ? 0.0 : trail_s_[trail_index_];
-  best.index = trail_index_;
-  for (std::size_t i = trail_index_; i + 1 < trail_.size(); ++i) {
+  best.s = trail_s_.empty() ? 0.0 : trail_s_[from];
+  best.index = from;
+  for (std::size_t i = from; i + 1 < trail_.size(); ++i) {
     const Vec2 a = trail_[i];
     const Vec2 ab = trail_[i + 1] - a;
     const double len2 = ab.squaredNorm();
@@ -219,6 +219,10 @@ ConvoyFollower::Projection ConvoyFollower::projection(const Vec2& p) const {
   return best;
 }
 
+ConvoyFollower::Projection ConvoyFollower::leader_on_trail() const {
+  return projection(lead_.estimate->position, std::max(leader_index_, trail_index_));
+}
+
 double ConvoyFollower::project_on_trail(const Vec2& p) {
   const Projection pr = projection(p);
   trail_index_ = pr.index;
@@ -226,9 +230,26 @@ double ConvoyFollower::project_on_trail(const Vec2& p) {
   return pr.s;
 }
 
+double ConvoyFollower::centres_to_leader(double s_here) const {
+  const Estimate& leader = *lead_.estimate;
+  if (trail_apart()) {
+    // The leader drives on the trail (the source's): its projection on it, or beyond the
+    // trail's end along its heading, as when the trail is its own.
+    const Projection pr = leader_on_trail();
+    const double beyond =
+        pr.s < trail_length() ? 0.0 : (leader.position - trail_.back()).dot(direction(leader.yaw));
+    return pr.s - s_here + std::max(0.0, beyond);
+  }
+  // The leader's estimate beyond the newest crumb, signed along the leader's heading (it may
+  // lie behind it: the GPS pulled the estimate back after the crumb was laid).
+  const double beyond = (leader.position - trail_.back()).dot(direction(leader.yaw));
+  return std::max(0.0, trail_length() - s_here) + beyond;
+}
+
 TrailFeatures ConvoyFollower::trail_features() const {
   TrailFeatures f;
-  if (!own_ || !leader_ || trail_.empty()) return f;
+  if (!own_ || !lead_.estimate || !trail_source().estimate || trail_.empty()) return f;
+  const Estimate& leader = *lead_.estimate;
   f.valid = true;
   const Projection pr = projection(own_->position);
   f.cross_track_m = pr.cross_track_m;
@@ -238,11 +259,10 @@ TrailFeatures ConvoyFollower::trail_features() const {
         trail_curvature(pr.s + TrailFeatures::kCurvatureAheadM[i], kCurvatureWindowM);
   }
   f.own_speed_mps = own_->speed;
-  f.leader_speed_mps = leader_->speed;
-  f.leader_accel_mps2 = leader_accel_;
-  const double beyond = (leader_->position - trail_.back()).dot(direction(leader_->yaw));
-  f.gap_m = std::max(0.0, trail_length() - pr.s) + beyond - vehicle_.front_m - vehicle_.leader_rear_m;
-  const Vec2 rel = leader_->position - own_->position;
+  f.leader_speed_mps = leader.speed;
+  f.leader_accel_mps2 = lead_.accel;
+  f.gap_m = centres_to_leader(pr.s) - vehicle_.front_m - vehicle_.leader_rear_m;
+  const Vec2 rel = leader.position - own_->position;
   const Vec2 d = direction(own_->yaw);
   f.leader_forward_m = rel.dot(d);
   f.leader_left_m = d.x() * rel.y() - d.y() * rel.x();
@@ -257,9 +277,9 @@ TrailFeatures ConvoyFollower::trail_features() const {
 
 Vec2 ConvoyFollower::trail_point(double s) const {
   if (s >= trail_length()) {
-    // Past the newest crumb: towards the leader's estimated position.
+    // Past the newest crumb: towards the source's estimated position.
     const Vec2 last = trail_.back();
-    const Vec2 to_leader = leader_->position - last;
+    const Vec2 to_leader = trail_source().estimate->position - last;
     const double rest = to_leader.norm();
     if (rest < 1e-9) return last;
     return last + std::min(1.0, (s - trail_length()) / rest) * to_leader;
@@ -419,24 +439,38 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
                                              std::vector<FollowerEvent>& events) {
   steering_beyond_lock_ = 0.0;
   update_own(time_s, dt, own);
-  const bool fused = update_leader(time_s, dt, leader);
+  bool fused = track(lead_, config_.leader, vehicle_.leader_wheelbase_m, time_s, dt, leader);
+  if (trail_apart()) {
+    fused = track(head_, config_.trail_of, vehicle_.trail_wheelbase_m, time_s, dt, leader);
+  }
   vehicle::DriverInputs hold;
   hold.braking = 1.0;
   if (!own_) return hold;  // no fix or heading yet: stay put
 
-  // Leader lost / found, by the measurement time of its newest message.
-  const double silence = leader_seen_s_ < 0.0 ? time_s : time_s - leader_seen_s_;
+  // Leader lost / found, by the measurement time of its newest message (and of the trail's
+  // source's: without it the trail ends).
+  const auto silence_of = [&](const Tracked& t) {
+    return t.seen_s < 0.0 ? time_s : time_s - t.seen_s;
+  };
+  std::string silent = config_.leader;
+  double silence = silence_of(lead_);
+  if (trail_apart() && silence_of(head_) > silence) {
+    silent = config_.trail_of;
+    silence = silence_of(head_);
+  }
   if (!lost_ && silence > config_.leader_lost_after_s) {
     lost_ = true;
     std::ostringstream detail;
-    detail << "no v2v message from " << config_.leader << " for " << std::fixed
+    detail << "no v2v message from " << silent << " for " << std::fixed
            << std::setprecision(2) << silence << " s";
     events.push_back({"leader_lost", detail.str()});
   } else if (lost_ && silence <= config_.leader_lost_after_s) {
     lost_ = false;
-    events.push_back({"leader_found", "v2v messages from " + config_.leader + " again"});
+    events.push_back({"leader_found", "v2v messages from " + config_.leader +
+                                          (trail_apart() ? " and " + config_.trail_of : "") +
+                                          " again"});
   }
-  if (!leader_) return hold;
+  if (!lead_.estimate || !trail_source().estimate) return hold;
   if (fused || trail_.empty()) extend_trail();
 
   // Steering: the trail's curvature ahead as a feed-forward, the leader's heading there and
@@ -464,12 +498,9 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
                        -max_bicycle_angle(), max_bicycle_angle());
 
   // Spacing: bumper to bumper along the trail.
-  // The leader's estimate beyond the newest crumb, signed along the leader's heading (it may
-  // lie behind it: the GPS pulled the estimate back after the crumb was laid).
-  const double beyond = (leader_->position - trail_.back()).dot(direction(leader_->yaw));
-  const double centres = std::max(0.0, trail_length() - s_here) + beyond;
-  gap_m_ = centres - vehicle_.front_m - vehicle_.leader_rear_m;
-  double v_leader = std::max(leader_->speed, 0.0);
+  if (trail_apart()) leader_index_ = leader_on_trail().index;
+  gap_m_ = centres_to_leader(s_here) - vehicle_.front_m - vehicle_.leader_rear_m;
+  double v_leader = std::max(lead_.estimate->speed, 0.0);
   radar_used_ = false;
   if (radar_time_s_ >= 0.0 && time_s - radar_time_s_ <= config_.radar_max_age_s) {
     const double radar_gap = radar_gap_m_ + radar_range_rate_ * (time_s - radar_time_s_);
@@ -479,7 +510,7 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
       radar_used_ = true;
     }
   }
-  const double decel = -leader_accel_;
+  const double decel = -lead_.accel;
   // Where the leader would stop at its present deceleration, against where the follower would
   // at its own: the difference is room the time gap does not give.
   const double leader_stop = v_leader <= 0.0 ? 0.0
@@ -489,7 +520,7 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
   const double own_stop = v * v / (2.0 * config_.own_decel_mps2);
   desired_gap_m_ = config_.standstill_bumper_m + config_.time_gap_s * v +
                    std::max(0.0, own_stop - leader_stop);
-  const double predicted = std::max(0.0, v_leader + leader_accel_ * config_.anticipation_s);
+  const double predicted = std::max(0.0, v_leader + lead_.accel * config_.anticipation_s);
   const double target = predicted + config_.gap_gain_per_s * (gap_m_ - desired_gap_m_);
   target_speed_ = lost_ ? 0.0 : std::clamp(target, 0.0, config_.max_speed_mps);
   const double signal = speed_pid_.update(target_speed_ - own_->speed, dt);
@@ -519,18 +550,43 @@ vehicle::DriverInputs ConvoyFollower::update(double time_s, double dt, const Own
 namespace syndds::convoy {
 
 template <typename Archive>
+void ConvoyFollower::tracked_io(Archive& a, Tracked& t) {
+  bool has = t.estimate.has_value();
+  a.io(has);
+  if constexpr (std::is_same_v<Archive, core::StateReader>) {
+    if (has) t.estimate.emplace(); else t.estimate.reset();
+  }
+  if (has) {
+    a.io(t.estimate->position);
+    a.io(t.estimate->yaw);
+    a.io(t.estimate->speed);
+  }
+  a.io(t.seen_s);
+  a.io(t.sequence);
+  a.io(t.has_sequence);
+  a.io(t.speed_time_s);
+  a.io(t.accel);
+  a.io(t.speed);
+  a.io(t.heading_yaw);
+  a.io(t.yaw_rate);
+  a.io(t.fixes);
+}
+
+template <typename Archive>
 void ConvoyFollower::state_io(Archive& a) {
-  // Version 2 (before the radar gap) holds no radar detection.
+  // Version 2 (before the radar gap) holds no radar detection; version 3 no trail source
+  // apart from the leader.
   const std::uint32_t version = [&] {
     if constexpr (std::is_same_v<Archive, core::StateReader>) {
-      return a.begin("convoy_follower", 3, 2);
+      return a.begin("convoy_follower", 4, 2);
     } else {
-      a.begin("convoy_follower", 3);
-      return std::uint32_t{3};
+      a.begin("convoy_follower", 4);
+      return std::uint32_t{4};
     }
   }();
   speed_pid_.state_io(a);
-  for (auto* e : {&own_, &leader_}) {
+  // The order of versions 2 and 3: both estimates, then the leader's filter.
+  for (auto* e : {&own_, &lead_.estimate}) {
     bool has = e->has_value();
     a.io(has);
     if constexpr (std::is_same_v<Archive, core::StateReader>) {
@@ -544,16 +600,16 @@ void ConvoyFollower::state_io(Archive& a) {
   }
   a.io(speed_reading_);
   a.io(yaw_reading_);
-  a.io(leader_seen_s_);
-  a.io(leader_sequence_);
-  a.io(has_leader_sequence_);
-  a.io(leader_speed_time_s_);
-  a.io(leader_accel_);
-  a.io(leader_speed_);
-  a.io(leader_heading_yaw_);
-  a.io(leader_yaw_rate_);
+  a.io(lead_.seen_s);
+  a.io(lead_.sequence);
+  a.io(lead_.has_sequence);
+  a.io(lead_.speed_time_s);
+  a.io(lead_.accel);
+  a.io(lead_.speed);
+  a.io(lead_.heading_yaw);
+  a.io(lead_.yaw_rate);
   a.io(own_fixes_);
-  a.io(leader_fixes_);
+  a.io(lead_.fixes);
   a.io(compass_time_s_);
   a.io(own_yaw_rate_);
   a.io(steer_smoothed_);
@@ -576,6 +632,12 @@ void ConvoyFollower::state_io(Archive& a) {
     a.io(radar_gap_m_);
     a.io(radar_range_rate_);
     a.io(radar_used_);
+  }
+  if (version >= 4) {
+    tracked_io(a, head_);
+    std::uint64_t leader_index = leader_index_;
+    a.io(leader_index);
+    leader_index_ = static_cast<std::size_t>(leader_index);
   }
   a.end();
 }

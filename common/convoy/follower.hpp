@@ -45,6 +45,12 @@ namespace syndds::convoy {
 
 struct FollowerConfig {
   std::string leader;                 // vehicle id of the vehicle followed
+  /// Vehicle id whose V2V positions lay the trail the follower steers along; empty (or the
+  /// leader): the leader's own. The convoy's head: every follower steers along the same trail
+  /// and keeps its spacing to the vehicle ahead, so that an offset from the trail is not
+  /// handed down the convoy (behind the leader's trail each follower tracks the one ahead,
+  /// offset included, and the offsets add up in bends).
+  std::string trail_of;
   // Spacing.
   double time_gap_s = 1.0;
   double standstill_bumper_m = 5.0;   // bumper-to-bumper gap when stopped
@@ -81,6 +87,7 @@ struct FollowerVehicle {
   double front_m = 2.35;              // GPS antenna (reference point) to the front bumper
   double leader_rear_m = 2.35;        // the leader's GPS antenna to its rear bumper
   double leader_wheelbase_m = 3.378;
+  double trail_wheelbase_m = 3.378;     // the trail's source (FollowerConfig::trail_of)
   double radar_ahead_of_front_m = 0.0;  // the radar's mount ahead of the front bumper
 };
 
@@ -179,15 +186,17 @@ class ConvoyFollower {
   /// is clamped after it (learn::ConvoyEnv, option teacher_steering_limit).
   double steering_beyond_lock() const { return steering_beyond_lock_; }
   bool leader_lost() const { return lost_; }
-  bool ready() const { return own_.has_value() && leader_.has_value(); }
+  bool ready() const {
+    return own_.has_value() && lead_.estimate.has_value() && trail_source().estimate.has_value();
+  }
   Vec2 position_estimate() const { return own_ ? own_->position : Vec2::Zero(); }
   double yaw_estimate() const { return own_ ? own_->yaw : 0.0; }
-  Vec2 leader_estimate() const { return leader_ ? leader_->position : Vec2::Zero(); }
+  Vec2 leader_estimate() const { return lead_.estimate ? lead_.estimate->position : Vec2::Zero(); }
   /// Bumper-to-bumper gap along the trail, as the follower estimates it.
   double gap_m() const { return gap_m_; }
   double desired_gap_m() const { return desired_gap_m_; }
   double target_speed_mps() const { return target_speed_; }
-  double leader_accel_mps2() const { return leader_accel_; }
+  double leader_accel_mps2() const { return lead_.accel; }
   double cross_track_m() const { return cross_track_m_; }
   double understeer_rad_per_mps2() const { return understeer_; }
   const std::vector<Vec2>& trail() const { return trail_; }
@@ -207,17 +216,44 @@ class ConvoyFollower {
     double yaw = 0.0;     // counter-clockwise from east
     double speed = 0.0;
   };
+  /// A vehicle known from its V2V messages: the leader, and the trail's source when that is
+  /// another vehicle.
+  struct Tracked {
+    std::optional<Estimate> estimate;
+    double seen_s = -1.0;          // measurement time of the newest message
+    std::uint64_t sequence = 0;    // the newest message's
+    bool has_sequence = false;
+    double speed_time_s = -1.0;    // when the previous message's speed arrived (< 0: none)
+    double accel = 0.0;            // m/s2, from consecutive V2V speeds
+    double speed = 0.0;            // the previous message's speed and yaw
+    double heading_yaw = 0.0;
+    double yaw_rate = 0.0;         // rad/s, from consecutive V2V headings
+    std::uint64_t fixes = 0;       // V2V positions fused after the first
+  };
+  template <typename Archive>
+  static void tracked_io(Archive& a, Tracked& t);
   void update_own(double time_s, double dt, const OwnReadings& own);
-  /// Returns true when a new message was fused (a crumb may be laid).
-  bool update_leader(double time_s, double dt, const std::vector<proto::V2VMessageMsg>& msgs);
+  /// Dead-reckons `t` (vehicle `id`, wheelbase `wheelbase_m`) by dt and fuses its new
+  /// messages among `msgs`. Returns true when one was fused (a crumb may be laid).
+  bool track(Tracked& t, const std::string& id, double wheelbase_m, double time_s, double dt,
+             const std::vector<proto::V2VMessageMsg>& msgs) const;
+  /// Whether the trail comes from another vehicle than the leader.
+  bool trail_apart() const { return !config_.trail_of.empty() && config_.trail_of != config_.leader; }
+  const Tracked& trail_source() const { return trail_apart() ? head_ : lead_; }
   void extend_trail();
   struct Projection {
     std::size_t index = 0;       // trail segment
     double s = 0.0;              // arc length
     double cross_track_m = 0.0;  // > 0: left of the trail
   };
-  /// The projection of `p` on the trail, searched forward from the last segment.
-  Projection projection(const Vec2& p) const;
+  /// The projection of `p` on the trail, searched forward from segment `from`.
+  Projection projection(const Vec2& p, std::size_t from) const;
+  Projection projection(const Vec2& p) const { return projection(p, trail_index_); }
+  /// The leader's position on the trail (arc length), searched forward from `leader_index_`.
+  Projection leader_on_trail() const;
+  /// Distance along the trail from the follower's position `s_here` on it to the leader's
+  /// reference point (centre to centre).
+  double centres_to_leader(double s_here) const;
   /// Arc position of the follower's projection on the trail (monotone); keeps it.
   double project_on_trail(const Vec2& p);
   Vec2 trail_point(double s) const;
@@ -241,19 +277,11 @@ class ConvoyFollower {
   sensors::GeodeticConverter converter_;
   control::Pid speed_pid_;
   std::optional<Estimate> own_;
-  std::optional<Estimate> leader_;
+  Tracked lead_;                      // the vehicle followed
+  Tracked head_;                      // the trail's source when it is another (trail_apart)
   double speed_reading_ = 0.0;
   std::optional<double> yaw_reading_;
-  double leader_seen_s_ = -1.0;       // measurement time of the newest leader message
-  std::uint64_t leader_sequence_ = 0;
-  bool has_leader_sequence_ = false;
-  double leader_speed_time_s_ = -1.0; // when the previous message's speed arrived (< 0: none)
-  double leader_accel_ = 0.0;         // m/s2, from consecutive V2V speeds
-  double leader_speed_ = 0.0;         // the previous message's speed and yaw
-  double leader_heading_yaw_ = 0.0;
-  double leader_yaw_rate_ = 0.0;      // rad/s, from consecutive V2V headings
   std::uint64_t own_fixes_ = 0;       // GPS fixes fused after the first
-  std::uint64_t leader_fixes_ = 0;    // V2V positions fused after the first
   double compass_time_s_ = -1.0;      // time of the newest compass reading
   double own_yaw_rate_ = 0.0;         // rad/s, from the compass
   double steer_smoothed_ = 0.0;       // commanded road-wheel angle, smoothed like the yaw rate
@@ -265,6 +293,7 @@ class ConvoyFollower {
   std::vector<double> trail_yaw_;     // the leader's yaw at each crumb
   std::vector<double> trail_s_;       // arc length at each crumb
   std::size_t trail_index_ = 0;       // segment the follower was last projected on
+  std::size_t leader_index_ = 0;      // the leader's, when the trail is another's
   double gap_m_ = 0.0;
   double desired_gap_m_ = 0.0;
   double target_speed_ = 0.0;

@@ -148,12 +148,15 @@ std::vector<float> convoy_heuristic_action(const Observation& o) {
 }
 
 std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,
-                                                             const std::string& leader_id) {
-  return {{proto::Topic::gps_fix, vehicle_id},
-          {proto::Topic::magnetometer, vehicle_id},
-          {proto::Topic::wheel_speeds, vehicle_id},
-          {proto::Topic::image, vehicle_id},
-          {proto::Topic::v2v_message, leader_id}};
+                                                             const std::string& leader_id,
+                                                             const std::string& trail_of) {
+  std::vector<proto::Subscription> subs = {{proto::Topic::gps_fix, vehicle_id},
+                                           {proto::Topic::magnetometer, vehicle_id},
+                                           {proto::Topic::wheel_speeds, vehicle_id},
+                                           {proto::Topic::image, vehicle_id},
+                                           {proto::Topic::v2v_message, leader_id}};
+  if (!trail_of.empty() && trail_of != leader_id) subs.push_back({proto::Topic::v2v_message, trail_of});
+  return subs;
 }
 
 std::vector<proto::Subscription> ConvoyDriverAgent::subscriptions() const {

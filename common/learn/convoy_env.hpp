@@ -177,9 +177,11 @@ inline constexpr int kPerceptionRays = 16;
 inline constexpr double kPerceptionRangeM = 20.0;
 
 /// The subscriptions of a convoy follower's controller: its own GPS, compass, tachometer and
-/// camera samples and the V2V messages of the vehicle it follows.
+/// camera samples and the V2V messages of the vehicle it follows, and of its trail's source
+/// when that is another vehicle (`trail_of`; empty or the leader: none more).
 std::vector<proto::Subscription> convoy_driver_subscriptions(const std::string& vehicle_id,
-                                                             const std::string& leader_id);
+                                                             const std::string& leader_id,
+                                                             const std::string& trail_of = "");
 
 /// The external/<follower> member: observation from its inputs, the action as its command.
 class ConvoyDriverAgent final : public proto::Agent {

@@ -91,7 +91,12 @@ ConvoyObservationConfig convoy_observation_config(const scenario::Scenario& scen
     c.camera_id = rig.cameras.front().id;
   }
   c.estimator.leader = leader_id;
-  c.vehicle = agents::follower_vehicle(follower, scenario.find_vehicle(leader_id));
+  // A scenario's follower may steer along its convoy head's trail (controller trail: head).
+  if (follower.controller.follows() && follower.controller.convoy.leader == leader_id) {
+    c.estimator.trail_of = follower.controller.convoy.trail_of;
+  }
+  c.vehicle = agents::follower_vehicle(follower, scenario.find_vehicle(leader_id),
+                                       scenario.find_vehicle(c.estimator.trail_of));
   return c;
 }
 

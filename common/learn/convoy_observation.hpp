@@ -103,6 +103,7 @@ class ConvoyObservationBuilder {
   /// Every input has arrived at least once (own fix, heading, speed, the leader's V2V, the
   /// image if there is a camera).
   bool ready() const;
+  const ConvoyObservationConfig& config() const { return config_; }
   /// The observation from the newest readings. Throws std::logic_error before ready().
   Observation observation() const;
   /// The trail kinds: the classical follower's command for now (its estimator is the classical

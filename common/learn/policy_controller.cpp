@@ -164,7 +164,7 @@ PolicyControllerAgent::PolicyControllerAgent(const scenario::Scenario& s,
 }
 
 std::vector<proto::Subscription> PolicyControllerAgent::subscriptions() const {
-  return convoy_driver_subscriptions(vehicle_id_, leader_id_);
+  return convoy_driver_subscriptions(vehicle_id_, leader_id_, builder_.config().estimator.trail_of);
 }
 
 void PolicyControllerAgent::step(const proto::FrameContext& ctx, const proto::FrameSamples& inputs,

@@ -290,6 +290,9 @@ ControllerConfig parse_controller(const YamlNode& node, const WorldConfig& world
   ControllerConfig c;
   c.type = m.choice("type", std::nullopt,
                     {"path_follower", "follower", "policy", "external", "none"});
+  if (c.follows()) {
+    c.trail_of_head = m.choice("trail", std::string("leader"), {"leader", "head"}) == "head";
+  }
   if (c.type == "policy") {
     c.convoy.leader = m.required("follow").as_string();
     c.policy_file = resolve_policy_file(m.required("model"), config_dir, files);
@@ -750,17 +753,20 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
       }
     }
     // Every follow chain ends at a vehicle that follows nobody (its convoy's leader: the
-    // deviation metrics are measured against it).
+    // deviation metrics are measured against it, and `trail: head` steers along its trail).
     for (std::size_t i = 0; i < s.vehicles.size(); ++i) {
       std::set<std::string> seen = {s.vehicles[i].id};
       std::string chain = s.vehicles[i].id;
-      for (const VehicleConfig* v = &s.vehicles[i]; v->controller.follows();) {
+      const VehicleConfig* v = &s.vehicles[i];
+      while (v->controller.follows()) {
         v = s.find_vehicle(v->controller.convoy.leader);
         chain += " -> " + v->id;
         if (!seen.insert(v->id).second) {
           nodes[i].fail("controller.follow: follow chain without a leader: " + chain);
         }
       }
+      auto& c = s.vehicles[i].controller;
+      if (c.trail_of_head) c.convoy.trail_of = v->id;
     }
   }
   if (auto n = m.optional("processes")) {

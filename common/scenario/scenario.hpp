@@ -109,6 +109,9 @@ struct ControllerConfig {
   /// stop; the path still steers). Unset: never.
   std::optional<double> stop_at_s;
   convoy::FollowerConfig convoy;       // follower and policy: the vehicle followed (convoy.leader)
+  /// follower and policy: `trail: head`, steer along the trail of the convoy's head (the end
+  /// of the follow chain; convoy.trail_of once the scenario is read) instead of the leader's.
+  bool trail_of_head = false;
   std::string policy_file;             // policy: the learned policy (syndds_train's policy.pt)
   /// policy: a new action every period; 0 (the default): the policy's own, the control period
   /// it was trained with (its metadata's frames_per_step).

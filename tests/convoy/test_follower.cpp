@@ -527,3 +527,74 @@ TEST(Follower, AnInLaneRadarDetectionGivesTheGap) {
     }
   }
 }
+
+// trail_of: the head h1 drives y = 0, the leader l1 (the vehicle followed) 0.5 m left of it,
+// the follower on y = 0, all at 5 m/s heading east, the follower 15 m behind the leader and 30 m
+// behind the head. Steering along the head's trail it has no cross-track error and steers
+// straight on; along the leader's it steers towards the leader's offset. Its spacing is to the
+// leader either way. A silent head is a lost leader (named), and the state round-trips.
+TEST(Follower, AlongTheHeadsTrailItSteersOnTheHeadsTrackAndKeepsItsGapToTheLeader) {
+  const double v = 5.0;
+  const FollowerVehicle veh = test_vehicle();
+  auto from = [](proto::V2VMessageMsg m, const std::string& id) {
+    m.vehicle_id = id;
+    return m;
+  };
+  // Runs 10 s (the head silent from `head_silent_s`); returns the last command.
+  auto run = [&](ConvoyFollower& f, std::vector<FollowerEvent>& events, double head_silent_s,
+                 int from_k, int to_k) {
+    vehicle::DriverInputs cmd;
+    for (int k = from_k; k <= to_k; ++k) {
+      const double t = k * 0.01;
+      std::vector<proto::V2VMessageMsg> msgs;
+      if (k % 10 == 0) {
+        const auto seq = static_cast<std::uint64_t>(k / 10);
+        msgs.push_back(message(t, seq, Vec2(v * t, 0.5), 0.0, v));  // l1
+        if (t < head_silent_s) msgs.push_back(from(message(t, seq, Vec2(v * t + 15.0, 0.0), 0.0, v), "h1"));
+      }
+      cmd = f.update(t, 0.01, readings(t, Vec2(v * t - 15.0, 0.0), 0.0, v, k % 10 == 0), msgs,
+                     events);
+    }
+    return cmd;
+  };
+  FollowerConfig head = config();
+  head.trail_of = "h1";
+  ConvoyFollower along_head(head, veh, kConverter);
+  ConvoyFollower along_leader(config(), veh, kConverter);
+  std::vector<FollowerEvent> events;
+  const auto cmd_head = run(along_head, events, 1e9, 0, 1000);
+  const auto cmd_leader = run(along_leader, events, 1e9, 0, 1000);
+  EXPECT_TRUE(events.empty());
+  EXPECT_NEAR(along_head.cross_track_m(), 0.0, 0.01);
+  EXPECT_NEAR(cmd_head.steering, 0.0, 0.002);
+  EXPECT_NEAR(along_leader.cross_track_m(), -0.5, 0.01);
+  EXPECT_NEAR(cmd_leader.steering, std::atan(0.5 / (v + 1.0)) / veh.max_steer_rad, 0.01);
+  // The trail reaches the head (30 m ahead), the gap is the leader's: 15 m less the bumpers.
+  EXPECT_GT((along_head.trail().back() - along_head.position_estimate()).norm(), 28.0);
+  EXPECT_NEAR(along_head.gap_m(), 15.0 - 2.35 - 2.35, 0.05);
+  EXPECT_NEAR(along_head.gap_m(), along_leader.gap_m(), 0.05);
+  EXPECT_NEAR(along_head.trail_features().gap_m, along_head.gap_m(), 0.05);
+  EXPECT_NEAR(along_head.trail_features().leader_left_m, 0.5, 0.05);
+
+  // A checkpoint half-way: the follower restored from it goes on exactly as the original.
+  ConvoyFollower original(head, veh, kConverter), restored(head, veh, kConverter);
+  run(original, events, 1e9, 0, 500);
+  core::StateWriter w;
+  original.save_state(w);
+  core::StateReader r(w.bytes(), "test");
+  restored.load_state(r);
+  const auto a = run(original, events, 1e9, 501, 1000);
+  const auto b = run(restored, events, 1e9, 501, 1000);
+  EXPECT_EQ(a.steering, b.steering);
+  EXPECT_EQ(a.throttle, b.throttle);
+  EXPECT_EQ(original.gap_m(), restored.gap_m());
+
+  // The head falls silent at 5 s: lost after leader_lost_after_s, naming the head.
+  ConvoyFollower silent(head, veh, kConverter);
+  events.clear();
+  const auto stop = run(silent, events, 5.0, 0, 1000);
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, "leader_lost");
+  EXPECT_NE(events[0].detail.find("h1"), std::string::npos) << events[0].detail;
+  EXPECT_EQ(stop.braking, 1.0);
+}

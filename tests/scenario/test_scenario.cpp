@@ -561,3 +561,36 @@ vehicles:
   }
   fs::remove_all(dir);
 }
+
+// `trail: head`: a follower steers along the trail of its convoy's head, the end of its follow
+// chain (the leader itself for the first follower); leader (the default) keeps its leader's.
+TEST(Scenario, AFollowersTrailIsItsLeadersOrItsConvoyHeads) {
+  std::string text = R"(time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 1}
+vehicles:
+  - id: l1
+    model: hmmwv
+    sensors: convoy
+    v2v: {rate_hz: 10}
+    controller:
+      type: path_follower
+      path: {waypoints: [[0, 0], [10, 0]]}
+      speed: {profile: ramp, target_mps: 3}
+)";
+  for (const char* f : {"  - {id: f1, model: hmmwv, start: {x: -12, y: 0}, sensors: convoy, v2v: {rate_hz: 10},"
+                        " controller: {type: follower, follow: l1, trail: head}}\n",
+                        "  - {id: f2, model: hmmwv, start: {x: -24, y: 0}, sensors: convoy, v2v: {rate_hz: 10},"
+                        " controller: {type: follower, follow: f1, trail: head}}\n",
+                        "  - {id: f3, model: hmmwv, start: {x: -36, y: 0}, sensors: convoy,"
+                        " controller: {type: follower, follow: f2, trail: leader}}\n"}) {
+    text += f;
+  }
+  const auto s = parse(text);
+  EXPECT_EQ(s.vehicles[1].controller.convoy.trail_of, "l1");
+  EXPECT_EQ(s.vehicles[2].controller.convoy.trail_of, "l1");
+  EXPECT_EQ(s.vehicles[2].controller.convoy.leader, "f1");
+  EXPECT_EQ(s.vehicles[3].controller.convoy.trail_of, "");
+  const std::string bad = error_of(text.replace(text.find("trail: leader"), 13, "trail: middle"));
+  EXPECT_NE(bad.find("test.yaml:13:"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("trail"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("head"), std::string::npos) << bad;
+}
