@@ -4,7 +4,7 @@
 #
 #   launch_scripts/run_ensemble.sh --courses N --output DIR [--terrains rigid,scm_hard,scm_soft]
 #       [--convoy 1L3F|2L2F|3L1F] [--protocol current|paper] [--follower-policy FILE]
-#       [--follower-rig RIG] [--jobs J]
+#       [--follower-rig RIG] [--follower-trail leader|head] [--jobs J]
 #       [--distributed] [--first-seed S] [--duration S] [--videos]
 #       [--slurm [--slurm-args "SBATCH OPTIONS"] [--wait]] [--gather-only]
 #   launch_scripts/run_ensemble.sh --paper --output DIR [...]
@@ -22,6 +22,9 @@
 # policies/convoy_follow_camera.pt; docs/learning.md) instead of the classical follower; the
 # followers then carry the rig the policy's metadata names (<policy>.json, "sensors") unless
 # --follower-rig names another (config/sensors/<rig>.yaml; syndds_course --follower-rig).
+# --follower-trail leader|head: whose trail every follower steers along, the vehicle ahead's or
+# the convoy head's (syndds_course --follower-trail; docs/convoy.md, step 8); default: the
+# classical follower the leader's, a learned one the head's.
 # Course k has seed first-seed + k (default 1). Each run goes to DIR/runs/<seed>_<terrain>/, its
 # scenario to DIR/courses/. Runs in one process each (syndds_sim, byte-identical to a distributed
 # run) unless --distributed (run_scenario.sh: one process per member), J at a time (default: the
@@ -52,7 +55,7 @@ BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 die() { echo "run_ensemble: $1" >&2; exit "${2:-1}"; }  # message [exit status, default 1]
 
 COURSES=""; OUTPUT=""; TERRAINS="rigid,scm_hard,scm_soft"; CONVOY=1L3F
-JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""; RIG=""
+JOBS=$(nproc 2>/dev/null || echo 1); JOBS_SET=0; DISTRIBUTED=0; FIRST=1; DURATION=(); POLICY=""; RIG=""; TRAIL=""
 VIDEOS=0; PROTOCOL=current; PROTOCOL_SET=0; PAPER=0; CONVOY_SET=0
 SLURM=0; SLURM_ARGS=""; SLURM_ARGS_SET=0; SLURM_EXTRA=(); WAIT=0; GATHER_ONLY=0; RUN_ONE=""
 while [ $# -gt 0 ]; do
@@ -68,6 +71,8 @@ while [ $# -gt 0 ]; do
     --duration) [ $# -ge 2 ] || die "--duration needs seconds"; DURATION=(--duration "$2"); shift ;;
     --follower-policy) [ $# -ge 2 ] || die "--follower-policy needs a file"; POLICY=$2; shift ;;
     --follower-rig) [ $# -ge 2 ] || die "--follower-rig needs a rig name"; RIG=$2; shift ;;
+    --follower-trail) [ $# -ge 2 ] || die "--follower-trail needs leader or head"; TRAIL=$2; shift
+      [ "$TRAIL" = leader ] || [ "$TRAIL" = head ] || die "--follower-trail: '$TRAIL' is not leader or head" ;;
     --distributed) DISTRIBUTED=1 ;;
     --videos) VIDEOS=1 ;;
     --slurm) SLURM=1 ;;
@@ -136,6 +141,9 @@ mkdir -p "$OUTPUT/courses" "$OUTPUT/runs" || die "cannot create $OUTPUT"
 # The courses are generated once: an ensemble folder belongs to one convoy and one follower.
 setup="convoy=$CONVOY follower_policy=${POLICY:-classical}"
 [ -z "$RIG" ] || setup+=" follower_rig=$RIG"
+# The trail the followers steer along, as syndds_course decides it (a learned follower: head).
+trail=${TRAIL:-$([ -n "$POLICY" ] && echo head || echo leader)}
+[ "$trail" = leader ] || setup+=" follower_trail=$trail"
 [ "$PROTOCOL" = current ] || setup+=" protocol=$PROTOCOL"
 if [ -f "$OUTPUT/ensemble.setup" ]; then
   [ "$(cat "$OUTPUT/ensemble.setup")" = "$setup" ] ||
@@ -179,6 +187,7 @@ run_one() {
     "$BIN/syndds_course" --seed "$seed" --terrain "$terrain" --convoy "$CONVOY" "${video[@]}" \
         --protocol "$PROTOCOL" \
         ${POLICY:+--follower-policy "$POLICY"} ${RIG:+--follower-rig "$RIG"} \
+        ${TRAIL:+--follower-trail "$TRAIL"} \
         --output "$scenario.tmp" > "$log" 2>&1 &&
       mv "$scenario.tmp" "$scenario" || return 1
   fi
@@ -303,6 +312,7 @@ if [ $SLURM = 1 ]; then
            "${DURATION[@]}")
   [ -z "$POLICY" ] || command+=(--follower-policy "$POLICY")
   [ -z "$RIG" ] || command+=(--follower-rig "$RIG")
+  [ -z "$TRAIL" ] || command+=(--follower-trail "$TRAIL")
   [ "$VIDEOS" = 0 ] || command+=(--videos)
   {
     echo '#!/usr/bin/env bash'

@@ -147,6 +147,9 @@ struct CourseOptions {
   /// The last vehicle's rig, when it films the chase video, is <rig>_chase (convoy_chase for
   /// convoy): the same sensors first, the chase camera after them.
   std::string follower_rig = "convoy";
+  /// The followers steer along the trail of the convoy's head (`trail: head`) instead of the
+  /// vehicle ahead's (docs/convoy.md, "Whose trail").
+  bool follower_trail_head = false;
   /// The last vehicle carries a third-person chase camera and writes a video (rig
   /// convoy_chase). Rendering and encoding it takes most of a run's time (4-6x the rest,
   /// docs/performance.md): a study leaves it out; it changes nothing the metrics measure.

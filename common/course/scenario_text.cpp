@@ -269,6 +269,7 @@ std::string scenario_yaml(const Course& course, const CourseOptions& o) {
         y << "      type: policy\n      follow: " << ahead << "\n      model: " << o.follower_policy
           << "\n";
       }
+      if (o.follower_trail_head) y << "      trail: head\n";
     }
   }
   return y.str();

@@ -49,6 +49,13 @@ int main(int argc, char** argv) {
                  "The followers' sensor rig (config/sensors/<rig>.yaml; the chase video's "
                  "vehicle gets <rig>_chase). Default: with --follower-policy, the rig its "
                  "metadata names (<policy>.json, key sensors), else convoy");
+  std::string follower_trail;
+  app.add_option("--follower-trail", follower_trail,
+                 "Whose trail the followers steer along: the vehicle each follows (leader) or "
+                 "the convoy's head (head); their spacing is to the vehicle ahead either way. "
+                 "Default: head for a learned follower (--follower-policy), leader for the "
+                 "classical one")
+      ->check(CLI::IsMember({"leader", "head"}));
   bool no_chase_video = false;
   app.add_flag("--no-chase-video", no_chase_video,
                "No chase camera and video behind the last vehicle (a study's runs need none: "
@@ -80,6 +87,10 @@ int main(int argc, char** argv) {
         if (const auto it = meta->find("sensors"); it != meta->end()) options.follower_rig = it->second;
       }
     }
+    // A learned follower learned behind one vehicle: in a convoy it steers along the head's
+    // trail, so that what it gets wrong is not handed to the next (docs/convoy.md, step 8).
+    options.follower_trail_head =
+        follower_trail.empty() ? !follower_policy.empty() : follower_trail == "head";
     for (const std::string& rig :
          {options.follower_rig, options.chase_video ? options.follower_rig + "_chase" : ""}) {
       if (!rig.empty() && !fs::exists(fs::path(config_dir) / "sensors" / (rig + ".yaml"))) {

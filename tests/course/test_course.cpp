@@ -238,6 +238,18 @@ TEST(CourseScenario, FollowersCanBeALearnedPolicy) {
   }
 }
 
+// follower_trail_head: every follower steers along the trail of its convoy's head (the last
+// leader, whose path the followers' chain ends at) and keeps following the vehicle ahead.
+TEST(CourseScenario, FollowersCanSteerAlongTheHeadsTrail) {
+  const scenario::Scenario ahead = course5_2l2f([](CourseOptions&) {});
+  const scenario::Scenario head = course5_2l2f([](CourseOptions& o) { o.follower_trail_head = true; });
+  for (const int k : {2, 3}) {
+    EXPECT_EQ(ahead.vehicles[k].controller.convoy.trail_of, "");
+    EXPECT_EQ(head.vehicles[k].controller.convoy.trail_of, "l2");
+    EXPECT_EQ(head.vehicles[k].controller.convoy.leader, head.vehicles[k - 1].id);
+  }
+}
+
 // Followers with cameras: follower_rig gives every follower the rig (leaders keep convoy) and
 // the last, filming the chase video, <rig>_chase, whose first camera is the front camera a
 // camera policy observes.
