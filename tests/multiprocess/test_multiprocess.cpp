@@ -1003,6 +1003,28 @@ TEST(Admission, AVehicleStartedTwiceIsRefusedAndTheRunIsUnchanged) {
   EXPECT_NE(read_file(out / "summary.txt").find("intrusion (frame "), std::string::npos);
 }
 
+// The members the coordinator names as not reached by its verdict although they had announced
+// themselves ("not reached: M (participant G not matched), ..."). A member whose process had
+// not announced itself within the coordinator's wait (a slow start on a busy machine: "(not
+// announced)") is left out: it hears the verdict later from the durable run_control, which
+// its exit code shows.
+static std::string unreached_after_announcing(const std::string& coordinator_log) {
+  const std::string key = "not reached: ";
+  const auto at = coordinator_log.find(key);
+  if (at == std::string::npos) return "";
+  const auto end = coordinator_log.find('\n', at);
+  const std::string list = coordinator_log.substr(
+      at + key.size(), (end == std::string::npos ? coordinator_log.size() : end) - at - key.size());
+  std::string out;
+  for (std::size_t from = 0; from <= list.size();) {
+    const auto comma = std::min(list.find(", ", from), list.size());
+    const std::string entry = list.substr(from, comma - from);
+    if (entry.find("(not announced)") == std::string::npos) out += entry + ";";
+    from = comma + 2;
+  }
+  return out;
+}
+
 // One process reads another mesh than the rest (its config folder, as on another host, has a
 // different rock.obj): its fingerprint differs, and both sides name the file that differs.
 // Before meshes were fingerprinted the camera silently drew another rock.
@@ -1044,7 +1066,7 @@ TEST(Fingerprint, AnotherMeshInOneProcessIsNamedAtStart) {
       EXPECT_EQ(codes[i], 2) << procs[i]->log();
     }
   }
-  EXPECT_EQ(procs[0]->log().find("not reached"), std::string::npos) << procs[0]->log();
+  EXPECT_EQ(unreached_after_announcing(procs[0]->log()), "") << procs[0]->log();
   ASSERT_EQ(processes[0].member, "coordinator");
   EXPECT_NE(procs[0]->log().find("member sensor/a on "), std::string::npos) << procs[0]->log();
   EXPECT_NE(procs[0]->log().find(role), std::string::npos) << procs[0]->log();
@@ -1066,7 +1088,7 @@ TEST(Fingerprint, AnotherBuildIsNamedAtStart) {
     // Every process hears the verdict (see the test above).
     EXPECT_EQ(codes[i], processes[i].member == "controller/a" ? 3 : 2) << procs[i]->log();
   }
-  EXPECT_EQ(procs[0]->log().find("not reached"), std::string::npos) << procs[0]->log();
+  EXPECT_EQ(unreached_after_announcing(procs[0]->log()), "") << procs[0]->log();
   ASSERT_EQ(processes[0].member, "coordinator");
   const std::string coordinator = procs[0]->log();
   EXPECT_NE(coordinator.find("member controller/a on "), std::string::npos) << coordinator;
