@@ -35,6 +35,18 @@ void filter_into(const std::vector<T>& in, std::vector<T>& out, Topic topic,
 
 }  // namespace
 
+std::vector<std::string> subscribed_keys(const std::vector<Subscription>& subs, Topic topic) {
+  std::vector<std::string> keys;
+  for (const auto& s : subs) {
+    if (s.topic != topic) continue;
+    if (s.key.empty()) return {};
+    keys.push_back(s.key);
+  }
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  return keys;
+}
+
 void FrameSamples::sort() {
   for_each_topic([&](auto t) { sort_by_key_source(list<decltype(t)::value>()); });
   std::stable_sort(contact_bodies.begin(), contact_bodies.end(),

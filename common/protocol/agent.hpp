@@ -22,6 +22,10 @@ struct Subscription {
   }
 };
 
+/// The keys of `topic` that `subs` ask for, sorted and each once; empty if none asks for the
+/// topic or one asks for every key (a reader of the topic then takes every vehicle's samples).
+std::vector<std::string> subscribed_keys(const std::vector<Subscription>& subs, Topic topic);
+
 /// Samples stamped one frame, sorted by (key, source) so their order never depends on arrival.
 /// One list per data topic, named in SYNDDS_DATA_TOPICS (vehicle_states, driver_commands, ...).
 struct FrameSamples {

@@ -188,22 +188,13 @@ void MemberRuntime::setup() {
     }
     return false;
   };
-  // The one key all of the agent's subscriptions to a topic ask for ("" if any asks for all).
-  auto only_key = [this](proto::Topic t) {
-    std::string key;
-    for (const auto& s : agent_.subscriptions()) {
-      if (s.topic != t) continue;
-      if (s.key.empty() || (!key.empty() && key != s.key)) return std::string();
-      key = s.key;
-    }
-    return key;
-  };
   const auto publications = agent_.publications();
   proto::for_each_topic([&](auto t) {
     constexpr proto::Topic T = decltype(t)::value;
     using Dds = typename DdsType<T>::type;
     const std::string name = topics::data(T);
     if (subscribes(T)) {
+      const auto keys = proto::subscribed_keys(agent_.subscriptions(), T);
       std::get<static_cast<std::size_t>(T)>(data_readers_) = participant_->make_reader<Dds>(
           name, profiles::kDataReader, [this, guard](Dds&& m, const fdds::SampleInfo& info) {
             guard(proto::TopicTraits<T>::name, [&] {
@@ -212,8 +203,10 @@ void MemberRuntime::setup() {
               admit_locked<T>(std::move(s), writer_prefix(info));
             });
           },
-          only_key(T).empty() ? Participant::Scope::all_vehicles : Participant::Scope::one_vehicle,
-          only_key(T));
+          // Matched only with the writers of the vehicles it needs (every vehicle's if any
+          // subscription asks for all): no other vehicle's samples travel to this process.
+          keys.empty() ? Participant::Scope::all_vehicles : Participant::Scope::these_vehicles,
+          keys);
     }
     if (std::find(publications.begin(), publications.end(), T) != publications.end()) {
       if constexpr (proto::is_addressed(T)) {

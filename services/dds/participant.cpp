@@ -297,7 +297,8 @@ void Participant::onParticipantAuthentication(
 }
 
 // Partitions of data topics: writers of vehicle V publish in "<run>/all" and "<run>/vehicle/V";
-// a reader of every vehicle subscribes to "<run>/all", a reader of V to "<run>/vehicle/V".
+// a reader of every vehicle subscribes to "<run>/all", a reader of V and W to "<run>/vehicle/V"
+// and "<run>/vehicle/W" (it matches a writer whose partitions share one of its own).
 fdds::Publisher* Participant::data_publisher(const std::string& vehicle_id) {
   std::lock_guard lock(mutex_);
   auto& p = data_publishers_[vehicle_id];
@@ -311,16 +312,23 @@ fdds::Publisher* Participant::data_publisher(const std::string& vehicle_id) {
   return p;
 }
 
-fdds::Subscriber* Participant::data_subscriber(const std::string& vehicle_id) {
+fdds::Subscriber* Participant::data_subscriber(std::vector<std::string> vehicle_ids) {
+  std::sort(vehicle_ids.begin(), vehicle_ids.end());
+  vehicle_ids.erase(std::unique(vehicle_ids.begin(), vehicle_ids.end()), vehicle_ids.end());
   std::lock_guard lock(mutex_);
-  auto& s = data_subscribers_[vehicle_id];
+  auto& s = data_subscribers_[vehicle_ids];
   if (!s) {
     fdds::SubscriberQos qos = participant_->get_default_subscriber_qos();
-    const std::string partition = vehicle_id.empty() ? options_.run_id + "/all"
-                                                     : options_.run_id + "/vehicle/" + vehicle_id;
-    qos.partition().push_back(partition.c_str());
+    if (vehicle_ids.empty()) qos.partition().push_back((options_.run_id + "/all").c_str());
+    for (const auto& id : vehicle_ids) {
+      qos.partition().push_back((options_.run_id + "/vehicle/" + id).c_str());
+    }
     s = participant_->create_subscriber(qos);
-    if (!s) fail("cannot create a subscriber for vehicle " + vehicle_id);
+    if (!s) {
+      std::string names;
+      for (const auto& id : vehicle_ids) names += (names.empty() ? "" : ", ") + id;
+      fail("cannot create a subscriber for " + (names.empty() ? "every vehicle" : names));
+    }
   }
   return s;
 }

@@ -28,6 +28,7 @@
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include "core/error.hpp"
 #include "dds/convert.hpp"
@@ -303,7 +304,7 @@ class Participant : private fdds::DomainParticipantListener {
   enum class Scope {
     protocol,      // protocol topics
     all_vehicles,  // data topics, every vehicle's samples
-    one_vehicle,   // data topics, the samples of `vehicle_id` only
+    these_vehicles,  // data topics, the samples of the vehicles in `vehicle_ids` only
   };
   /// Readers of data topics match only the writers they need (partitions per vehicle), so a
   /// controller is not even matched with the other vehicles' state writers: no samples, no
@@ -312,7 +313,7 @@ class Participant : private fdds::DomainParticipantListener {
   template <typename T, typename F>
   std::unique_ptr<Reader<T>> make_reader(const std::string& topic_name, const char* profile,
                                          F&& on_sample, Scope scope = Scope::protocol,
-                                         const std::string& vehicle_id = "") {
+                                         const std::vector<std::string>& vehicle_ids = {}) {
     typename Reader<T>::Callback callback;
     if constexpr (std::is_invocable_v<F&, T&&, const fdds::SampleInfo&>) {
       callback = std::forward<F>(on_sample);
@@ -321,18 +322,19 @@ class Participant : private fdds::DomainParticipantListener {
         f(std::move(sample));
       };
     }
-    return make_reader_impl<T>(topic_name, profile, std::move(callback), scope, vehicle_id);
+    return make_reader_impl<T>(topic_name, profile, std::move(callback), scope, vehicle_ids);
   }
 
  private:
   template <typename T>
   std::unique_ptr<Reader<T>> make_reader_impl(const std::string& topic_name, const char* profile,
                                               typename Reader<T>::Callback on_sample,
-                                              Scope scope, const std::string& vehicle_id) {
+                                              Scope scope,
+                                              const std::vector<std::string>& vehicle_ids) {
     fdds::Topic* t = topic<T>(topic_name);
     fdds::Subscriber* subscriber = scope == Scope::protocol       ? subscriber_
-                                   : scope == Scope::all_vehicles ? data_subscriber("")
-                                                                  : data_subscriber(vehicle_id);
+                                   : scope == Scope::all_vehicles ? data_subscriber({})
+                                                                  : data_subscriber(vehicle_ids);
     auto reader = std::make_unique<Reader<T>>(std::move(on_sample));
     fdds::DataReaderQos qos;
     if (subscriber->get_datareader_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
@@ -355,7 +357,8 @@ class Participant : private fdds::DomainParticipantListener {
   /// Deletes the DDS participant and everything in it (idempotent).
   void release();
   fdds::Publisher* data_publisher(const std::string& vehicle_id);
-  fdds::Subscriber* data_subscriber(const std::string& vehicle_id);  // "": every vehicle
+  /// Subscribes to the listed vehicles' partitions (none listed: every vehicle).
+  fdds::Subscriber* data_subscriber(std::vector<std::string> vehicle_ids);
 
   template <typename T>
   fdds::Topic* topic(const std::string& name) {
@@ -378,7 +381,7 @@ class Participant : private fdds::DomainParticipantListener {
   fdds::Publisher* publisher_ = nullptr;    // protocol topics (partition: run id)
   fdds::Subscriber* subscriber_ = nullptr;
   std::map<std::string, fdds::Publisher*> data_publishers_;    // by vehicle id
-  std::map<std::string, fdds::Subscriber*> data_subscribers_;  // by vehicle id, "" = all
+  std::map<std::vector<std::string>, fdds::Subscriber*> data_subscribers_;  // by sorted ids
   std::map<std::string, fdds::Topic*> topics_;
   mutable std::mutex mutex_;
   std::mutex callback_mutex_;  // held while a callback runs: removing waits for a call in flight

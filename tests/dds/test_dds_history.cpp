@@ -128,7 +128,7 @@ TEST(DdsHistory, WriterThatAlsoReadsItsTopicKeepsOnlyDepthSamplesPerKey) {
     // Through the project's own reader, but with a listener that sees the SampleInfo.
     auto probe = late.make_reader<msg::TerrainDeformation>(
         w.topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
-        sdds::Participant::Scope::one_vehicle, "a");
+        sdds::Participant::Scope::these_vehicles, {"a"});
     ASSERT_EQ(probe->raw()->set_listener(&counter), ReturnCode_t::RETCODE_OK);
     ASSERT_TRUE(wait_until([&] { return matched_readers(*w.writer_a) == 2; }, 10.0));
     ASSERT_TRUE(w.writer_a->wait_for_acknowledgments(10.0));
@@ -149,7 +149,7 @@ TEST(DdsHistory, SamplesOfOneKeyCarryOneInstanceHandle) {
   CountingListener counter;
   auto reader_a = w.a.make_reader<msg::TerrainDeformation>(
       w.topic, sdds::profiles::kDataReader, [](msg::TerrainDeformation&&) {},
-      sdds::Participant::Scope::one_vehicle, "b");
+      sdds::Participant::Scope::these_vehicles, {"b"});
   ASSERT_EQ(reader_a->raw()->set_listener(&counter), ReturnCode_t::RETCODE_OK);
   ASSERT_TRUE(wait_until([&] { return matched_readers(*w.writer_b) == 1; }, 10.0));
   ASSERT_EQ(w.write_both(), 0);
@@ -193,7 +193,7 @@ TEST(DdsHistory, EveryCollisionEventOfOneFrameReachesALateReader) {
         ++received;
         obstacles.insert(m.obstacle_id);
       },
-      sdds::Participant::Scope::one_vehicle, "a");
+      sdds::Participant::Scope::these_vehicles, {"a"});
   auto count = [&] {
     std::lock_guard lock(mutex);
     return received;
@@ -274,4 +274,47 @@ TEST(DdsMatching, WriterWaitsUntilAGivenParticipantsReaderIsMatched) {
   EXPECT_TRUE(wait_until([&] { return !writer->wait_matched_by(reader_prefix, 0.0); }, 30.0));
   EXPECT_TRUE(writer->wait_reached_by(reader_prefix, 0.0));
   EXPECT_FALSE(writer->wait_reached_by(bystander_prefix, 0.0));
+}
+
+// A reader of some vehicles (a follower needs the vehicle ahead and its convoy's head) is
+// matched with those vehicles' writers only: the others' samples, heartbeats and
+// acknowledgements never travel to it.
+TEST(DdsMatching, AReaderOfSomeVehiclesIsMatchedWithTheirWritersOnly) {
+  const std::string topic = sdds::topics::data(proto::Topic::terrain_deformation);
+  sdds::Participant writers(options("some-vehicles"));
+  sdds::Participant readers(options("some-vehicles"));
+  std::map<std::string, std::unique_ptr<sdds::Writer<msg::TerrainDeformation>>> w;
+  for (const std::string v : {"a", "b", "c"}) {
+    w[v] = writers.make_writer<msg::TerrainDeformation>(topic, sdds::profiles::kDataWriter, v);
+  }
+  std::mutex mutex;
+  std::map<std::string, int> some_received;
+  auto some = readers.make_reader<msg::TerrainDeformation>(
+      topic, sdds::profiles::kDataReader,
+      [&](msg::TerrainDeformation&& d) {
+        std::lock_guard lock(mutex);
+        ++some_received[std::string(d.vehicle_id())];
+      },
+      sdds::Participant::Scope::these_vehicles, {"c", "a"});
+  // A reader of every vehicle on the same participant: once b's writer is matched with it,
+  // the reader side's endpoints are known to the writer side, so b's count is final.
+  std::atomic<int> all_received{0};
+  auto all = readers.make_reader<msg::TerrainDeformation>(
+      topic, sdds::profiles::kDataReader, [&](msg::TerrainDeformation&&) { ++all_received; },
+      sdds::Participant::Scope::all_vehicles);
+  ASSERT_TRUE(wait_until([&] {
+    return matched_readers(*w["a"]) == 2 && matched_readers(*w["b"]) == 1 &&
+           matched_readers(*w["c"]) == 2;
+  }, 30.0)) << "a " << matched_readers(*w["a"]) << ", b " << matched_readers(*w["b"]) << ", c "
+            << matched_readers(*w["c"]);
+  for (auto& [v, writer] : w) ASSERT_TRUE(writer->write(deformation(v, 1)));
+  for (auto& [v, writer] : w) ASSERT_TRUE(writer->wait_for_acknowledgments(10.0));
+  ASSERT_TRUE(wait_until([&] { return all_received == 3; }, 10.0));
+  ASSERT_TRUE(wait_until([&] {
+    std::lock_guard lock(mutex);
+    return some_received["a"] == 1 && some_received["c"] == 1;
+  }, 10.0));
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(some_received.count("b"), 0u);
+  EXPECT_EQ(matched_readers(*w["b"]), 1);
 }

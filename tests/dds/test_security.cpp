@@ -89,9 +89,11 @@ proto::DriverCommandMsg command(const std::string& source) {
 struct VehicleA {
   sdds::Participant participant{options("vehicle/a")};
   std::atomic<int> received{0};
-  std::unique_ptr<sdds::Reader<msg::DriverCommand>> reader = participant.make_reader<msg::DriverCommand>(
-      sdds::topics::data(proto::Topic::driver_command), sdds::profiles::kDataReader,
-      [this](msg::DriverCommand&&) { ++received; }, sdds::Participant::Scope::one_vehicle, "a");
+  std::unique_ptr<sdds::Reader<msg::DriverCommand>> reader =
+      participant.make_reader<msg::DriverCommand>(
+          sdds::topics::data(proto::Topic::driver_command), sdds::profiles::kDataReader,
+          [this](msg::DriverCommand&&) { ++received; },
+          sdds::Participant::Scope::these_vehicles, {"a"});
 };
 
 const std::string kCommands = sdds::topics::data(proto::Topic::driver_command);

@@ -99,3 +99,19 @@ TEST(TopicNames, EveryTopicReadsBackFromItsName) {
   EXPECT_EQ(untouched, Topic::imu);
   EXPECT_EQ(to_string(static_cast<Topic>(250)), "unknown");
 }
+
+// What the DDS layer matches a member's reader with: a follower that needs the V2V of the
+// vehicle ahead and of its convoy's head is matched with those two writers, not every vehicle's.
+TEST(Subscriptions, KeysOfATopicAreTheListedOnesOrEveryKey) {
+  const std::vector<Subscription> follower{{Topic::v2v_message, "head"},
+                                           {Topic::vehicle_state, "me"},
+                                           {Topic::v2v_message, "ahead"},
+                                           {Topic::v2v_message, "head"}};
+  EXPECT_EQ(subscribed_keys(follower, Topic::v2v_message),
+            (std::vector<std::string>{"ahead", "head"}));
+  EXPECT_EQ(subscribed_keys(follower, Topic::vehicle_state), (std::vector<std::string>{"me"}));
+  EXPECT_TRUE(subscribed_keys(follower, Topic::driver_command).empty());  // not subscribed
+  auto recorder = follower;
+  recorder.push_back({Topic::v2v_message, ""});
+  EXPECT_TRUE(subscribed_keys(recorder, Topic::v2v_message).empty());  // every key
+}
