@@ -18,6 +18,7 @@
 // No DDS and nothing heavy here: every layer above (agents, scm, services) may use it.
 #include <fmt/format.h>
 
+#include <charconv>
 #include <concepts>
 #include <cstdint>
 #include <filesystem>
@@ -25,6 +26,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <system_error>
 #include <vector>
 
 namespace syndds::record {
@@ -133,17 +135,31 @@ class CsvFile {
     static_assert(!std::same_as<T, bool>, "write a flag as 0 / 1");
     fmt::format_to(std::back_inserter(pending_), "{}", value);
   }
+  // Floating-point cells are the recorder's largest formatting cost: std::to_chars gives
+  // printf's text ("%.9g", "%.3f") without a locale, in about half the time of fmt's.
+  template <std::floating_point T>
+  void append_number(T value, std::chars_format format, int digits) {
+    char text[128];
+    const auto end = std::to_chars(text, text + sizeof text, value, format, digits);
+    if (end.ec == std::errc()) {
+      pending_.append(text, end.ptr);
+    } else if (format == std::chars_format::fixed) {  // longer than 128 characters
+      fmt::format_to(std::back_inserter(pending_), "{:.{}f}", value, digits);
+    } else {
+      fmt::format_to(std::back_inserter(pending_), "{:.{}g}", value, digits);
+    }
+  }
   template <std::floating_point T>
   void append_cell(T value) {
-    fmt::format_to(std::back_inserter(pending_), "{:.9g}", value);
+    append_number(value, std::chars_format::general, 9);
   }
   template <typename T>
   void append_cell(Sig<T> s) {
-    fmt::format_to(std::back_inserter(pending_), "{:.{}g}", s.value, s.digits);
+    append_number(s.value, std::chars_format::general, s.digits);
   }
   template <typename T>
   void append_cell(Fixed<T> f) {
-    fmt::format_to(std::back_inserter(pending_), "{:.{}f}", f.value, f.digits);
+    append_number(f.value, std::chars_format::fixed, f.digits);
   }
   void append_cell(std::string_view text);
   void append_cell(const std::string& text) { append_cell(std::string_view(text)); }

@@ -2,8 +2,12 @@
 // nothing, atomic replacement.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 
 #include "record/run_files.hpp"
@@ -33,6 +37,34 @@ TEST(RunFiles, HeaderAndRowsComeFromOneColumnList) {
   csv.row(4, Sig{0.123456789, 3}, "v2", 2.0);
   csv.commit();
   EXPECT_EQ(read_file(dir / "t.csv"), "frame,time_s,vehicle,x\n3,0.03,v1,1.5000\n4,0.123,v2,2\n");
+}
+
+// Numbers read as C's printf writes them ("%.9g", "%.*g", "%.*f"), the text every run so far
+// has recorded: special values, the longest fixed text, and random bit patterns.
+TEST(RunFiles, NumbersAreWrittenAsPrintfWritesThem) {
+  const fs::path dir = fresh_dir("numbers");
+  std::vector<double> values = {0.0, -0.0, 0.5, 2.5, 1e9, 999999999.5, 1e-5, 1e16, 1e-300, 5e-324,
+                                1e300, -1.7976931348623157e308, INFINITY, -INFINITY, NAN};
+  std::mt19937_64 bits(7);
+  for (int k = 0; k < 2000; ++k) {
+    std::uint64_t b = bits();
+    double v;
+    std::memcpy(&v, &b, sizeof v);
+    if (!std::isnan(v)) values.push_back(v);
+    values.push_back(std::ldexp(static_cast<double>(b % 100000000) / 1e3, -static_cast<int>(b % 30)));
+  }
+  CsvFile csv(dir / "n.csv", {"g9", "g4", "f3", "f9", "float"});
+  std::string expected = "g9,g4,f3,f9,float\n";
+  char text[4096];  // two fixed texts of 1e308
+  for (double v : values) {
+    const float f = static_cast<float>(v);
+    csv.row(v, Sig{v, 4}, Fixed{v, 3}, Fixed{v, 9}, f);
+    std::snprintf(text, sizeof text, "%.9g,%.4g,%.3f,%.9f,%.9g\n", v, v, v, v,
+                  static_cast<double>(f));
+    expected += text;
+  }
+  csv.commit();
+  EXPECT_EQ(read_file(dir / "n.csv"), expected);
 }
 
 TEST(RunFiles, ARowOfTheWrongArityIsAProgrammingError) {
