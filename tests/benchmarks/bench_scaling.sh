@@ -7,7 +7,7 @@
 #   tests/benchmarks/bench_scaling.sh [--terrain rigid|soft|soft_routed] [--n "8 16 24 32"]
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
 #       [--dds-profiles FILE] [--recorder-host last] [--cpu-offset C]
-#       [--placement interleaved|blocks] [--build-dir DIR] [--heartbeat S]
+#       [--placement interleaved|blocks] [--build-dir DIR] [--heartbeat S] [--recorder-in-group]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -23,6 +23,9 @@
 # at once can each have a CPU of their own);
 # hostgroupsK = the same hosts with the vehicles and controllers of each host in one process
 # (the plan's K groups, --processes K: group k on host k). See docs/deployment.md, "Processes".
+# --recorder-in-group (hostgroupsK only): the recorder is a member of the last host's group
+# process (syndds_group --member recorder) instead of a process of its own (so on host K,
+# whatever --recorder-host says).
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
 # lanes only); soft_routed: the same with soil routing (docs/scm.md, "Routing"). Writes
@@ -39,7 +42,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
-PROFILES=(); RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved; HEARTBEAT=0.01
+PROFILES=(); RECORDER_IN_GROUP=0; RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved; HEARTBEAT=0.01
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -53,7 +56,8 @@ while [ $# -gt 0 ]; do
     --placement) PLACEMENT=$2; shift ;;
     --build-dir) export SYNDDS_BUILD_DIR=$2; BIN=$2/bin; shift ;;
     --heartbeat) HEARTBEAT=$2; shift ;;
-    -h|--help) sed -n '2,37p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --recorder-in-group) RECORDER_IN_GROUP=1 ;;
+    -h|--help) sed -n '2,39p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
@@ -72,6 +76,10 @@ for mode in $MODES; do
     *) echo "bench_scaling: unknown mode '$mode' (distributed, per_vehicle, groupsK, hostsK, hostgroupsK, single, single_full)" >&2
        exit 1 ;;
   esac
+  if [ "$RECORDER_IN_GROUP" = 1 ] && [[ "$mode" != hostgroups* ]]; then
+    echo "bench_scaling: --recorder-in-group applies to hostgroupsK modes only, not '$mode'" >&2
+    exit 1
+  fi
 done
 [ -n "$OUT" ] || OUT="runs/scaling-$TERRAIN-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$OUT"
@@ -161,6 +169,13 @@ run_on_hosts() {  # scenario out K N [grouped]
   plan=$("$BIN/syndds_plan" "$file" --format launcher --run-id "scaling-$(basename "$out")-$$" \
          --output "$out" --bin-dir "$BIN" --config-dir "$ROOT/config" "${layout[@]}" \
          "${PROFILES[@]}") || return 1
+  if [ -n "$grouped" ] && [ "$RECORDER_IN_GROUP" = 1 ]; then
+    # The recorder's line goes; the last group's command gets it as one more member.
+    plan=$(printf '%s\n' "$plan" | awk -F'\t' '
+      $1 == "recorder" { next }
+      { line[++n] = $0; if ($1 ~ /^group\//) last = n }
+      END { for (i = 1; i <= n; i++) print line[i] (i == last ? " --member recorder" : "") }')
+  fi
   while IFS=$'\t' read -r member cmd; do
     case "$member" in
       group/*) group=$((group + 1)); h=h$group ;;  # the plan's K groups, one per host
@@ -192,7 +207,7 @@ for n in $NS; do
       processes=$((2 * n + 2))
       run_on_hosts "$file" "$out" "${mode#hosts}" "$n" > "$WORK/launch.log" 2>&1 &
     elif [[ "$mode" == hostgroups* ]]; then
-      processes=$((${mode#hostgroups} + 2))
+      processes=$((${mode#hostgroups} + 2 - RECORDER_IN_GROUP))
       run_on_hosts "$file" "$out" "${mode#hostgroups}" "$n" grouped > "$WORK/launch.log" 2>&1 &
     elif [[ "$mode" != single* ]]; then
       case "$mode" in
