@@ -782,12 +782,15 @@ void RecorderAgent::write_summary(const proto::RunControlMsg* end) {
       text += fmt::format("  {} events: {} (events.csv)\n", id, kinds);
     }
     if (!st.members.empty() && options_.mode == "distributed") {
-      text += fmt::format("  {:<22} {:>16} {:>15} {:>13}\n", "member", "mean_response_ms",
-                          "max_response_ms", "slowest_frames");
+      // Response: grant sent to done received, as the coordinator saw it (members of one
+      // process answer in one sample, so they share their process's). Step: the member's own
+      // time in its step, which tells the members of a process apart.
+      text += fmt::format("  {:<22} {:>16} {:>15} {:>12} {:>13}\n", "member", "mean_response_ms",
+                          "max_response_ms", "mean_step_ms", "slowest_frames");
       for (const auto& m : st.members) {
-        text += fmt::format("  {:<22} {:>16.3f} {:>15.3f} {:>13}{}\n", m.member_id,
-                            m.mean_response_s * 1e3, m.max_response_s * 1e3, m.slowest_count,
-                            m.lost ? "  (lost)" : "");
+        text += fmt::format("  {:<22} {:>16.3f} {:>15.3f} {:>12.3f} {:>13}{}\n", m.member_id,
+                            m.mean_response_s * 1e3, m.max_response_s * 1e3,
+                            m.mean_compute_s * 1e3, m.slowest_count, m.lost ? "  (lost)" : "");
       }
     }
     if (!convoy_.empty()) text += convoy_table(convoy_);

@@ -263,3 +263,36 @@ TEST(Recorder, LostMembersAreRecorded) {
   const std::string text = read_file(dir / "run" / "summary.txt");
   EXPECT_NE(text.find("lost: controller/b in frame 20"), std::string::npos) << text;
 }
+
+// summary.txt's member table gives each member's own step time next to its response time: the
+// members of one process answer in one sample and share the process's response time.
+TEST(Recorder, TheMemberTableGivesEachMembersStepTime) {
+  const fs::path dir = test_dir();
+  const auto s = scenario_from(dir, kTwoVehicles);
+  record::RecorderAgent recorder(s, {(dir / "run").string(), "test", "distributed"});
+  run_frames(recorder, 0, 10);
+  proto::RunEnd end;
+  end.control.status = proto::RunStatus::completed;
+  end.control.final_frame = 9;
+  end.control.stats.frames = 10;
+  end.control.stats.final_frame = 9;
+  for (const auto& [id, step_s] : {std::pair{"vehicle/a", 0.00125}, {"controller/a", 0.0002}}) {
+    proto::MemberStatsMsg m;
+    m.member_id = id;
+    m.mean_response_s = 0.0031;  // one process: the same response for both
+    m.max_response_s = 0.0172;
+    m.mean_compute_s = step_s;
+    end.control.stats.members.push_back(m);
+  }
+  recorder.finish(end, {});
+  const std::string text = read_file(dir / "run" / "summary.txt");
+  EXPECT_NE(text.find("mean_response_ms max_response_ms mean_step_ms slowest_frames"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("vehicle/a                         3.100          17.200        1.250"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("controller/a                      3.100          17.200        0.200"),
+            std::string::npos)
+      << text;
+}
