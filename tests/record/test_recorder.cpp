@@ -65,6 +65,16 @@ proto::RunEnd aborted(const std::string& reason) {
   return end;
 }
 
+// The end of a run of `frames` frames that completed, with no member statistics yet.
+proto::RunEnd completed(std::int64_t frames) {
+  proto::RunEnd end;
+  end.control.status = proto::RunStatus::completed;
+  end.control.final_frame = frames - 1;
+  end.control.stats.frames = frames;
+  end.control.stats.final_frame = frames - 1;
+  return end;
+}
+
 nlohmann::json summary_of(const fs::path& dir) {
   return nlohmann::json::parse(read_file(dir / "summary.json"));
 }
@@ -237,11 +247,7 @@ TEST(Recorder, LostMembersAreRecorded) {
   proto::FrameSamples out;
   recorder.step(ctx, states(19, {"a", "b"}), out);
   run_frames(recorder, 21, 30);
-  proto::RunEnd end;
-  end.control.status = proto::RunStatus::completed;
-  end.control.final_frame = 29;
-  end.control.stats.frames = 30;
-  end.control.stats.final_frame = 29;
+  proto::RunEnd end = completed(30);
   end.control.stats.members.push_back({});
   end.control.stats.members.back().member_id = "vehicle/b";
   end.control.stats.members.back().lost = true;
@@ -271,11 +277,7 @@ TEST(Recorder, TheMemberTableGivesEachMembersStepTime) {
   const auto s = scenario_from(dir, kTwoVehicles);
   record::RecorderAgent recorder(s, {(dir / "run").string(), "test", "distributed"});
   run_frames(recorder, 0, 10);
-  proto::RunEnd end;
-  end.control.status = proto::RunStatus::completed;
-  end.control.final_frame = 9;
-  end.control.stats.frames = 10;
-  end.control.stats.final_frame = 9;
+  proto::RunEnd end = completed(10);
   for (const auto& [id, step_s] : {std::pair{"vehicle/a", 0.00125}, {"controller/a", 0.0002}}) {
     proto::MemberStatsMsg m;
     m.member_id = id;
