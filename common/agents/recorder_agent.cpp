@@ -248,9 +248,14 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   const auto open = options_.resume ? OutputFile::Open::resume : OutputFile::Open::create;
   reserve_ = std::make_unique<SpaceReserve>(dir / kReserveFile, kReserveBytes);
   vehicles_ = std::make_unique<CsvFile>(dir / "vehicles.csv", kVehicleColumns, open);
-  commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns, open);
+  const auto& rec = scenario.recorder;
+  if (rec.records("commands")) {
+    commands_ = std::make_unique<CsvFile>(dir / "commands.csv", kCommandColumns, open);
+  }
   events_ = std::make_unique<CsvFile>(dir / "events.csv", kEventColumns, open);
-  wheels_ = std::make_unique<CsvFile>(dir / "wheels.csv", kWheelColumns, open);
+  if (rec.records("wheels")) {
+    wheels_ = std::make_unique<CsvFile>(dir / "wheels.csv", kWheelColumns, open);
+  }
   if (soil_) {
     terrain_changes_ =
         std::make_unique<CsvFile>(dir / "terrain_changes.csv", kTerrainChangeColumns, open);
@@ -261,22 +266,30 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
   write_file_atomically(dir / "scene.json", viewer::scene_json(scenario).dump() + "\n");
   bool interoceptive = false;
   for (const auto& v : scenario.vehicles) interoceptive = interoceptive || v.has_interoceptive_sensors();
-  if (interoceptive) {
+  if (interoceptive && rec.records("gps")) {
     gps_ = std::make_unique<CsvFile>(
         dir / "gps.csv",
         stamped({"latitude_deg", "longitude_deg", "altitude_m", "e_m", "n_m", "u_m"}), open);
+  }
+  if (interoceptive && rec.records("imu")) {
     imu_ = std::make_unique<CsvFile>(
         dir / "imu.csv",
         stamped({"ax_mps2", "ay_mps2", "az_mps2", "gx_rad_s", "gy_rad_s", "gz_rad_s"}), open);
+  }
+  if (interoceptive && rec.records("compass")) {
     compass_ = std::make_unique<CsvFile>(dir / "compass.csv",
                                          stamped({"heading_rad", "fx_ut", "fy_ut", "fz_ut"}), open);
+  }
+  if (interoceptive && rec.records("wheel_speeds")) {
     wheel_speeds_ = std::make_unique<CsvFile>(
         dir / "wheel_speeds.csv", stamped({"fl_rad_s", "fr_rad_s", "rl_rad_s", "rr_rad_s"}), open);
   }
-  if (v2v) v2v_ = std::make_unique<CsvFile>(dir / "v2v.csv", kV2VColumns, open);
+  if (v2v && rec.records("v2v")) {
+    v2v_ = std::make_unique<CsvFile>(dir / "v2v.csv", kV2VColumns, open);
+  }
   bool radar = false;
   for (const auto& v : scenario.vehicles) radar = radar || (v.sensors && !v.sensors->rig.radars.empty());
-  if (radar) {
+  if (radar && rec.records("radar")) {
     radar_ = std::make_unique<CsvFile>(
         dir / "radar.csv",
         stamped({"detection", "range_m", "azimuth_rad", "elevation_rad", "radial_speed_mps",
@@ -288,19 +301,18 @@ RecorderAgent::RecorderAgent(const scenario::Scenario& scenario, RecorderOptions
 }
 
 std::vector<proto::Subscription> RecorderAgent::subscriptions() const {
-  std::vector<proto::Subscription> subs = {{proto::Topic::vehicle_state, ""},
-                                           {proto::Topic::driver_command, ""},
-                                           {proto::Topic::collision_event, ""},
-                                           {proto::Topic::vehicle_event, ""}};
+  // A file that is not written is not subscribed to (RecorderConfig::skip).
+  std::vector<proto::Subscription> subs = {{proto::Topic::vehicle_state, ""}};
+  if (commands_) subs.push_back({proto::Topic::driver_command, ""});
+  subs.push_back({proto::Topic::collision_event, ""});
+  subs.push_back({proto::Topic::vehicle_event, ""});
   if (v2v_) subs.push_back({proto::Topic::v2v_message, ""});
   if (soil_) subs.push_back({proto::Topic::terrain_deformation, ""});
   if (routing_) subs.push_back({proto::Topic::soil_interest, ""});
-  if (gps_) {
-    for (auto t : {proto::Topic::gps_fix, proto::Topic::imu, proto::Topic::magnetometer,
-                   proto::Topic::wheel_speeds}) {
-      subs.push_back({t, ""});
-    }
-  }
+  if (gps_) subs.push_back({proto::Topic::gps_fix, ""});
+  if (imu_) subs.push_back({proto::Topic::imu, ""});
+  if (compass_) subs.push_back({proto::Topic::magnetometer, ""});
+  if (wheel_speeds_) subs.push_back({proto::Topic::wheel_speeds, ""});
   if (radar_) subs.push_back({proto::Topic::radar, ""});
   return subs;
 }
@@ -455,7 +467,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
     t.max_speed_mps = std::max(t.max_speed_mps, speed);
     ++t.samples;
     pending_frame_ = std::max(pending_frame_, s.frame);
-    for (std::size_t w = 0; w < s.wheels.size(); ++w) {
+    for (std::size_t w = 0; wheels_ && w < s.wheels.size(); ++w) {
       const auto& wp = s.wheels[w].pose.position;
       const auto& wq = s.wheels[w].pose.orientation;
       wheels_->row(s.frame, s.vehicle_id, w, wp.x(), wp.y(), wp.z(), wq.w(), wq.x(), wq.y(),
@@ -466,6 +478,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
     }
   }
   for (const auto& c : samples.driver_commands) {
+    if (!commands_) break;
     // `rejected`: the vehicle refuses it (NaN, out of range; the reason is in events.csv).
     commands_->row(c.frame, static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id, c.source,
                    c.steering, c.throttle, c.braking, proto::validate_command(c).empty() ? 0 : 1);
@@ -499,7 +512,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
                 Sig{m.heading_rad, 6});
     }
   }
-  if (gps_) record_sensors(samples);
+  record_sensors(samples);
   if (radar_) record_radar(samples);
   if (soil_) {
     std::uint64_t frame_bytes = 0;
@@ -527,20 +540,24 @@ void RecorderAgent::record_terrain_changes(std::int64_t frame) {
 
 void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
   for (const auto& m : samples.gps_fixes) {
+    if (!gps_) break;
     stamped_row(*gps_, m, Fixed{m.latitude_deg, 10}, Fixed{m.longitude_deg, 10},
                 Fixed{m.altitude_m, 4}, Fixed{m.enu_m.x(), 4}, Fixed{m.enu_m.y(), 4},
                 Fixed{m.enu_m.z(), 4});
   }
   for (const auto& m : samples.imus) {
+    if (!imu_) break;
     stamped_row(*imu_, m, Sig{m.accel_mps2.x(), 6}, Sig{m.accel_mps2.y(), 6},
                 Sig{m.accel_mps2.z(), 6}, Sig{m.gyro_rad_s.x(), 6}, Sig{m.gyro_rad_s.y(), 6},
                 Sig{m.gyro_rad_s.z(), 6});
   }
   for (const auto& m : samples.magnetometers) {
+    if (!compass_) break;
     stamped_row(*compass_, m, Sig{m.heading_rad, 6}, Sig{m.field_ut.x(), 6},
                 Sig{m.field_ut.y(), 6}, Sig{m.field_ut.z(), 6});
   }
   for (const auto& m : samples.wheel_speeds) {
+    if (!wheel_speeds_) break;
     const auto spin = [&](std::size_t i) {
       return Sig{i < m.wheel_spin_rad_s.size() ? m.wheel_spin_rad_s[i] : 0.0, 6};
     };

@@ -7,7 +7,8 @@
 // killed still says how far it got. Files (docs/outputs.md): vehicles.csv, commands.csv,
 // events.csv, wheels.csv, scene.json, radar.csv (with radars), summary.json, summary.txt, with followers convoy.json and
 // metrics.json, and on deformable terrain terrain_changes.csv, terrain_height.png,
-// terrain_rut.png, terrain_images.json.
+// terrain_rut.png, terrain_images.json. The files the scenario's `recorder.skip` names are
+// neither written nor subscribed to.
 #include <chrono>
 #include <map>
 #include <memory>

@@ -777,6 +777,20 @@ Scenario parse_scenario_config(const YamlNode& root, const std::string& text,
   if (auto n = m.optional("recorder")) {
     MapReader r(*n);
     s.recorder.enabled = r.get_or("enabled", true);
+    if (auto skip = r.optional("skip")) {
+      if (!skip->is_sequence()) skip->fail("expected a list of file names, e.g. [commands, wheels]");
+      for (const auto& e : skip->elements()) {
+        const std::string name = e.as_string();
+        const auto& known = kSkippableFiles;
+        if (std::find(std::begin(known), std::end(known), name) == std::end(known)) {
+          std::string list;
+          for (const char* k : known) list += std::string(list.empty() ? "" : ", ") + k;
+          e.fail("'" + name + "' is not a file the recorder may skip (" + list +
+                 "; vehicles and events are always written)");
+        }
+        if (!s.recorder.skip.insert(name).second) e.fail("'" + name + "' is listed twice");
+      }
+    }
     if (!s.recorder.enabled && s.terrain.deformable() && s.terrain.scm.routing) {
       r.required("enabled").fail(
           "the recorder keeps the whole soil that terrain.scm.routing sends to vehicles as they "

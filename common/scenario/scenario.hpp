@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -158,7 +159,17 @@ struct CheckpointConfig {
 
 struct RecorderConfig {
   bool enabled = true;
+  /// Files the recorder does not write (`recorder.skip`, by name without ".csv"; one of
+  /// kSkippableFiles). A file whose samples come on a topic of their own (commands.csv from
+  /// driver_command, gps.csv from gps_fix, ...) is then not subscribed to at all, which is
+  /// where the time goes (docs/performance.md). vehicles.csv and events.csv, which the
+  /// summaries and metrics are made from, cannot be skipped.
+  std::set<std::string> skip;
+  bool records(const std::string& file) const { return skip.count(file) == 0; }
 };
+/// The names `recorder.skip` takes.
+inline constexpr const char* kSkippableFiles[] = {"commands", "wheels",       "v2v",  "gps",
+                                                  "imu",      "compass", "wheel_speeds", "radar"};
 
 /// How the launcher places the members of a run in processes (`processes:`, or syndds_plan
 /// --processes; docs/deployment.md, "Processes"). The recorded results are byte-identical

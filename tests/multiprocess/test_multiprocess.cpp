@@ -118,6 +118,36 @@ TEST(Determinism, ConvoyReportAndMetricsAreByteIdentical) {
   EXPECT_GT(metrics["followers"][0]["samples"].get<int>(), 10);
 }
 
+// recorder.skip in a distributed run: the skipped files are missing (nothing was subscribed to
+// for them) and every other file is byte for byte the single-process run's without the skip.
+TEST(Determinism, ASkippingRecorderChangesNoOtherFile) {
+  TestRun run;
+  const std::string convoy =
+      "time: {step_s: 0.002, heartbeat_s: 0.01, end_time_s: 4}\nvehicles:\n"
+      "  - id: l1\n    model: hmmwv\n    dynamics: reduced\n    sensors: convoy\n"
+      "    v2v: {rate_hz: 10}\n    controller:\n      type: path_follower\n"
+      "      path: {waypoints: [[0, 0], [100, 0]]}\n      speed: {target_mps: 6}\n"
+      "  - id: f1\n    model: hmmwv\n    dynamics: reduced\n    start: {x: -12, y: 0}\n"
+      "    sensors: convoy\n    controller: {type: follower, follow: l1}\n";
+  const fs::path all = run.dir / "all.yaml", some = run.dir / "some.yaml";
+  std::ofstream(all) << "name: skip\n" << convoy;
+  std::ofstream(some) << "name: skip\n" << convoy
+                      << "recorder: {skip: [commands, wheels, v2v, gps, compass, wheel_speeds]}\n";
+  const std::string args = "--config-dir " + kConfig;
+  EXPECT_EQ(distributed_csv(run, some.string(), args),
+            single_process_csv(run, all.string(), args));
+  auto files = byte_identical_files(run.dir / "single");
+  for (const std::string f : {"commands.csv", "wheels.csv", "v2v.csv", "gps.csv", "compass.csv",
+                              "wheel_speeds.csv"}) {
+    EXPECT_EQ(files.erase(f), 1u) << f << " was not recorded without the skip";
+  }
+  EXPECT_TRUE(files.contains("convoy.json"));
+  EXPECT_EQ(byte_identical_files(run.dir / "distributed"), files);
+  for (const auto& f : files) {
+    EXPECT_EQ(read_file(run.dir / "distributed" / f), read_file(run.dir / "single" / f)) << f;
+  }
+}
+
 TEST(Determinism, ReverseStartOrderGivesTheSameResult) {
   TestRun run;
   const std::string single = single_process_csv(run, kTwo, "");

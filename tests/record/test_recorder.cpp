@@ -298,3 +298,45 @@ TEST(Recorder, TheMemberTableGivesEachMembersStepTime) {
             std::string::npos)
       << text;
 }
+
+// recorder.skip: the skipped files are neither written nor subscribed to, and the others are
+// byte for byte those of a recorder that skips nothing.
+TEST(Recorder, SkippedFilesAreNeitherWrittenNorSubscribedTo) {
+  const fs::path dir = test_dir();
+  const auto all = scenario_from(dir, kTwoVehicles);
+  const auto some = scenario_from(dir, kTwoVehicles + "recorder: {skip: [commands, wheels]}\n");
+  record::RecorderAgent plain(all, {(dir / "plain").string(), "test", "distributed"});
+  record::RecorderAgent skipping(some, {(dir / "skipping").string(), "test", "distributed"});
+  const auto topics = [](const record::RecorderAgent& r) {
+    std::set<proto::Topic> t;
+    for (const auto& s : r.subscriptions()) t.insert(s.topic);
+    return t;
+  };
+  EXPECT_TRUE(topics(plain).count(proto::Topic::driver_command));
+  EXPECT_FALSE(topics(skipping).count(proto::Topic::driver_command));
+  EXPECT_TRUE(topics(skipping).count(proto::Topic::vehicle_state));
+  for (std::int64_t k = 0; k < 20; ++k) {
+    proto::FrameSamples in = k > 0 ? states(k - 1, {"a", "b"}) : proto::FrameSamples{};
+    for (auto& st : in.vehicle_states) {
+      st.wheels.resize(4);
+      proto::DriverCommandMsg c;
+      c.vehicle_id = st.vehicle_id;
+      c.source = scenario::controller_member(st.vehicle_id);
+      c.frame = k - 1;
+      c.throttle = 0.5;
+      in.driver_commands.push_back(c);  // given to both: a skipping recorder ignores them
+    }
+    proto::FrameSamples out;
+    plain.step(context(k), in, out);
+    skipping.step(context(k), in, out);
+  }
+  plain.finish(completed(20), {});
+  skipping.finish(completed(20), {});
+  for (const char* file : {"vehicles.csv", "events.csv"}) {
+    EXPECT_EQ(read_file(dir / "skipping" / file), read_file(dir / "plain" / file)) << file;
+  }
+  EXPECT_GT(parse_csv(read_file(dir / "plain" / "commands.csv")).size(), 30u);
+  EXPECT_GT(parse_csv(read_file(dir / "plain" / "wheels.csv")).size(), 100u);
+  EXPECT_FALSE(fs::exists(dir / "skipping" / "commands.csv"));
+  EXPECT_FALSE(fs::exists(dir / "skipping" / "wheels.csv"));
+}

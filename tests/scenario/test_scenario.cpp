@@ -594,3 +594,25 @@ vehicles:
   EXPECT_NE(bad.find("trail"), std::string::npos) << bad;
   EXPECT_NE(bad.find("head"), std::string::npos) << bad;
 }
+
+// recorder.skip names files by their stem; vehicles and events (the summaries' source), names
+// that are no file and names given twice are refused with the line.
+TEST(Scenario, TheRecorderSkipsTheNamedFilesOnly) {
+  const auto s = parse(kMinimal + "recorder: {skip: [commands, wheels, gps]}\n");
+  EXPECT_EQ(s.recorder.skip, (std::set<std::string>{"commands", "gps", "wheels"}));
+  EXPECT_FALSE(s.recorder.records("commands"));
+  EXPECT_TRUE(s.recorder.records("imu"));
+  EXPECT_TRUE(parse(kMinimal).recorder.skip.empty());
+  for (const std::string bad : {"vehicles", "events", "commands.csv"}) {
+    const auto err = error_of(kMinimal + "recorder:\n  skip: [wheels,\n    " + bad + "]\n");
+    EXPECT_NE(err.find("test.yaml:11:"), std::string::npos) << err;
+    EXPECT_NE(err.find("'" + bad + "' is not a file the recorder may skip (commands, wheels"),
+              std::string::npos)
+        << err;
+  }
+  auto err = error_of(kMinimal + "recorder: {skip: [radar, radar]}\n");
+  EXPECT_NE(err.find("test.yaml:9:"), std::string::npos) << err;
+  EXPECT_NE(err.find("'radar' is listed twice"), std::string::npos) << err;
+  err = error_of(kMinimal + "recorder: {skip: commands}\n");
+  EXPECT_NE(err.find("expected a list of file names"), std::string::npos) << err;
+}
