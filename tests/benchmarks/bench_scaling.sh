@@ -8,6 +8,7 @@
 #       [--modes "distributed per_vehicle single"] [--duration S] [--output DIR]
 #       [--dds-profiles FILE] [--recorder-host last] [--cpu-offset C]
 #       [--placement interleaved|blocks] [--build-dir DIR] [--heartbeat S] [--recorder-in-group]
+#       [--recorder-skip "commands ..."]
 #
 # Modes: distributed = one process per member (the default layout); per_vehicle = a vehicle and
 # its controller in one syndds_group process; groupsK = the vehicles spread over K processes;
@@ -25,7 +26,8 @@
 # (the plan's K groups, --processes K: group k on host k). See docs/deployment.md, "Processes".
 # --recorder-in-group (hostgroupsK only): the recorder is a member of the last host's group
 # process (syndds_group --member recorder) instead of a process of its own (so on host K,
-# whatever --recorder-host says).
+# whatever --recorder-host says). --recorder-skip "F ...": the scenario's recorder.skip (files
+# neither written nor subscribed to, docs/outputs.md).
 # rigid: N vehicles on rigid ground driving closed loops 10 m apart at 8 m/s. soft: N vehicles
 # on soft SCM soil at 0.05 m, straight lanes 5 m apart at up to 5 m/s (the soil covers the
 # lanes only); soft_routed: the same with soil routing (docs/scm.md, "Routing"). Writes
@@ -42,7 +44,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BIN=${SYNDDS_BUILD_DIR:-$ROOT/build}/bin
 TERRAIN=rigid; NS="8 16 24 32"; MODES="distributed per_vehicle single"; DURATION=10; OUT=""
-PROFILES=(); RECORDER_IN_GROUP=0; RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved; HEARTBEAT=0.01
+PROFILES=(); RECORDER_IN_GROUP=0; RECORDER_SKIP=""; RECORDER_HOST=first; CPU_OFFSET=0; PLACEMENT=interleaved; HEARTBEAT=0.01
 while [ $# -gt 0 ]; do
   case "$1" in
     --terrain) TERRAIN=$2; shift ;;
@@ -57,7 +59,8 @@ while [ $# -gt 0 ]; do
     --build-dir) export SYNDDS_BUILD_DIR=$2; BIN=$2/bin; shift ;;
     --heartbeat) HEARTBEAT=$2; shift ;;
     --recorder-in-group) RECORDER_IN_GROUP=1 ;;
-    -h|--help) sed -n '2,39p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --recorder-skip) RECORDER_SKIP=$2; shift ;;
+    -h|--help) sed -n '2,42p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "bench_scaling: unknown option $1" >&2; exit 1 ;;
   esac
   shift
@@ -95,6 +98,7 @@ scenario() {  # $1 = N [$2 = SCM interest radius]; prints the file
     echo "name: scaling_${TERRAIN}_$n"
     echo "time: {step_s: 0.002, heartbeat_s: $HEARTBEAT, end_time_s: $DURATION}"
     echo "coordinator: {join_timeout_s: 120, frame_timeout_s: 60}"
+    [ -z "$RECORDER_SKIP" ] || echo "recorder: {skip: [$(echo $RECORDER_SKIP | sed 's/ /, /g')]}"
     if [ "$TERRAIN" != rigid ]; then
       echo "terrain:"
       echo "  type: scm"
