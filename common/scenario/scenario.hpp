@@ -168,7 +168,7 @@ struct RecorderConfig {
   bool records(const std::string& file) const { return skip.count(file) == 0; }
 };
 /// The names `recorder.skip` takes.
-inline constexpr const char* kSkippableFiles[] = {"commands", "wheels",       "v2v",  "gps",
+inline constexpr const char* kSkippableFiles[] = {"commands", "wheels",  "v2v",          "gps",
                                                   "imu",      "compass", "wheel_speeds", "radar"};
 
 /// How the launcher places the members of a run in processes (`processes:`, or syndds_plan
