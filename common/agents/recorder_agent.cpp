@@ -467,7 +467,7 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
     t.max_speed_mps = std::max(t.max_speed_mps, speed);
     ++t.samples;
     pending_frame_ = std::max(pending_frame_, s.frame);
-    for (std::size_t w = 0; wheels_ && w < s.wheels.size(); ++w) {
+    for (std::size_t w = 0; wheels_ && w < s.wheels.size(); ++w) {  // wheels_: not skipped
       const auto& wp = s.wheels[w].pose.position;
       const auto& wq = s.wheels[w].pose.orientation;
       wheels_->row(s.frame, s.vehicle_id, w, wp.x(), wp.y(), wp.z(), wq.w(), wq.x(), wq.y(),
@@ -477,12 +477,15 @@ void RecorderAgent::record(const proto::FrameSamples& samples, std::int64_t fram
       tracks_[s.vehicle_id].push_back({s.sim_time_s, Vec2(p.x(), p.y()), speed, p.z(), q});
     }
   }
-  for (const auto& c : samples.driver_commands) {
-    if (!commands_) break;
-    // `rejected`: the vehicle refuses it (NaN, out of range; the reason is in events.csv).
-    commands_->row(c.frame, static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id, c.source,
-                   c.steering, c.throttle, c.braking, proto::validate_command(c).empty() ? 0 : 1);
-    pending_frame_ = std::max(pending_frame_, c.frame);
+  // A skipped file's topic is not subscribed to, so its samples never come here.
+  if (commands_) {
+    for (const auto& c : samples.driver_commands) {
+      // `rejected`: the vehicle refuses it (NaN, out of range; the reason is in events.csv).
+      commands_->row(c.frame, static_cast<double>(c.frame) * heartbeat_s_, c.vehicle_id,
+                     c.source, c.steering, c.throttle, c.braking,
+                     proto::validate_command(c).empty() ? 0 : 1);
+      pending_frame_ = std::max(pending_frame_, c.frame);
+    }
   }
   for (const auto& e : samples.collision_events) {
     if (!e.other_vehicle_id.empty()) {
@@ -539,29 +542,34 @@ void RecorderAgent::record_terrain_changes(std::int64_t frame) {
 }
 
 void RecorderAgent::record_sensors(const proto::FrameSamples& samples) {
-  for (const auto& m : samples.gps_fixes) {
-    if (!gps_) break;
-    stamped_row(*gps_, m, Fixed{m.latitude_deg, 10}, Fixed{m.longitude_deg, 10},
-                Fixed{m.altitude_m, 4}, Fixed{m.enu_m.x(), 4}, Fixed{m.enu_m.y(), 4},
-                Fixed{m.enu_m.z(), 4});
+  // Each file only when it is written (no sensors, or skipped: its topic is not subscribed to).
+  if (gps_) {
+    for (const auto& m : samples.gps_fixes) {
+      stamped_row(*gps_, m, Fixed{m.latitude_deg, 10}, Fixed{m.longitude_deg, 10},
+                  Fixed{m.altitude_m, 4}, Fixed{m.enu_m.x(), 4}, Fixed{m.enu_m.y(), 4},
+                  Fixed{m.enu_m.z(), 4});
+    }
   }
-  for (const auto& m : samples.imus) {
-    if (!imu_) break;
-    stamped_row(*imu_, m, Sig{m.accel_mps2.x(), 6}, Sig{m.accel_mps2.y(), 6},
-                Sig{m.accel_mps2.z(), 6}, Sig{m.gyro_rad_s.x(), 6}, Sig{m.gyro_rad_s.y(), 6},
-                Sig{m.gyro_rad_s.z(), 6});
+  if (imu_) {
+    for (const auto& m : samples.imus) {
+      stamped_row(*imu_, m, Sig{m.accel_mps2.x(), 6}, Sig{m.accel_mps2.y(), 6},
+                  Sig{m.accel_mps2.z(), 6}, Sig{m.gyro_rad_s.x(), 6}, Sig{m.gyro_rad_s.y(), 6},
+                  Sig{m.gyro_rad_s.z(), 6});
+    }
   }
-  for (const auto& m : samples.magnetometers) {
-    if (!compass_) break;
-    stamped_row(*compass_, m, Sig{m.heading_rad, 6}, Sig{m.field_ut.x(), 6},
-                Sig{m.field_ut.y(), 6}, Sig{m.field_ut.z(), 6});
+  if (compass_) {
+    for (const auto& m : samples.magnetometers) {
+      stamped_row(*compass_, m, Sig{m.heading_rad, 6}, Sig{m.field_ut.x(), 6},
+                  Sig{m.field_ut.y(), 6}, Sig{m.field_ut.z(), 6});
+    }
   }
-  for (const auto& m : samples.wheel_speeds) {
-    if (!wheel_speeds_) break;
-    const auto spin = [&](std::size_t i) {
-      return Sig{i < m.wheel_spin_rad_s.size() ? m.wheel_spin_rad_s[i] : 0.0, 6};
-    };
-    stamped_row(*wheel_speeds_, m, spin(0), spin(1), spin(2), spin(3));
+  if (wheel_speeds_) {
+    for (const auto& m : samples.wheel_speeds) {
+      const auto spin = [&](std::size_t i) {
+        return Sig{i < m.wheel_spin_rad_s.size() ? m.wheel_spin_rad_s[i] : 0.0, 6};
+      };
+      stamped_row(*wheel_speeds_, m, spin(0), spin(1), spin(2), spin(3));
+    }
   }
 }
 
